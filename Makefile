@@ -1,0 +1,30 @@
+# One command sets up and runs each job on a fresh machine (Debian, Python >= 3.10).
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+# Menagerie's Panda: a local copy beside the project when there is no internet.
+export MENAGERIE_ROOT ?= $(abspath ../shared/menagerie)
+export MUJOCO_GL ?= egl
+export OMP_NUM_THREADS ?= 1
+
+.PHONY: setup demo test bench clean
+
+$(BIN)/activate:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --upgrade pip
+	$(BIN)/pip install torch==2.13.0
+	$(BIN)/pip install -e ".[test,train]"
+
+setup: $(BIN)/activate
+
+demo: setup
+	$(BIN)/franka-composer demo
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+bench: setup
+	$(BIN)/franka-composer bench
+
+clean:
+	rm -rf $(VENV) demo_output

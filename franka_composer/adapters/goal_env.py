@@ -1,0 +1,173 @@
+"""A thin Gymnasium `GoalEnv`-style adapter over the Composer suite, for HER learners.
+
+It only reshapes what the task exposes: the flat `observation` is the task's
+`observation_fields` concatenated in order (velocities times the control period), the goals
+are the task's achieved/desired goal observables, and the reward is the task's
+`compute_reward` on them: the same function HER calls to relabel.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+
+from franka_composer import suite
+from franka_composer.arenas.floor import MAX_RENDER_SIZE
+from franka_composer.tasks.rewards import goal_distance
+
+#: dtype of every observation array and of rewards.
+OBS_DTYPE = np.float64
+
+
+class FrankaGoalEnv(gym.Env, EzPickle):
+    """A franka_composer task as a Gymnasium environment with dict goal observations.
+
+    Args:
+      task: a name from `franka_composer.ALL_TASKS`.
+      reward_type: "sparse" or "dense".
+      render_mode: None, "rgb_array" (headless frames) or "human" (a viewer window).
+      width, height: size (pixels) of `rgb_array` frames, at most 1024.
+      camera: the arena camera to render from ("workspace" or "top").
+      **task_kwargs: overrides of the task's configuration (e.g. terminate_on_success=False).
+
+    Episodes end with `terminated=True` on success when the task's `terminate_on_success`
+    is set (the paper's default) or if the physics diverges; truncation at 50 steps comes
+    from Gymnasium's `TimeLimit` alone.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+
+    def __init__(self, task: str = "push", reward_type: str = "sparse",
+                 render_mode: str | None = None, width: int = 480, height: int = 480,
+                 camera: str = "workspace", **task_kwargs: Any) -> None:
+        EzPickle.__init__(self, task, reward_type, render_mode, width, height, camera,
+                          **task_kwargs)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, "
+                             f"{', '.join(self.metadata['render_modes'])}")
+        self._env = suite.load(task, reward_type=reward_type, **task_kwargs)
+        self._task = self._env.task
+        self.task_name = task
+        self.render_mode = render_mode
+        _check_render_size(width, height)
+        self._width, self._height, self._camera = width, height, camera
+        self._renderer = None
+        self._timestep = None
+
+        self._fields = self._task.observation_fields
+        self._scales = [self._env.control_timestep() if f.per_control_step else 1.0
+                        for f in self._fields]
+        size = sum(f.size for f in self._fields)
+        goal_box = spaces.Box(-np.inf, np.inf, shape=(3,), dtype=OBS_DTYPE)
+        self.observation_space = spaces.Dict({
+            "observation": spaces.Box(-np.inf, np.inf, shape=(size,), dtype=OBS_DTYPE),
+            "achieved_goal": goal_box,
+            "desired_goal": goal_box,
+        })
+        action_spec = self._env.action_spec()
+        self.action_space = spaces.Box(-1.0, 1.0, shape=action_spec.shape, dtype=np.float32)
+        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
+
+    # ----- Gymnasium API --------------------------------------------------------------------
+
+    @property
+    def dt(self) -> float:
+        """Seconds per step (the control period)."""
+        return self._env.control_timestep()
+
+    @property
+    def task(self):
+        """The Composer task (goals, reward settings, observation layout)."""
+        return self._task
+
+    @property
+    def composer_env(self):
+        """The underlying dm_env `composer.Environment`."""
+        return self._env
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        if seed is not None or self._timestep is None:
+            # The episode stream is a function of the seed; unseeded first resets draw it
+            # from Gymnasium's np_random so `reset()` alone is still reproducible per env.
+            self._env.random_state.seed(
+                seed if seed is not None else int(self.np_random.integers(2**31 - 1)))
+        self._timestep = self._env.reset()
+        obs = self._observation(self._timestep.observation)
+        if self.render_mode == "human":
+            self.render()
+        return obs, {"is_success": self._is_success(obs)}
+
+    def step(self, action):
+        if self._timestep is None:
+            raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
+        self._timestep = self._env.step(action)
+        obs = self._observation(self._timestep.observation)
+        info = {"is_success": self._is_success(obs)}
+        reward = self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)[()]
+        terminated = bool(self._timestep.last())
+        if terminated:
+            self._timestep = None  # Composer would reset on the next step: make it explicit.
+        if self.render_mode == "human":
+            self.render()
+        return obs, reward, terminated, False, info
+
+    def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
+        """Reward for goal pairs with any leading batch shape; `info` is ignored (may be a
+        dict, a list or array of dicts, or None). Returns float64 of the batch shape."""
+        return self._task.compute_reward(achieved_goal, desired_goal)
+
+    def compute_terminated(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
+        """Whether each goal pair ends the episode (success with terminate_on_success)."""
+        success = self._task.is_success(achieved_goal, desired_goal)
+        return success & self._task.terminate_on_success
+
+    def compute_truncated(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
+        """Never: truncation comes from the TimeLimit wrapper."""
+        return np.zeros(np.shape(goal_distance(achieved_goal, desired_goal)), dtype=bool)
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self._env.physics.render(self._height, self._width, camera_id=self._camera)
+        if self.render_mode == "human":
+            if self._renderer is None:
+                from gymnasium.envs.mujoco.mujoco_rendering import MujocoRenderer
+
+                physics = self._env.physics
+                self._renderer = MujocoRenderer(physics.model.ptr, physics.data.ptr,
+                                                camera_name=self._camera)
+            return self._renderer.render("human")
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if getattr(self, "_env", None) is not None and self._env._physics is not None:
+            self._env.close()
+
+    # ----- Reshaping ------------------------------------------------------------------------
+
+    def _observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
+        vector = np.concatenate([
+            np.asarray(composer_obs[field.key], dtype=OBS_DTYPE).ravel() * scale
+            for field, scale in zip(self._fields, self._scales)
+        ])
+        return {
+            "observation": vector,
+            "achieved_goal": np.array(composer_obs[self._task.achieved_goal_key], dtype=OBS_DTYPE),
+            "desired_goal": np.array(composer_obs[self._task.desired_goal_key], dtype=OBS_DTYPE),
+        }
+
+    def _is_success(self, obs: dict) -> bool:
+        return bool(self._task.is_success(obs["achieved_goal"], obs["desired_goal"]))
+
+
+def _check_render_size(width: int, height: int) -> None:
+    for name, value in (("width", width), ("height", height)):
+        if not (isinstance(value, (int, np.integer)) and 0 < value <= MAX_RENDER_SIZE):
+            raise ValueError(f"{name} must be an int in [1, {MAX_RENDER_SIZE}], got {value!r}")

@@ -1,0 +1,37 @@
+"""Registers the reference implementation's Gymnasium ids, generated from the task registry.
+
+`Franka{Push,Slide,PickAndPlace}{Sparse,Dense}-v0`: users of `panda_mujoco_gym` switch by
+changing one import. Version history: v0, the paper's tasks (this implementation).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+from franka_composer.tasks import ALL_TASKS
+from franka_composer.tasks.rewards import REWARD_TYPES
+
+MAX_EPISODE_STEPS = 50
+ENTRY_POINT = "franka_composer.adapters.goal_env:FrankaGoalEnv"
+
+
+def env_id(task: str, reward_type: str, version: int = 0) -> str:
+    """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`."""
+    camel = "".join(part.capitalize() for part in task.split("_"))
+    return f"Franka{camel}{reward_type.capitalize()}-v{version}"
+
+
+#: Every registered id, mapped to its (task, reward type).
+ENV_IDS: dict[str, tuple[str, str]] = {
+    env_id(task, reward_type): (task, reward_type)
+    for task in ALL_TASKS for reward_type in REWARD_TYPES
+}
+
+
+def register_envs() -> None:
+    """Registers every id once (re-importing is harmless)."""
+    for id_, (task, reward_type) in ENV_IDS.items():
+        if id_ not in gym.registry:
+            gym.register(id=id_, entry_point=ENTRY_POINT,
+                         kwargs={"task": task, "reward_type": reward_type},
+                         max_episode_steps=MAX_EPISODE_STEPS)

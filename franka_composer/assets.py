@@ -1,0 +1,32 @@
+"""Where the Menagerie Panda comes from.
+
+The Panda is never vendored: it is resolved through the `mujoco-menagerie` package, which
+downloads and caches Menagerie models on first use, or reads a local checkout named by the
+`MENAGERIE_ROOT` environment variable (the only option on machines without internet).
+"""
+
+from __future__ import annotations
+
+import functools
+import pathlib
+
+PANDA_NAME = "franka_emika_panda"
+
+
+@functools.lru_cache(maxsize=None)
+def panda_dir() -> pathlib.Path:
+    """The folder holding Menagerie's `franka_emika_panda` (panda.xml and its meshes)."""
+    import mujoco_menagerie  # Deferred: resolving may download on first use.
+
+    try:
+        return mujoco_menagerie.get(PANDA_NAME).path()
+    except mujoco_menagerie.MenagerieError as error:
+        raise RuntimeError(
+            f"Could not resolve Menagerie's {PANDA_NAME!r}: {error}. Set MENAGERIE_ROOT to a "
+            "folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when offline."
+        ) from error
+
+
+def panda_xml() -> pathlib.Path:
+    """Menagerie's arm-and-hand model file."""
+    return panda_dir() / "panda.xml"

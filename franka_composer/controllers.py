@@ -1,0 +1,128 @@
+"""End-effector control as the paper does it: a mocap body welded to the tool centre point.
+
+Each control step the action's position part, scaled to at most `max_tcp_step` metres, is
+added to the current tool-centre-point position and becomes the mocap target; the weld drags
+the hand there during the physics substeps and holds it top-down. The gripper part, when the
+gripper is actuated, changes the commanded finger width by at most `max_finger_step` metres.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from dm_env import specs
+
+from franka_composer.entities.panda import MAX_FINGER_WIDTH, Panda
+
+# Weld stiffness: MuJoCo's default time constant (0.02 s) lets the hand lag a full-speed
+# command by ~40 % over a 0.05 s control step. 0.006 s (3 physics steps, critically damped)
+# tracks 0.05 m within the step without overshoot and stays stable at the 2 ms timestep.
+_WELD_SOLREF = (0.006, 1.0)
+_WELD_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class ControlSettings:
+    """How actions in [-1, 1] map to motion.
+
+    Attributes:
+      max_tcp_step: metres the tool centre point is commanded to move per control step for
+        an action component of 1.
+      max_finger_step: metres the finger width changes per control step for a gripper
+        action of 1 (0.2 > 0.08: one full command opens or closes the hand).
+      actuated_gripper: whether the action has a 4th, gripper, component; if not, the
+        fingers are held at `locked_finger_width`.
+      locked_finger_width: finger width (m) held when the gripper is not actuated.
+      min_tcp_height: lowest commanded tool-centre-point height (m, world frame).
+    """
+
+    max_tcp_step: float = 0.05
+    max_finger_step: float = 0.2
+    actuated_gripper: bool = False
+    locked_finger_width: float = 0.0
+    min_tcp_height: float = 0.0
+
+    @property
+    def action_size(self) -> int:
+        return 4 if self.actuated_gripper else 3
+
+
+class MocapController:
+    """Adds a mocap body and a weld to the arena, and turns actions into mocap targets."""
+
+    def __init__(self, arena, panda: Panda, settings: ControlSettings) -> None:
+        self._panda = panda
+        self._settings = settings
+        root = arena.mjcf_model
+        # Mocap bodies must hang from the world body, so the target lives in the arena.
+        self._target = root.worldbody.add("body", name="tcp_target", mocap=True)
+        target_site = self._target.add("site", name="tcp_target", size=(0.005,),
+                                       rgba=(0, 1, 0, 0.5), group=4)
+        self._weld = root.equality.add("weld", name="tcp_weld", site1=target_site,
+                                       site2=panda.tcp_site, solref=_WELD_SOLREF,
+                                       solimp=_WELD_SOLIMP)
+        self._action_spec = specs.BoundedArray(
+            shape=(settings.action_size,), dtype=np.float32, minimum=-1.0, maximum=1.0,
+            name="tcp_delta_and_gripper" if settings.actuated_gripper else "tcp_delta",
+        )
+
+    @property
+    def settings(self) -> ControlSettings:
+        return self._settings
+
+    @property
+    def target(self):
+        """The mocap body the tool centre point is welded to."""
+        return self._target
+
+    def action_spec(self) -> specs.BoundedArray:
+        return self._action_spec
+
+    def initialize_episode(self, physics) -> None:
+        """Puts the mocap target on the tool centre point, so the weld starts slack.
+
+        Call after the arm is configured and `physics.forward()` has run."""
+        tcp = physics.bind(self._panda.tcp_site)
+        quat = np.empty(4)
+        _mat2quat(tcp.xmat, quat)
+        target = physics.bind(self._target)
+        target.mocap_pos = tcp.xpos
+        target.mocap_quat = quat
+
+    def validate(self, action) -> np.ndarray:
+        """The action as a float64 vector; a clear error for a wrong shape or a non-finite
+        value, before anything reaches MuJoCo."""
+        array = np.asarray(action, dtype=np.float64)
+        expected = self._action_spec.shape
+        if array.shape != expected:
+            raise ValueError(
+                f"action must have shape {expected} ({_describe(self._settings)}), "
+                f"got shape {array.shape}"
+            )
+        if not np.all(np.isfinite(array)):
+            raise ValueError(f"action must be finite, got {array.tolist()}")
+        return array
+
+    def apply(self, physics, action) -> None:
+        """Sets the mocap target (and gripper command) for the next control step.
+
+        Components are clipped to [-1, 1], as in Fetch."""
+        action = np.clip(self.validate(action), -1.0, 1.0)
+        settings = self._settings
+        target = np.array(physics.bind(self._panda.tcp_site).xpos) + settings.max_tcp_step * action[:3]
+        target[2] = max(target[2], settings.min_tcp_height)
+        physics.bind(self._target).mocap_pos = target
+        if settings.actuated_gripper:
+            width = self._panda.finger_width(physics) + settings.max_finger_step * action[3]
+            physics.bind(self._panda.gripper_actuator).ctrl = np.clip(width, 0.0, MAX_FINGER_WIDTH)
+
+
+def _describe(settings: ControlSettings) -> str:
+    return "dx, dy, dz, gripper" if settings.actuated_gripper else "dx, dy, dz"
+
+
+def _mat2quat(xmat: np.ndarray, out: np.ndarray) -> None:
+    import mujoco
+
+    mujoco.mju_mat2Quat(out, np.ascontiguousarray(xmat, dtype=np.float64).ravel())

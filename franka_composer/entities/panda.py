@@ -1,0 +1,183 @@
+"""The Franka Emika Panda (arm and parallel gripper) from MuJoCo Menagerie.
+
+Menagerie's `panda.xml` is loaded as it is and changed here, in code, for what the tasks
+need: the keyframe goes (it breaks once props add free joints), the arm's position servos go
+(a mocap weld moves the hand, and servos would fight it), gravity is compensated in the
+links (so the weld only has to move the arm, not hold it up), a tool-centre-point site is
+added between the fingertips, the gripper servo takes a finger width in metres, and only the
+hand and fingers collide, with the objects and the floor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control import composer, mjcf
+from dm_control.composer import define
+from dm_control.composer.observation import observable
+
+from franka_composer import assets
+
+#: Neutral arm configuration (rad), hand pointing straight down above the workspace.
+NEUTRAL_ARM_QPOS = (0.00, 0.41, 0.00, -1.85, 0.00, 2.26, 0.79)
+
+#: Largest opening between the fingers (m): each finger slides 0.04.
+MAX_FINGER_WIDTH = 0.08
+
+#: Tool centre point: between the fingertips, this far from the hand body along its z axis
+#: (panda-gym's grasp target).
+TCP_OFFSET = 0.105
+
+_ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
+_FINGER_JOINTS = ("finger_joint1", "finger_joint2")
+_ARM_ACTUATORS = tuple(f"actuator{i}" for i in range(1, 8))
+_GRIPPER_ACTUATOR = "actuator8"
+_MOVING_BODIES = tuple(f"link{i}" for i in range(1, 8)) + ("hand", "left_finger", "right_finger")
+_FINGER_BODIES = ("left_finger", "right_finger")
+_COLLIDING_BODIES = ("hand",) + _FINGER_BODIES
+
+# Gripper servo on the finger tendon (tendon length = half the finger width). Menagerie's
+# gain of 100 N/m squeezes a 4 cm block with only 1 N per finger, which lets a 0.1 kg block
+# slip out when lifted; 1000 N/m gives 10 N per finger, about 20 N of friction against 1 N of
+# weight, still well inside Menagerie's +-100 N force range and the real hand's 70 N.
+_GRIPPER_STIFFNESS = 1000.0
+_GRIPPER_DAMPING = 30.0
+
+# Finger contacts: rubber-like sliding friction of 2 (MuJoCo uses the larger of the two
+# geoms' values) keeps a squeezed block from creeping down while it is lifted (measured: 3 mm
+# of creep over a 0.15 m lift and 0.1 m carry, against 8 mm at friction 1); torsional friction
+# (condim 4) stops it pivoting about the pad normal, which Menagerie's condim 3 allows.
+_FINGER_CONDIM = 4
+_FINGER_FRICTION = (2.0, 0.005, 0.0001)
+
+#: Collision bits: robot geoms collide with everything but each other.
+ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 0
+
+
+class Panda(composer.Robot):
+    """Menagerie's Panda with a tool-centre-point site and a width-controlled gripper."""
+
+    def _build(self, name: str = "panda") -> None:
+        self._mjcf_root = mjcf.from_path(str(assets.panda_xml()))
+        self._mjcf_root.model = name
+        if self._mjcf_root.keyframe is not None:
+            for key in self._mjcf_root.keyframe.all_children():
+                key.remove()
+        for actuator_name in _ARM_ACTUATORS:
+            self._mjcf_root.find("actuator", actuator_name).remove()
+        for body_name in _MOVING_BODIES:
+            self._mjcf_root.find("body", body_name).gravcomp = 1
+        self._configure_collisions()
+        self._configure_gripper()
+
+        hand = self._mjcf_root.find("body", "hand")
+        self._tcp_site = hand.add(
+            "site", name="tcp", pos=(0, 0, TCP_OFFSET), size=(0.005,), rgba=(1, 0.5, 0, 0.6),
+            group=4,
+        )
+        self._tcp_velocity = self._mjcf_root.sensor.add(
+            "framelinvel", name="tcp_velocity", objtype="site", objname=self._tcp_site
+        )
+        self._hand = hand
+        self._arm_joints = tuple(self._mjcf_root.find("joint", j) for j in _ARM_JOINTS)
+        self._finger_joints = tuple(self._mjcf_root.find("joint", j) for j in _FINGER_JOINTS)
+        self._gripper_actuator = self._mjcf_root.find("actuator", _GRIPPER_ACTUATOR)
+
+    def _configure_collisions(self) -> None:
+        """Only the hand and fingers collide (with props and floor): the links never reach
+        the workspace in a top-down pose, and skipping their meshes saves collision tests."""
+        colliding = {self._mjcf_root.find("body", b) for b in _COLLIDING_BODIES}
+        for geom in self._mjcf_root.find_all("geom"):
+            if geom.dclass is not None and geom.dclass.dclass == "visual":
+                continue
+            if geom.parent in colliding:
+                geom.contype, geom.conaffinity = ROBOT_CONTYPE, ROBOT_CONAFFINITY
+            else:
+                geom.contype, geom.conaffinity = 0, 0
+            if geom.parent.name in _FINGER_BODIES:
+                geom.condim, geom.friction = _FINGER_CONDIM, _FINGER_FRICTION
+
+    def _configure_gripper(self) -> None:
+        """The gripper servo's control is the finger width in metres, in [0, 0.08]."""
+        actuator = self._mjcf_root.find("actuator", _GRIPPER_ACTUATOR)
+        actuator.ctrlrange = (0.0, MAX_FINGER_WIDTH)
+        # force = k * (ctrl / 2 - tendon) - d * tendon_velocity, tendon = width / 2.
+        actuator.gainprm = (_GRIPPER_STIFFNESS / 2, 0, 0)
+        actuator.biasprm = (0, -_GRIPPER_STIFFNESS, -_GRIPPER_DAMPING)
+
+    def _build_observables(self) -> "PandaObservables":
+        return PandaObservables(self)
+
+    @property
+    def mjcf_model(self) -> mjcf.RootElement:
+        return self._mjcf_root
+
+    @property
+    def actuators(self) -> tuple:
+        """The one actuator left: the gripper servo (finger width, m)."""
+        return (self._gripper_actuator,)
+
+    @property
+    def gripper_actuator(self):
+        return self._gripper_actuator
+
+    @property
+    def joints(self) -> tuple:
+        """The seven arm joints."""
+        return self._arm_joints
+
+    @property
+    def finger_joints(self) -> tuple:
+        return self._finger_joints
+
+    @property
+    def hand(self):
+        """The hand body; the mocap weld attaches here through `tcp_site`."""
+        return self._hand
+
+    @property
+    def tcp_velocity(self):
+        """Sensor: linear velocity of the tool centre point (m/s, world frame)."""
+        return self._tcp_velocity
+
+    @property
+    def tcp_site(self):
+        """Tool centre point, between the fingertips (world frame when bound)."""
+        return self._tcp_site
+
+    def configure_joints(self, physics, arm_qpos, finger_width: float) -> None:
+        """Puts the arm at `arm_qpos` (rad) at rest, fingers at `finger_width` (m) with the
+        gripper servo holding that width, so the first step does not jerk."""
+        physics.bind(self._arm_joints).qpos = arm_qpos
+        physics.bind(self._arm_joints).qvel = 0.0
+        physics.bind(self._finger_joints).qpos = finger_width / 2
+        physics.bind(self._finger_joints).qvel = 0.0
+        physics.bind(self._gripper_actuator).ctrl = finger_width
+
+    def finger_width(self, physics) -> float:
+        """Distance between the fingers (m)."""
+        return float(np.sum(physics.bind(self._finger_joints).qpos))
+
+
+class PandaObservables(composer.Observables):
+    """What a policy may see of the Panda; velocities are per second (world frame)."""
+
+    @define.observable
+    def tcp_pos(self):
+        return observable.MJCFFeature("xpos", self._entity.tcp_site)
+
+    @define.observable
+    def tcp_velp(self):
+        return observable.MJCFFeature("sensordata", self._entity.tcp_velocity)
+
+    @define.observable
+    def finger_width(self):
+        return observable.Generic(lambda physics: np.array([self._entity.finger_width(physics)]))
+
+    @define.observable
+    def joints_pos(self):
+        return observable.MJCFFeature("qpos", self._entity.joints)
+
+    @define.observable
+    def joints_vel(self):
+        return observable.MJCFFeature("qvel", self._entity.joints)
+

@@ -1,0 +1,68 @@
+"""The objects the robot moves: a block (push, pick_and_place) and a puck (slide).
+
+Both are dm_control `Primitive` props, which bring frame sensors and the free-prop
+observables (position, orientation quaternion, linear and angular velocity, world frame),
+plus an `orientation_euler` observable for the paper's observation vector.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control.composer import define
+from dm_control.composer.observation import observable
+from dm_control.entities.props import primitive
+
+
+class Prop(primitive.Primitive):
+    """A single-geom free prop; `resting_height` is its centre's height on a surface."""
+
+    resting_height: float
+
+    def _build_observables(self) -> "PropObservables":
+        return PropObservables(self)
+
+
+class Block(Prop):
+    """A cube."""
+
+    def _build(self, half_size: float = 0.02, mass: float = 1.0, friction: float = 1.0,
+               name: str = "block", rgba=(0.1, 0.45, 0.9, 1.0)) -> None:
+        # condim 4 adds torsional friction, so a pushed block turns about z like a real one
+        # rather than spinning freely on its contact patch, and a held block cannot pivot
+        # between the finger pads.
+        super()._build(geom_type="box", size=(half_size,) * 3, name=name, mass=mass,
+                       friction=(friction, 0.005, 0.0001), condim=4, rgba=rgba)
+        self.resting_height = half_size
+
+
+class Puck(Prop):
+    """A flat cylinder that slides on a low-friction surface."""
+
+    def _build(self, radius: float = 0.03, half_height: float = 0.03, mass: float = 1.0,
+               friction: float = 0.04, name: str = "puck",
+               rgba=(0.9, 0.45, 0.1, 1.0)) -> None:
+        # condim 3 (no torsional or rolling friction): the puck glides and spins freely,
+        # like an air-hockey puck; its sliding friction alone sets how far it goes.
+        super()._build(geom_type="cylinder", size=(radius, half_height), name=name, mass=mass,
+                       friction=(friction, 0.0, 0.0), condim=3, rgba=rgba)
+        self.resting_height = half_height
+
+
+class PropObservables(primitive.PrimitiveObservables):
+    """The free-prop observables plus the orientation as Euler angles."""
+
+    @define.observable
+    def orientation_euler(self):
+        """Roll, pitch, yaw (rad): x-y-z extrinsic angles of the prop's orientation."""
+        sensor = self._entity.orientation
+        return observable.Generic(lambda physics: quat_to_euler(physics.bind(sensor).sensordata))
+
+
+def quat_to_euler(quat: np.ndarray) -> np.ndarray:
+    """(w, x, y, z) unit quaternion to (roll, pitch, yaw) in radians, x-y-z extrinsic
+    (the convention of Gymnasium-Robotics' `rotations.quat2euler`)."""
+    w, x, y, z = quat
+    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.array([roll, pitch, yaw])

@@ -1,0 +1,39 @@
+"""`load(name)`: a task by name as a dm_env `composer.Environment`."""
+
+from __future__ import annotations
+
+from franka_composer.environment import Environment
+from franka_composer.tasks import build_task, task_config
+
+#: Times Composer retries an episode whose initialisation raised EpisodeInitializationError.
+MAX_RESET_ATTEMPTS = 10
+
+
+def load(name: str, *, reward_type: str = "sparse", seed=None,
+         **task_kwargs) -> Environment:
+    """Builds the named task as a Composer (dm_env) environment.
+
+    Args:
+      name: one of `franka_composer.ALL_TASKS`.
+      reward_type: "sparse" (0 at the goal, else -1) or "dense" (-distance).
+      seed: an int, a `np.random.RandomState`, or None; the only randomness of the episodes.
+      **task_kwargs: overrides of the task's `TaskConfig` fields, e.g.
+        `terminate_on_success=False`, `distance_threshold=0.03`.
+
+    Raises:
+      ValueError: unknown task name or option, naming the valid ones.
+
+    The environment has no time limit of its own (the Gymnasium adapter truncates at 50
+    steps), compiles the MJCF once, and ends an episode with a warning, not an exception,
+    if the physics diverges.
+    """
+    task = build_task(task_config(name, reward_type=reward_type, **task_kwargs))
+    return Environment(
+        task,
+        random_state=seed,
+        time_limit=float("inf"),
+        recompile_mjcf_every_episode=False,
+        strip_singleton_obs_buffer_dim=True,
+        raise_exception_on_physics_error=False,
+        max_reset_attempts=MAX_RESET_ATTEMPTS,
+    )
