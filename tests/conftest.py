@@ -1,0 +1,40 @@
+"""Test set-up: Menagerie from ../shared/menagerie when offline, headless GL, one thread."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+
+_REPO = pathlib.Path(__file__).resolve().parents[1]
+_SHARED_MENAGERIE = _REPO.parent / "shared" / "menagerie"
+if "MENAGERIE_ROOT" not in os.environ and _SHARED_MENAGERIE.is_dir():
+    os.environ["MENAGERIE_ROOT"] = str(_SHARED_MENAGERIE)
+os.environ.setdefault("MUJOCO_GL", "egl")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import franka_composer  # noqa: E402
+
+
+@pytest.fixture(params=franka_composer.ALL_TASKS)
+def task_name(request) -> str:
+    """Every registered task: a new task is tested the day it is added."""
+    return request.param
+
+
+def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):
+    """Drives the tool centre point to `target` with proportional actions; returns the last
+    timestep. Used by physical tests that need the hand somewhere first."""
+    size = env.action_spec().shape[0]
+    for _ in range(max_steps):
+        error = np.asarray(target) - timestep.observation["panda/tcp_pos"]
+        if np.linalg.norm(error) < tolerance:
+            break
+        action = np.zeros(size, np.float32)
+        action[:3] = np.clip(error / 0.05, -1, 1)
+        if gripper is not None:
+            action[3] = gripper
+        timestep = env.step(action)
+    return timestep

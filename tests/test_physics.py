@@ -1,0 +1,148 @@
+"""Physical behaviour, measured: end-effector tracking, grasp holding, sliding, pushing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import franka_composer
+from conftest import move_tcp_to
+
+
+def _hand_tilt_degrees(env) -> float:
+    """Angle between the hand's approach axis and straight down."""
+    axis = env.physics.bind(env.task.panda.tcp_site).xmat.reshape(3, 3)[:, 2]
+    return float(np.degrees(np.arccos(np.clip(-axis[2], -1, 1))))
+
+
+@pytest.mark.parametrize("direction", [(1, 0, 0), (0, -1, 0), (0, 0, -1)])
+def test_one_full_action_moves_the_tcp_by_most_of_five_centimetres(task_name, direction):
+    env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
+    start = env.reset().observation["panda/tcp_pos"].copy()
+    action = np.zeros(env.action_spec().shape, np.float32)
+    action[:3] = direction
+    end = env.step(action).observation["panda/tcp_pos"]
+    moved = (end - start) @ np.asarray(direction, float)
+    assert 0.8 * 0.05 <= moved <= 1.1 * 0.05
+    sideways = np.linalg.norm((end - start) - moved * np.asarray(direction, float))
+    assert sideways < 0.002
+    assert _hand_tilt_degrees(env) < 5.0
+
+
+def test_zero_action_holds_the_tcp_still(task_name):
+    env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
+    timestep = env.reset()
+    timestep = move_tcp_to(env, timestep, timestep.observation["panda/tcp_pos"] + [0, 0.05, 0.05])
+    start = timestep.observation["panda/tcp_pos"].copy()
+    for _ in range(10):
+        timestep = env.step(np.zeros(env.action_spec().shape, np.float32))
+    assert np.linalg.norm(timestep.observation["panda/tcp_pos"] - start) < 0.002
+    assert _hand_tilt_degrees(env) < 5.0
+
+
+def test_tcp_is_never_commanded_below_the_surface():
+    env = franka_composer.load("push", seed=0, terminate_on_success=False, object_range=(0, 0),
+                               object_centre=(0.3, 0.3))
+    env.reset()
+    for _ in range(15):
+        timestep = env.step(np.array([0, 0, -1], np.float32))
+    assert env.physics.bind(env.task.controller.target).mocap_pos[2] == pytest.approx(0.0)
+    assert timestep.observation["panda/tcp_pos"][2] > -0.01
+
+
+def _grasp_block(env):
+    timestep = env.reset()
+    block = timestep.observation["block/position"].copy()
+    timestep = move_tcp_to(env, timestep, block + [0, 0, 0.08], gripper=1)
+    timestep = move_tcp_to(env, timestep, block, gripper=1)
+    for _ in range(4):
+        timestep = env.step(np.array([0, 0, 0, -1], np.float32))
+    return timestep
+
+
+def test_grasped_block_stays_in_hand_while_lifting_and_carrying():
+    env = franka_composer.load("pick_and_place", seed=1, terminate_on_success=False)
+    timestep = _grasp_block(env)
+    width = timestep.observation["panda/finger_width"][0]
+    assert width == pytest.approx(0.04, abs=0.003)  # Closed on the 4 cm block.
+    start_height = timestep.observation["block/position"][2]
+    for _ in range(10):  # Lift 0.15 m over 10 steps.
+        timestep = env.step(np.array([0, 0, 0.3, -1], np.float32))
+        gap = timestep.observation["panda/tcp_pos"] - timestep.observation["block/position"]
+        assert np.linalg.norm(gap) < 0.02
+    assert timestep.observation["block/position"][2] - start_height > 0.13
+    start_y = timestep.observation["block/position"][1]
+    for _ in range(10):  # Carry 0.1 m sideways.
+        timestep = env.step(np.array([0, 0.2, 0, -1], np.float32))
+        gap = timestep.observation["panda/tcp_pos"] - timestep.observation["block/position"]
+        assert np.linalg.norm(gap) < 0.02
+    assert timestep.observation["block/position"][1] - start_y > 0.09
+
+
+def test_opening_the_gripper_releases_the_block():
+    env = franka_composer.load("pick_and_place", seed=1, terminate_on_success=False)
+    _grasp_block(env)
+    for _ in range(5):
+        env.step(np.array([0, 0, 0.6, -1], np.float32))
+    for _ in range(10):
+        timestep = env.step(np.array([0, 0, 0, 1], np.float32))
+    assert timestep.observation["panda/finger_width"][0] > 0.07
+    assert timestep.observation["block/position"][2] == pytest.approx(0.02, abs=0.005)
+
+
+def _strike(**options) -> float:
+    """Strikes the object along +x (0.3 of full speed, 3 steps); returns how far it goes."""
+    env = franka_composer.load("slide", seed=0, terminate_on_success=False,
+                               object_range=(0, 0), object_centre=(0.55, 0.0), **options)
+    timestep = env.reset()
+    start = timestep.observation["puck/position"].copy()
+    timestep = move_tcp_to(env, timestep, start + [-0.06, 0, 0.1])
+    timestep = move_tcp_to(env, timestep, start + [-0.06, 0, 0.0])
+    for _ in range(3):
+        env.step(np.array([0.3, 0, 0], np.float32))
+    for _ in range(3):
+        env.step(np.array([-1, 0, 0], np.float32))  # Pull back: no further contact.
+    for _ in range(25):
+        timestep = env.step(np.zeros(3, np.float32))
+    return float(timestep.observation["puck/position"][0] - start[0])
+
+
+def test_struck_puck_slides_much_farther_on_the_slippery_floor():
+    slippery = _strike()
+    rough = _strike(floor_friction=1.0, object_friction=1.0)
+    assert rough < 0.2
+    assert slippery > 4 * rough
+    assert slippery > 0.4  # Measured 0.53 m; the rough floor stops it within 0.13 m.
+
+
+def test_push_gripper_cannot_open():
+    env = franka_composer.load("push", seed=0, terminate_on_success=False)
+    env.reset()
+    rng = np.random.default_rng(0)
+    widths = []
+    for _ in range(50):
+        env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+        widths.append(env.task.panda.finger_width(env.physics))
+    assert env.action_spec().shape == (3,)
+    assert max(widths) < 0.002
+
+
+def test_pushed_block_slides_along_the_floor_without_tipping_over():
+    upright = 0
+    for seed in range(6):
+        env = franka_composer.load("push", seed=seed, terminate_on_success=False)
+        timestep = env.reset()
+        block = timestep.observation["block/position"].copy()
+        timestep = move_tcp_to(env, timestep, block + [-0.06, 0, 0.08])
+        timestep = move_tcp_to(env, timestep, block + [-0.06, 0, 0.0])
+        for _ in range(4):
+            timestep = env.step(np.array([0.4, 0, 0], np.float32))
+        for _ in range(5):
+            timestep = env.step(np.zeros(3, np.float32))
+        moved = timestep.observation["block/position"][0] - block[0]
+        assert moved > 0.03
+        roll, pitch = timestep.observation["block/orientation_euler"][:2]
+        height = timestep.observation["block/position"][2]
+        if abs(roll) < 0.2 and abs(pitch) < 0.2 and height < 0.025:
+            upright += 1
+    assert upright >= 4

@@ -1,0 +1,41 @@
+"""The reward contract: sparse/dense values, success radius, batch shapes, clear errors."""
+
+import numpy as np
+import pytest
+
+from franka_composer.tasks import rewards
+
+
+def test_sparse_reward_is_zero_inside_threshold_and_minus_one_outside():
+    goal = np.zeros(3)
+    assert rewards.compute_reward([0.049, 0, 0], goal, "sparse", 0.05) == 0.0
+    assert rewards.compute_reward([0.05, 0, 0], goal, "sparse", 0.05) == -1.0
+    assert rewards.compute_reward([0, 0.3, 0.4], goal, "sparse", 0.05) == -1.0
+
+
+def test_dense_reward_is_minus_distance():
+    assert rewards.compute_reward([0, 0.3, 0.4], np.zeros(3), "dense", 0.05) == pytest.approx(-0.5)
+
+
+def test_batched_reward_matches_per_pair_values_for_any_leading_shape():
+    rng = np.random.default_rng(0)
+    achieved, desired = rng.uniform(-0.1, 0.1, (2, 5, 4, 3))
+    for reward_type in rewards.REWARD_TYPES:
+        batched = rewards.compute_reward(achieved, desired, reward_type, 0.05)
+        assert batched.shape == (5, 4)
+        assert batched.dtype == np.float64
+        singles = [[rewards.compute_reward(a, d, reward_type, 0.05) for a, d in zip(ra, rd)]
+                   for ra, rd in zip(achieved, desired)]
+        np.testing.assert_array_equal(batched, np.array(singles))
+
+
+def test_success_is_distance_below_threshold():
+    assert rewards.is_success([0.0299, 0, 0], np.zeros(3), 0.03)
+    assert not rewards.is_success([0.03, 0, 0], np.zeros(3), 0.03)
+
+
+def test_unknown_reward_type_and_bad_goal_shape_raise_clear_errors():
+    with pytest.raises(ValueError, match="unknown reward_type 'shaped'.*sparse, dense"):
+        rewards.compute_reward(np.zeros(3), np.zeros(3), "shaped", 0.05)
+    with pytest.raises(ValueError, match=r"goals must end in an axis of 3"):
+        rewards.compute_reward(np.zeros(2), np.zeros(2), "sparse", 0.05)

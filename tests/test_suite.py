@@ -1,0 +1,189 @@
+"""The dm_env interface over every task: spec conformity, reset state, determinism, errors."""
+
+from __future__ import annotations
+
+import unittest
+
+import dm_env
+import numpy as np
+import pytest
+from dm_env import test_utils
+
+import franka_composer
+from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
+from franka_composer.tasks import TASK_CONFIGS
+
+
+def _make_conformance_case(name: str) -> type:
+    class Conformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+        def make_object_under_test(self):
+            return franka_composer.load(name, seed=0)
+
+        def make_action_sequence(self):
+            # Long enough to cross an episode boundary via a success on some seeds.
+            rng = np.random.default_rng(0)
+            spec = self.environment.action_spec()
+            for _ in range(60):
+                yield rng.uniform(-1, 1, spec.shape).astype(spec.dtype)
+
+    Conformance.__name__ = Conformance.__qualname__ = f"TestDmEnvConformance_{name}"
+    return Conformance
+
+
+for _name in franka_composer.ALL_TASKS:
+    globals()[f"TestDmEnvConformance_{_name}"] = _make_conformance_case(_name)
+
+
+def test_all_tasks_lists_the_papers_tasks():
+    assert set(franka_composer.ALL_TASKS) >= {"push", "slide", "pick_and_place"}
+
+
+def test_observation_layout_sizes_match_the_spec(task_name):
+    env = franka_composer.load(task_name)
+    fields = env.task.observation_fields
+    expected = 19 if task_name == "pick_and_place" else 18
+    assert sum(f.size for f in fields) == expected
+    observation = env.reset().observation
+    for field in fields:
+        assert observation[field.key].shape == (field.size,)
+        assert observation[field.key].dtype == np.float64
+    assert observation["goal"].shape == (3,)
+
+
+def test_reset_puts_arm_at_neutral_and_object_and_goal_in_their_ranges(task_name):
+    env = franka_composer.load(task_name, seed=7)
+    task = env.task
+    for _ in range(5):
+        timestep = env.reset()
+        physics = env.physics
+        arm_qpos = physics.bind(task.panda.joints).qpos
+        np.testing.assert_allclose(arm_qpos, NEUTRAL_ARM_QPOS, atol=1e-3)
+        position = timestep.observation[task.achieved_goal_key]
+        goal = timestep.observation["goal"]
+        assert task.workspace.object_box.contains(position)
+        assert task.workspace.goal_box.contains(goal)
+        assert position[2] == pytest.approx(task.prop.resting_height, abs=1e-6)
+        assert task.prop.resting_height - 1e-9 <= goal[2] <= (
+            task.prop.resting_height + task.workspace.goal_max_height + 1e-9)
+
+
+def test_object_rests_and_nothing_jerks_on_the_first_zero_action(task_name):
+    env = franka_composer.load(task_name, seed=3, terminate_on_success=False)
+    first = env.reset()
+    after = env.step(np.zeros(env.action_spec().shape, np.float32))
+    key = env.task.achieved_goal_key
+    assert np.linalg.norm(after.observation["panda/tcp_pos"]
+                          - first.observation["panda/tcp_pos"]) < 1e-3
+    assert np.linalg.norm(after.observation[key] - first.observation[key]) < 1e-3
+    assert np.linalg.norm(after.observation[f"{key.split('/')[0]}/linear_velocity"]) < 0.02
+
+
+def test_pick_and_place_goals_are_in_the_air_about_seventy_percent_of_the_time():
+    env = franka_composer.load("pick_and_place", seed=11)
+    resting = env.task.prop.resting_height
+    lifted = np.mean([env.reset().observation["goal"][2] > resting + 1e-9
+                      for _ in range(300)])
+    assert 0.62 < lifted < 0.78
+    env = franka_composer.load("pick_and_place", seed=11, goal_in_air_probability=0.0)
+    assert all(env.reset().observation["goal"][2] == resting for _ in range(20))
+
+
+def test_same_seed_same_episode(task_name):
+    def rollout(seed):
+        env = franka_composer.load(task_name, seed=seed, terminate_on_success=False)
+        rng = np.random.default_rng(123)
+        timestep = env.reset()
+        trace = [np.concatenate([timestep.observation[k] for k in sorted(timestep.observation)])]
+        rewards = []
+        for _ in range(20):
+            timestep = env.step(rng.uniform(-1, 1, env.action_spec().shape).astype(np.float32))
+            trace.append(np.concatenate([timestep.observation[k]
+                                         for k in sorted(timestep.observation)]))
+            rewards.append(timestep.reward)
+        return np.array(trace), rewards
+
+    first, second, other = rollout(5), rollout(5), rollout(6)
+    np.testing.assert_array_equal(first[0], second[0])
+    assert first[1] == second[1]
+    assert not np.array_equal(first[0][0], other[0][0])
+
+
+def test_terminate_on_success_ends_the_episode_with_zero_discount():
+    # A goal radius of 1 m makes the start already successful.
+    env = franka_composer.load("push", seed=0, distance_threshold=1.0)
+    env.reset()
+    timestep = env.step(np.zeros(3, np.float32))
+    assert timestep.last() and timestep.reward == 0.0 and timestep.discount == 0.0
+    env = franka_composer.load("push", seed=0, distance_threshold=1.0, terminate_on_success=False)
+    env.reset()
+    timestep = env.step(np.zeros(3, np.float32))
+    assert timestep.mid() and timestep.discount == 1.0
+
+
+def test_no_composer_time_limit_races_the_fifty_step_episode():
+    env = franka_composer.load("push", seed=0, terminate_on_success=False,
+                               distance_threshold=1e-6)
+    env.reset()
+    for _ in range(200):
+        assert env.step(np.zeros(3, np.float32)).mid()
+
+
+def test_mjcf_is_compiled_once():
+    env = franka_composer.load("push", seed=0)
+    env.reset()
+    physics = env.physics
+    env.reset()
+    assert env.physics is physics
+
+
+def test_unknown_task_name_lists_valid_tasks():
+    with pytest.raises(ValueError, match="unknown task 'lift'.*push, slide, pick_and_place"):
+        franka_composer.load("lift")
+
+
+def test_unknown_option_lists_valid_options():
+    with pytest.raises(ValueError, match="unknown task option.*'goal_radius'.*distance_threshold"):
+        franka_composer.load("push", goal_radius=0.1)
+
+
+def test_bad_option_values_raise_clear_errors():
+    with pytest.raises(ValueError, match="unknown reward_type 'shaped'"):
+        franka_composer.load("push", reward_type="shaped")
+    with pytest.raises(ValueError, match="distance_threshold must be > 0"):
+        franka_composer.load("push", distance_threshold=0.0)
+    with pytest.raises(ValueError, match="goal_in_air_probability must be in"):
+        franka_composer.load("pick_and_place", goal_in_air_probability=1.5)
+
+
+@pytest.mark.parametrize("action, message", [
+    (np.zeros(4), r"action must have shape \(3,\) \(dx, dy, dz\), got shape \(4,\)"),
+    (np.zeros((1, 3)), r"got shape \(1, 3\)"),
+    (np.array([0.0, np.nan, 0.0]), "action must be finite"),
+    (np.array([np.inf, 0.0, 0.0]), "action must be finite"),
+])
+def test_bad_actions_raise_before_reaching_mujoco(action, message):
+    env = franka_composer.load("push", seed=0)
+    env.reset()
+    before = env.physics.data.time
+    with pytest.raises(ValueError, match=message):
+        env.step(action)
+    assert env.physics.data.time == before
+
+
+def test_physics_divergence_ends_the_episode_with_a_warning_and_reset_recovers(caplog):
+    env = franka_composer.load("push", seed=0)
+    env.reset()
+    env.physics.data.qvel[-6:] = 1e12  # Fling the block: MuJoCo flags a bad acceleration.
+    with caplog.at_level("WARNING"):
+        timestep = env.step(np.zeros(3, np.float32))
+    assert timestep.step_type == dm_env.StepType.LAST and timestep.discount == 0.0
+    assert any("QACC" in record.getMessage() or "unstable" in record.getMessage()
+               for record in caplog.records)
+    timestep = env.reset()
+    timestep = env.step(np.zeros(3, np.float32))
+    assert timestep.mid()
+    assert np.all(np.isfinite(timestep.observation["block/position"]))
+
+
+def test_every_task_config_is_loadable_by_name():
+    assert tuple(TASK_CONFIGS) == franka_composer.ALL_TASKS
