@@ -1,0 +1,238 @@
+"""The Gymnasium adapter over every registered id: checkers, goal contract, seeding,
+pickling, rendering, vector envs, Shimmy, bad input, and a short SAC + HER run."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import franka_composer
+from franka_composer.adapters.registration import MAX_EPISODE_STEPS, env_id
+
+ALL_IDS = tuple(franka_composer.ENV_IDS)
+
+
+@pytest.fixture(params=ALL_IDS)
+def env_name(request) -> str:
+    return request.param
+
+
+def _random_rollout(env, seed: int, steps: int):
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    records = []
+    for _ in range(steps):
+        action = env.action_space.sample()
+        next_obs, reward, terminated, truncated, info = env.step(action)
+        records.append((next_obs, reward, terminated, truncated, info))
+        if terminated or truncated:
+            next_obs, _ = env.reset()
+    return obs, records
+
+
+def test_paper_ids_are_registered_with_fifty_step_episodes():
+    assert set(ALL_IDS) == {f"Franka{t}{r}-v0" for t in ("Push", "Slide", "PickAndPlace")
+                            for r in ("Sparse", "Dense")}
+    for id_ in ALL_IDS:
+        assert gym.spec(id_).max_episode_steps == MAX_EPISODE_STEPS
+    assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
+
+
+def test_spaces_match_the_spec(env_name):
+    env = gym.make(env_name)
+    pick = "PickAndPlace" in env_name
+    assert env.observation_space["observation"].shape == ((19,) if pick else (18,))
+    assert env.observation_space["achieved_goal"].shape == (3,)
+    assert env.observation_space["desired_goal"].shape == (3,)
+    assert {s.dtype for s in env.observation_space.spaces.values()} == {np.dtype(np.float64)}
+    assert env.action_space == gym.spaces.Box(-1, 1, ((4,) if pick else (3,)), np.float32)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs)
+    assert isinstance(info["is_success"], bool)
+
+
+def test_gymnasium_and_sb3_env_checkers_pass(env_name):
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    env = gym.make(env_name)
+    check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(env.unwrapped, warn=False)
+
+
+def test_step_reward_equals_compute_reward_and_success_matches_distance(env_name):
+    env = gym.make(env_name, terminate_on_success=False)
+    unwrapped = env.unwrapped
+    _, records = _random_rollout(env, seed=1, steps=60)
+    for obs, reward, terminated, truncated, info in records:
+        expected = unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
+        assert reward == expected and type(reward) is type(expected[()])
+        distance = np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"])
+        assert info["is_success"] == (distance < 0.05)
+        if "Sparse" in env_name:
+            assert reward in (0.0, -1.0) and (reward == 0.0) == info["is_success"]
+        else:
+            assert reward == pytest.approx(-distance, abs=1e-12)
+        assert not terminated
+    assert records[49][3] and not records[48][3]  # TimeLimit truncates at step 50.
+
+
+def test_batched_compute_reward_equals_per_pair_values(env_name):
+    env = gym.make(env_name).unwrapped
+    rng = np.random.default_rng(0)
+    achieved = rng.uniform(0.4, 0.8, (1000, 3))
+    desired = achieved + rng.normal(0, 0.04, (1000, 3))
+    batched = env.compute_reward(achieved, desired, [{}] * 1000)
+    assert batched.shape == (1000,)
+    singles = np.array([env.compute_reward(a, d, {}) for a, d in zip(achieved, desired)])
+    np.testing.assert_array_equal(batched, singles)
+    np.testing.assert_array_equal(env.compute_reward(achieved, desired, None), batched)
+    np.testing.assert_array_equal(
+        env.compute_reward(achieved.reshape(10, 100, 3), desired.reshape(10, 100, 3),
+                           np.array([{}] * 1000).reshape(10, 100)),
+        batched.reshape(10, 100))
+    if "Sparse" in env_name:
+        assert 0 < np.mean(batched == 0) < 1  # Both outcomes occur in the batch.
+
+
+def test_task_options_pass_through_gym_make():
+    env = gym.make("FrankaPushSparse-v0", terminate_on_success=False, distance_threshold=0.03)
+    assert env.unwrapped.task.distance_threshold == 0.03
+    assert not env.unwrapped.task.terminate_on_success
+    achieved = np.zeros(3)
+    assert env.unwrapped.compute_reward(achieved, achieved + [0.04, 0, 0], {}) == -1.0
+
+
+def test_terminate_on_success_is_the_paper_default():
+    env = gym.make("FrankaPushSparse-v0", distance_threshold=1.0)  # Solved from the start.
+    env.reset(seed=0)
+    _, reward, terminated, truncated, info = env.step(np.zeros(3, np.float32))
+    assert terminated and not truncated and info["is_success"] and reward == 0.0
+    assert env.unwrapped.compute_terminated(np.zeros(3), np.zeros(3), {})
+
+
+def test_same_seed_same_trajectory_and_reset_without_seed_continues(env_name):
+    first_obs, first = _random_rollout(gym.make(env_name), seed=3, steps=30)
+    second_obs, second = _random_rollout(gym.make(env_name), seed=3, steps=30)
+    for key in first_obs:
+        np.testing.assert_array_equal(first_obs[key], second_obs[key])
+    for a, b in zip(first, second):
+        for key in a[0]:
+            np.testing.assert_array_equal(a[0][key], b[0][key])
+        assert a[1:4] == b[1:4]
+    env = gym.make(env_name)
+    goals = [env.reset(seed=9)[0]["desired_goal"]] + [env.reset()[0]["desired_goal"]
+                                                      for _ in range(3)]
+    assert len({tuple(g) for g in goals}) == 4
+    np.testing.assert_array_equal(env.reset(seed=9)[0]["desired_goal"], goals[0])
+
+
+def test_pickled_env_rebuilds_into_an_equivalent_env(env_name):
+    env = gym.make(env_name, terminate_on_success=False)
+    clone = pickle.loads(pickle.dumps(env))
+    a, b = env.reset(seed=5)[0], clone.reset(seed=5)[0]
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])
+    action = env.action_space.sample()
+    np.testing.assert_array_equal(env.step(action)[0]["observation"],
+                                  clone.step(action)[0]["observation"])
+    assert clone.unwrapped.task.terminate_on_success is False
+
+
+def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name):
+    id_ = env_id(task_name, "sparse")
+    env = gym.make(id_, render_mode="rgb_array", width=320, height=240)
+    env.reset(seed=0)
+    frame = env.render()
+    assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
+    assert frame.std() > 10  # Not blank.
+    red = (frame[..., 0] > 150) & (frame[..., 1] < 90) & (frame[..., 2] < 90)
+    assert red.sum() > 20  # The goal marker is visible.
+    env.close()
+    env.close()  # Closing twice is harmless.
+
+
+def test_bad_render_arguments_raise_clear_errors():
+    with pytest.raises(ValueError, match="unknown render_mode 'video'"):
+        gym.make("FrankaPushSparse-v0", render_mode="video").unwrapped
+    with pytest.raises(ValueError, match=r"width must be an int in \[1, 1024\]"):
+        gym.make("FrankaPushSparse-v0", width=4096)
+
+
+def test_bad_actions_and_options_raise_clear_errors():
+    env = gym.make("FrankaPickAndPlaceSparse-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"action must have shape \(4,\)"):
+        env.step(np.zeros(3, np.float32))
+    with pytest.raises(ValueError, match="action must be finite"):
+        env.step(np.array([0, 0, np.nan, 0], np.float32))
+    with pytest.raises(ValueError, match="unknown task option.*'threshold'"):
+        gym.make("FrankaPushSparse-v0", threshold=0.1)
+
+
+def test_step_before_reset_raises_gymnasiums_error():
+    env = gym.make("FrankaPushSparse-v0")
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.zeros(3, np.float32))
+    with pytest.raises(gym.error.ResetNeeded):
+        env.unwrapped.step(np.zeros(3, np.float32))
+
+
+def test_async_vector_env_with_two_workers_steps():
+    envs = gym.vector.AsyncVectorEnv([lambda: gym.make("FrankaPushSparse-v0")] * 2)
+    try:
+        obs, _ = envs.reset(seed=[0, 1])
+        assert obs["observation"].shape == (2, 18)
+        assert not np.array_equal(obs["desired_goal"][0], obs["desired_goal"][1])
+        for _ in range(5):
+            obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
+        assert reward.shape == (2,) and obs["achieved_goal"].shape == (2, 3)
+    finally:
+        envs.close()
+
+
+def test_sb3_subproc_vec_env_with_two_workers_steps():
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    # Workers are fresh processes: the "module:id" form imports franka_composer there.
+    venv = make_vec_env("franka_composer:FrankaSlideSparse-v0", n_envs=2, seed=0,
+                        vec_env_cls=SubprocVecEnv)
+    try:
+        obs = venv.reset()
+        assert obs["observation"].shape == (2, 18)
+        obs, reward, done, info = venv.step(np.zeros((2, 3), np.float32))
+        assert reward.shape == (2,) and len(info) == 2
+        rewards = venv.env_method("compute_reward", obs["achieved_goal"], obs["desired_goal"],
+                                  info, indices=[0])[0]
+        np.testing.assert_array_equal(rewards, reward)
+    finally:
+        venv.close()
+
+
+def test_shimmy_wraps_the_dm_env_suite_for_raw_dict_observations():
+    from shimmy import DmControlCompatibilityV0
+
+    env = DmControlCompatibilityV0(franka_composer.load("push", seed=0))
+    obs, _ = env.reset(seed=0)
+    assert set(obs) >= {"panda/tcp_pos", "block/position", "goal"}
+    obs, reward, terminated, truncated, _ = env.step(np.zeros(3, np.float32))
+    assert obs["block/position"].shape == (3,) and reward in (0.0, -1.0)
+    env.close()
+
+
+def test_short_sac_her_run_learns_without_error(task_name):
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    env = gym.make(env_id(task_name, "sparse"))
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer,
+                replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
+                learning_starts=100, batch_size=64, buffer_size=2000, seed=0,
+                policy_kwargs=dict(net_arch=[32, 32]), device="cpu")
+    model.learn(total_timesteps=250)
+    assert model.num_timesteps == 250
+    action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)
+    assert env.action_space.contains(action)
