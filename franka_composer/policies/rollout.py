@@ -1,0 +1,111 @@
+"""Running a policy for whole episodes and keeping what happened, for demos and datasets."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import time
+from typing import Callable
+
+import numpy as np
+
+#: Keys of the Gymnasium goal observation dict, saved side by side.
+OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
+#: Per-step arrays (one entry per action taken).
+STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
+
+
+@dataclasses.dataclass
+class Trajectories:
+    """Episodes of one policy in one environment, each a dict of arrays.
+
+    Each episode of T steps has `observation`, `achieved_goal`, `desired_goal` with T + 1
+    rows (the reset observation first), and `action`, `reward`, `is_success` (the step's
+    `info["is_success"]`), `terminated`, `truncated` with T rows.
+    `env_seconds` is the wall time spent inside `env.reset` and `env.step` only.
+    """
+
+    episodes: list[dict[str, np.ndarray]]
+    env_seconds: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.episodes)
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Steps per episode."""
+        return np.array([len(e["action"]) for e in self.episodes], dtype=np.int64)
+
+    @property
+    def successes(self) -> np.ndarray:
+        """Whether each episode ended in success (`is_success` of its last step)."""
+        return np.array([bool(e["is_success"][-1]) if len(e["is_success"]) else False
+                         for e in self.episodes])
+
+    @property
+    def success_rate(self) -> float:
+        return float(np.mean(self.successes)) if self.episodes else 0.0
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Writes every episode, concatenated, to a `.npz` file with `episode_length`."""
+        arrays = {key: np.concatenate([e[key] for e in self.episodes])
+                  for key in OBSERVATION_KEYS + STEP_KEYS}
+        np.savez_compressed(path, episode_length=self.lengths, **arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "Trajectories":
+        """Reads what `save` wrote."""
+        with np.load(path) as data:
+            lengths = data["episode_length"]
+            step_ends = np.cumsum(lengths)[:-1]
+            obs_ends = np.cumsum(lengths + 1)[:-1]
+            split = {key: np.split(data[key], obs_ends) for key in OBSERVATION_KEYS}
+            split.update({key: np.split(data[key], step_ends) for key in STEP_KEYS})
+        return cls([{key: split[key][i] for key in split} for i in range(len(lengths))])
+
+
+def rollout(env, policy, episodes: int, seed: int | None = None,
+            on_step: Callable[[object, int], None] | None = None,
+            on_episode_end: Callable[[int], None] | None = None) -> Trajectories:
+    """Runs `policy` (obs -> action; its `reset()` is called at each episode start if it has
+    one) for `episodes` episodes of `env`, each until terminated or truncated.
+
+    Episode i is reset with `seed + i` when `seed` is given. `on_step(env, i)` is called after
+    every reset and step of episode i (e.g. to render a frame) and `on_episode_end(i)` when it
+    ends (e.g. to advance a progress bar); neither counts in `env_seconds`.
+    """
+    if episodes < 1:
+        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    collected, env_seconds = [], 0.0
+    for index in range(episodes):
+        if hasattr(policy, "reset"):
+            policy.reset()
+        start = time.perf_counter()
+        obs, _ = env.reset(seed=None if seed is None else seed + index)
+        env_seconds += time.perf_counter() - start
+        if on_step is not None:
+            on_step(env, index)
+        observations, steps = [obs], {key: [] for key in STEP_KEYS}
+        done = False
+        while not done:
+            action = policy(obs)
+            start = time.perf_counter()
+            obs, reward, terminated, truncated, info = env.step(action)
+            env_seconds += time.perf_counter() - start
+            if on_step is not None:
+                on_step(env, index)
+            observations.append(obs)
+            for key, value in zip(STEP_KEYS, (action, reward, info["is_success"],
+                                              terminated, truncated)):
+                steps[key].append(value)
+            done = terminated or truncated
+        episode = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
+        episode.update({key: np.array(values) for key, values in steps.items()})
+        episode["action"] = episode["action"].astype(np.float32)
+        episode["reward"] = episode["reward"].astype(np.float64)
+        for key in ("is_success", "terminated", "truncated"):
+            episode[key] = episode[key].astype(bool)
+        collected.append(episode)
+        if on_episode_end is not None:
+            on_episode_end(index)
+    return Trajectories(collected, env_seconds)
