@@ -6,19 +6,63 @@ sampled once per control step (the default schedule), that loop only costs time:
 environment then calls `physics.step(n_sub_steps)` once, which MuJoCo runs in C, and falls
 back to Composer's loop otherwise. Both paths produce the same states, bit for bit
 (`tests/test_environment.py`).
+
+Two more costs go the same way (measured in BENCHMARKS.md):
+- When every observable is read once per control step with no delay, buffer or aggregator
+  (the default), the step calls the observables directly instead of scheduling them through
+  Composer's observation buffers: same values, a fraction of the Python time.
+- A control written before the step (the gripper's) leaves dm_control's physics "dirty",
+  so the first observable read after the step runs an extra `mj_forward`; the step's own
+  closing `mj_step1` has already brought positions and velocities up to date, so the flag
+  is cleared instead (same trajectories and observations, bit for bit).
+- Composer compiles the MJCF a second time on the first reset, for `initialize_episode_mjcf`
+  hooks; none of ours has one, so the model compiled in `__init__` is kept.
+- Compiling Menagerie's Panda (400k visual mesh vertices) takes ~1 s and ~250 MB at peak.
+  The compiled model is saved as an MJB file keyed by a hash of the MuJoCo version, the
+  generated XML and every asset's bytes, and later loads read that file: the same model,
+  byte for byte. The folder is `$FRANKA_COMPOSER_CACHE`, else
+  `$XDG_CACHE_HOME/franka_composer` (default `~/.cache/franka_composer`);
+  `FRANKA_COMPOSER_CACHE=off` disables it.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
+import pathlib
+
 import dm_env
+import mujoco
+import numpy as np
 from absl import logging
-from dm_control import composer
+from dm_control import composer, mjcf
 from dm_control.composer.environment import _callable_is_trivial
 from dm_control.rl import control
 
 
 class Environment(composer.Environment):
     """Composer's environment with the substep loop batched where nothing observes it."""
+
+    def __init__(self, task, **kwargs) -> None:
+        super().__init__(task, **kwargs)
+        if not self._has_mjcf_hooks():
+            # The model compiled above is the one the first reset would compile again.
+            self._mjcf_never_compiled = False
+
+    def _recompile_physics(self) -> None:
+        physics = getattr(self, "_physics", None)
+        if physics:
+            physics.free()
+        self._physics = compile_physics(self._task.root_entity.mjcf_model)
+        self._physics.legacy_step = self._legacy_step
+
+    def _has_mjcf_hooks(self) -> bool:
+        if self._recompile_mjcf_every_episode:
+            return True
+        if not _callable_is_trivial(self._task.initialize_episode_mjcf):
+            return True
+        hook = self._hooks._initialize_episode_mjcf  # pylint: disable=protected-access
+        return bool(hook.entity_hooks or hook.extra_hooks)
 
     def _can_batch_substeps(self) -> bool:
         hooks = self._hooks
@@ -35,32 +79,90 @@ class Environment(composer.Environment):
             for enabled in updater._enabled_list  # pylint: disable=protected-access
         )
 
+    def _direct_observables(self) -> list | None:
+        """(name, callable) per observable when each is simply read at the end of the step
+        (Composer's buffer would hold exactly that one value); None otherwise."""
+        updater = self._observation_updater
+        structure = updater._enabled_structure  # pylint: disable=protected-access
+        if not isinstance(structure, dict):
+            return None
+        direct = []
+        for name, enabled in structure.items():
+            if enabled.buffer_size != 1 or enabled.observable.aggregator is not None:
+                return None
+            direct.append((name, enabled.observation_callable))
+        return direct
+
+    def _observables_signature(self) -> tuple:
+        """Everything Composer's updater is built from at a reset: which observables are
+        enabled and how each is scheduled. Users may change these between episodes."""
+        # pylint: disable-next=protected-access
+        return tuple(
+            (name, o.enabled, o.update_interval, o.delay, o.buffer_size, o.aggregator,
+             o.corruptor)
+            for name, o in self._observation_updater._observables.items())
+
+    def _reset_attempt(self) -> dm_env.TimeStep:
+        if (getattr(self, "_direct", None) is None or self._mjcf_never_compiled
+                or self._recompile_mjcf_every_episode or not self._can_batch_substeps()
+                or self._observables_signature() != self._signature):
+            self._updater_rebuilt = True
+            return super()._reset_attempt()
+        # Composer's reset without rebuilding the observation updater (a quarter of a
+        # reset): while observables are read directly its buffers are never used.
+        if self._fixed_initial_state:
+            self._random_state.set_state(self._fixed_random_state)
+        with self._physics.reset_context():
+            self._hooks.initialize_episode(self._physics_proxy, self._random_state)
+        self._reset_next_step = False
+        return dm_env.TimeStep(dm_env.StepType.FIRST, None, None, self._read_observation())
+
+    def _read_observation(self) -> dict:
+        # What Composer's one-entry buffer would hand back: a copy of the latest reading.
+        return {name: np.array(read()) for name, read in self._direct}
+
     def reset(self) -> dm_env.TimeStep:
+        self._updater_rebuilt = False
         timestep = super().reset()
-        self._batch_substeps = self._can_batch_substeps()
+        if self._updater_rebuilt:
+            self._batch_substeps = self._can_batch_substeps()
+            self._direct = self._direct_observables() if self._batch_substeps else None
+            self._signature = self._observables_signature()
         return timestep
 
     def step(self, action) -> dm_env.TimeStep:
         if self._reset_next_step or not getattr(self, "_batch_substeps", False):
             return super().step(action)
         self._hooks.before_step(self._physics_proxy, action, self._random_state)
+        direct = self._direct
         updater = self._observation_updater
-        updater.prepare_for_next_control_step()
+        if direct is None:
+            updater.prepare_for_next_control_step()
         try:
             self._physics.step(self._n_sub_steps)
+            if self._physics.legacy_step:
+                # A control written before the step (the gripper servo) marked the physics
+                # dirty, and the first binding read after it would run a whole mj_forward
+                # (~6 % of a step) to refresh what the legacy step's closing mj_step1 has
+                # just computed.
+                self._physics._dirty = False  # pylint: disable=protected-access
             physics_is_divergent = False
         except control.PhysicsError as error:
             if self._raise_exception_on_physics_error:
                 raise
             logging.warning(error)
             physics_is_divergent = True
-        # Observables are due only on the last substep: skip the counter to it.
-        updater._step_counter += self._n_sub_steps - 1  # pylint: disable=protected-access
         self._hooks.after_step(self._physics_proxy, self._random_state)
-        updater.update()
-        return self._make_timestep(physics_is_divergent)
+        if direct is None:
+            # Observables are due only on the last substep: skip the counter to it.
+            updater._step_counter += self._n_sub_steps - 1  # pylint: disable=protected-access
+            updater.update()
+            observation = updater.get_observation()
+        else:
+            observation = self._read_observation()
+        return self._make_timestep(physics_is_divergent, observation)
 
-    def _make_timestep(self, physics_is_divergent: bool) -> dm_env.TimeStep:
+    def _make_timestep(self, physics_is_divergent: bool, obs: dict) -> dm_env.TimeStep:
         if physics_is_divergent:
             reward, discount, terminating = 0.0, 0.0, True
         else:
@@ -68,8 +170,59 @@ class Environment(composer.Environment):
             discount = self._task.get_discount(self._physics_proxy)
             terminating = (self._task.should_terminate_episode(self._physics_proxy)
                            or self._physics.time() >= self._time_limit)
-        obs = self._observation_updater.get_observation()
         if not terminating:
             return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, obs)
         self._reset_next_step = True
         return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, obs)
+
+
+#: Compiled models kept (each ~35 MB: the Panda's visual meshes); the least recently used
+#: beyond this are deleted.
+MAX_CACHED_MODELS = 8
+
+
+def model_cache_dir() -> pathlib.Path | None:
+    """Where compiled models are kept, or None when caching is off."""
+    configured = os.environ.get("FRANKA_COMPOSER_CACHE")
+    if configured is not None:
+        return None if configured.lower() in ("", "0", "off", "false") else pathlib.Path(configured)
+    base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
+    return pathlib.Path(base) / "franka_composer"
+
+
+def compile_physics(mjcf_model) -> mjcf.Physics:
+    """`mjcf.Physics.from_mjcf_model`, through the compiled-model cache when it is on."""
+    xml = mjcf_model.to_xml_string()
+    assets = mjcf_model.get_assets()
+    directory = model_cache_dir()
+    if directory is None:
+        return mjcf.Physics.from_xml_string(xml, assets)
+    digest = hashlib.blake2b(mujoco.__version__.encode() + b"\0" + xml.encode())
+    for name in sorted(assets):
+        contents = assets[name]
+        digest.update(b"\0" + name.encode() + b"\0")
+        digest.update(contents.encode() if isinstance(contents, str) else contents)
+    path = directory / f"{digest.hexdigest()[:32]}.mjb"
+    if path.is_file():
+        try:
+            physics = mjcf.Physics.from_binary_path(str(path))
+            os.utime(path)  # Recently used: evicted last.
+            return physics
+        except Exception as error:  # pylint: disable=broad-except
+            logging.warning("ignoring unreadable compiled model %s: %s", path, error)
+    physics = mjcf.Physics.from_xml_string(xml, assets)
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        partial = path.with_suffix(f".{os.getpid()}.partial")
+        mujoco.mj_saveModel(physics.model.ptr, str(partial), None)
+        os.replace(partial, path)  # Atomic: parallel workers never read half a file.
+        _evict_oldest(directory)
+    except OSError as error:
+        logging.warning("could not cache the compiled model in %s: %s", directory, error)
+    return physics
+
+
+def _evict_oldest(directory: pathlib.Path) -> None:
+    models = sorted(directory.glob("*.mjb"), key=lambda p: p.stat().st_mtime, reverse=True)
+    for stale in models[MAX_CACHED_MODELS:]:
+        stale.unlink(missing_ok=True)

@@ -16,6 +16,7 @@ from dm_control.composer import define
 from dm_control.composer.observation import observable
 
 from franka_composer import assets
+from franka_composer.entities.features import DerivedFeature
 
 #: Neutral arm configuration (rad), hand pointing straight down above the workspace.
 NEUTRAL_ARM_QPOS = (0.00, 0.41, 0.00, -1.85, 0.00, 2.26, 0.79)
@@ -171,7 +172,9 @@ class PandaObservables(composer.Observables):
 
     @define.observable
     def finger_width(self):
-        return observable.Generic(lambda physics: np.array([self._entity.finger_width(physics)]))
+        """Distance between the fingers (m), shape (1,)."""
+        return DerivedFeature("qpos", self._entity.finger_joints,
+                              lambda qpos: np.array([float(np.sum(qpos))]))
 
     @define.observable
     def joints_pos(self):

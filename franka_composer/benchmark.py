@@ -1,0 +1,309 @@
+"""Measures one task's speed through `gym.make`, beside the bare-MuJoCo floor of its model.
+
+Users compare suites by env steps per second (see `BENCHMARKS.md`), so everything here goes
+through `gym.make(id)` with its default wrappers. The floor is the same compiled model,
+started from the same states and driven by the same actions through the same control law in
+a plain `mujoco.mj_step(model, data, nstep)` loop: the ratio of the two is what Composer and
+the adapter cost on top of the physics. `franka-composer bench` runs `measure_task` once per
+task in a fresh process (`python -m franka_composer.benchmark`), so peak RSS is per task.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import resource
+import statistics
+import sys
+import time
+import timeit
+from dataclasses import dataclass, field
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+import franka_composer
+from franka_composer.adapters.registration import env_id
+from franka_composer.entities.panda import MAX_FINGER_WIDTH
+
+#: Pairs in the batch `compute_reward` is timed on (HER relabels batches of this order).
+REWARD_BATCH = 1024
+#: State saved at each reset so the floor replays every episode from the env's own start.
+_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+@dataclass
+class Episode:
+    """An episode's start state and the actions the env received (to replay on the floor)."""
+
+    state: np.ndarray
+    actions: list = field(default_factory=list)
+
+
+class Floor:
+    """The env's compiled model (a copy) in a bare `mj_step(model, data, nstep)` loop, with
+    the controller's law written out in NumPy: the mocap target is the TCP plus
+    `max_tcp_step` times the action (z clamped), and the gripper servo gets the finger
+    width plus `max_finger_step` times the 4th component."""
+
+    def __init__(self, env: gym.Env) -> None:
+        unwrapped = env.unwrapped
+        physics = unwrapped.composer_env.physics
+        task = unwrapped.task
+        settings = task.controller.settings
+        self.model = copy.copy(physics.model.ptr)
+        self.data = mujoco.MjData(self.model)
+        self._tcp = physics.bind(task.panda.tcp_site).element_id
+        self._mocap = self.model.body(task.controller.target.full_identifier).mocapid[0]
+        self._fingers = physics.bind(task.panda.finger_joints).qposadr
+        self._gripper = physics.bind(task.panda.gripper_actuator).element_id
+        self._n_sub_steps = int(round(unwrapped.dt / self.model.opt.timestep))
+        self._settings = settings
+
+    def replay(self, episode: Episode) -> tuple[float, int]:
+        """Seconds and total contacts for the episode's actions from its start state."""
+        model, data, settings = self.model, self.data, self._settings
+        tcp, mocap, fingers, gripper = self._tcp, self._mocap, self._fingers, self._gripper
+        tcp_step, finger_step = settings.max_tcp_step, settings.max_finger_step
+        min_height, actuated = settings.min_tcp_height, settings.actuated_gripper
+        n_sub_steps = self._n_sub_steps
+        mujoco.mj_setState(model, data, episode.state, _STATE)
+        mujoco.mj_forward(model, data)
+        contacts = 0
+        start = time.perf_counter()
+        for action in episode.actions:
+            action = np.clip(action, -1.0, 1.0)
+            target = data.site_xpos[tcp] + tcp_step * action[:3]
+            target[2] = max(target[2], min_height)
+            data.mocap_pos[mocap] = target
+            if actuated:
+                width = data.qpos[fingers].sum() + finger_step * action[3]
+                data.ctrl[gripper] = min(max(width, 0.0), MAX_FINGER_WIDTH)
+            mujoco.mj_step(model, data, nstep=n_sub_steps)
+            contacts += data.ncon
+        return time.perf_counter() - start, contacts
+
+
+@dataclass
+class Run:
+    """Timings of a run of env steps and of the same episodes on the floor."""
+
+    steps: int = 0
+    episodes: int = 0
+    step_seconds: float = 0.0
+    reset_seconds: float = 0.0
+    contacts: int = 0
+    floor_seconds: float = 0.0
+    floor_contacts: int = 0
+    successes: int = 0
+    finished: int = 0
+
+    def add_floor(self, floor: Floor, episode: Episode) -> None:
+        seconds, contacts = floor.replay(episode)
+        self.floor_seconds += seconds
+        self.floor_contacts += contacts
+
+    def summary(self) -> dict:
+        steps = self.steps
+        return {
+            "steps": steps,
+            "episodes": self.episodes,
+            "steps_per_s_resets_included": steps / (self.step_seconds + self.reset_seconds),
+            "steps_per_s_resets_excluded": steps / self.step_seconds,
+            "floor_steps_per_s": steps / self.floor_seconds,
+            "overhead_ratio": self.step_seconds / self.floor_seconds,
+            "mean_contacts": self.contacts / steps,
+            "floor_mean_contacts": self.floor_contacts / steps,
+            "success_rate": self.successes / self.finished if self.finished else None,
+        }
+
+
+def _snapshot(model, data) -> np.ndarray:
+    state = np.empty(mujoco.mj_stateSize(model, _STATE))
+    mujoco.mj_getState(model, data, state, _STATE)
+    return state
+
+
+def run_env(env: gym.Env, floor: Floor, steps: int, choose_action, on_reset=None) -> Run:
+    """Steps `env` `steps` times, resetting when an episode ends, and replays each episode
+    on `floor` as soon as it ends: interleaving keeps the ratio fair on a shared machine.
+    Only `env.step` and `env.reset` are inside the env's timed regions."""
+    physics = env.unwrapped.composer_env.physics
+    model, data = physics.model.ptr, physics.data.ptr
+    run = Run()
+    clock = time.perf_counter
+    obs, _ = env.reset(seed=0)
+    if on_reset:
+        on_reset()
+    episode = Episode(_snapshot(model, data))
+    while run.steps < steps:
+        action = choose_action(obs)
+        start = clock()
+        obs, _, terminated, truncated, info = env.step(action)
+        run.step_seconds += clock() - start
+        run.steps += 1
+        run.contacts += data.ncon
+        episode.actions.append(np.asarray(action, dtype=np.float64))
+        if terminated or truncated or run.steps == steps:
+            run.episodes += 1
+            run.add_floor(floor, episode)
+        if terminated or truncated:
+            run.finished += 1
+            run.successes += bool(info["is_success"])
+            start = clock()
+            obs, _ = env.reset()
+            run.reset_seconds += clock() - start
+            if on_reset:
+                on_reset()
+            episode = Episode(_snapshot(model, data))
+    return run
+
+
+def _measure_run(env: gym.Env, steps: int, choose_action, on_reset=None) -> dict:
+    floor = Floor(env)
+    run_env(env, floor, min(steps, 200), choose_action, on_reset)  # Warm-up.
+    return run_env(env, floor, steps, choose_action, on_reset).summary()
+
+
+def measure_random(env: gym.Env, steps: int) -> dict:
+    env.action_space.seed(0)
+    return _measure_run(env, steps, lambda obs: env.action_space.sample())
+
+
+def load_expert_factory():
+    """`franka_composer.policies.make_expert`, or None with the reason it is unavailable."""
+    try:
+        from franka_composer.policies import make_expert
+    except ImportError as error:
+        return None, f"no scripted expert ({error})"
+    return make_expert, None
+
+
+def measure_expert(env: gym.Env, task: str, steps: int) -> dict:
+    make_expert, reason = load_expert_factory()
+    if make_expert is None:
+        return {"skipped": reason}
+    expert = make_expert(task)
+    policy = {"seconds": 0.0, "calls": 0}
+
+    def choose_action(obs):
+        start = time.perf_counter()
+        action = expert(obs)
+        policy["seconds"] += time.perf_counter() - start
+        policy["calls"] += 1
+        return action
+
+    result = _measure_run(env, steps, choose_action, on_reset=expert.reset)
+    result["expert_us_per_step"] = policy["seconds"] / policy["calls"] * 1e6
+    return result
+
+
+def median_reset_ms(env: gym.Env, samples: int) -> float:
+    times = []
+    for _ in range(samples):
+        start = time.perf_counter()
+        env.reset()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times) * 1e3
+
+
+def compute_reward_us(env: gym.Env, batch: int = REWARD_BATCH) -> float:
+    """Median microseconds of `compute_reward` on `batch` (achieved, desired) pairs."""
+    rng = np.random.default_rng(0)
+    achieved = rng.uniform(0.3, 0.9, size=(batch, 3))
+    desired = rng.uniform(0.3, 0.9, size=(batch, 3))
+    info = [{}] * batch
+    reward = env.unwrapped.compute_reward(achieved, desired, info)
+    if np.shape(reward) != (batch,):
+        raise RuntimeError(f"compute_reward returned shape {np.shape(reward)} for {batch} pairs")
+    number = 200
+    runs = timeit.repeat(lambda: env.unwrapped.compute_reward(achieved, desired, info),
+                         number=number, repeat=7)
+    return statistics.median(runs) / number * 1e6
+
+
+def render_ms(env_name: str, frames: int) -> dict:
+    """Milliseconds for the first 480x480 `rgb_array` frame (GL context included) and the
+    median of `frames` more, each after an env step."""
+    env = gym.make(env_name, render_mode="rgb_array", width=480, height=480)
+    env.reset(seed=0)
+    start = time.perf_counter()
+    frame = env.render()
+    first = time.perf_counter() - start
+    if frame.shape != (480, 480, 3):
+        raise RuntimeError(f"rgb_array frame has shape {frame.shape}, expected (480, 480, 3)")
+    times = []
+    for _ in range(frames):
+        env.step(env.action_space.sample())
+        start = time.perf_counter()
+        env.render()
+        times.append(time.perf_counter() - start)
+    env.close()
+    return {"first_frame_ms": first * 1e3, "ms_per_frame": statistics.median(times) * 1e3}
+
+
+def vector_steps_per_s(task: str, workers: int, steps: int) -> float:
+    """Env steps per second of all envs together in a `gymnasium.vector.AsyncVectorEnv` of
+    `workers` processes, random actions, resets (autoreset) included."""
+    name = env_id(task, "sparse")
+    envs = gym.vector.AsyncVectorEnv([lambda: gym.make(name) for _ in range(workers)])
+    try:
+        envs.action_space.seed(0)
+        envs.reset(seed=0)
+        actions = [envs.action_space.sample() for _ in range(max(1, steps // workers))]
+        for action in actions[:20]:  # Warm-up: worker start-up is not throughput.
+            envs.step(action)
+        start = time.perf_counter()
+        for action in actions:
+            envs.step(action)
+        return len(actions) * workers / (time.perf_counter() - start)
+    finally:
+        envs.close()
+
+
+def peak_rss_mb() -> float:
+    """Peak resident set size of this process so far (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def measure_task(task: str, steps: int, reset_samples: int, render_frames: int) -> dict:
+    """Every in-process figure for one task; peak RSS is read before rendering (a GL
+    context is not part of a training run's footprint) and once more after it."""
+    if task not in franka_composer.ALL_TASKS:
+        raise ValueError(f"unknown task {task!r}; valid: {', '.join(franka_composer.ALL_TASKS)}")
+    name = env_id(task, "sparse")
+    env = gym.make(name)
+    result = {"env_id": name, "random": measure_random(env, steps),
+              "expert": measure_expert(env, task, steps),
+              "reset_ms_median": median_reset_ms(env, reset_samples),
+              "compute_reward_1024_us": compute_reward_us(env),
+              "peak_rss_mb": peak_rss_mb()}
+    env.close()
+    if render_frames > 0:
+        result["render"] = render_ms(name, render_frames)
+        result["peak_rss_mb_with_render"] = peak_rss_mb()
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description="Measure one task in this process; prints one JSON line.")
+    parser.add_argument("--task", required=True, choices=franka_composer.ALL_TASKS)
+    parser.add_argument("--steps", type=int, required=True)
+    parser.add_argument("--reset-samples", type=int, default=50)
+    parser.add_argument("--render-frames", type=int, default=0)
+    parser.add_argument("--vector-workers", type=int, default=0,
+                        help="measure only AsyncVectorEnv throughput with this many workers")
+    args = parser.parse_args(argv)
+    if args.vector_workers > 0:
+        result = {"steps_per_s": vector_steps_per_s(args.task, args.vector_workers, args.steps)}
+    else:
+        result = measure_task(args.task, args.steps, args.reset_samples, args.render_frames)
+    print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

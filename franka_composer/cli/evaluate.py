@@ -1,0 +1,61 @@
+"""`franka-composer evaluate`: the paper's final test (20 episodes per trained model) and a
+Table II-style summary over runs."""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+
+from franka_composer.training.models import DEVICES
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "evaluate", help="success rate of trained runs, and a Table II-style Markdown table",
+        description="Run each trained model (RUN_DIR/model.zip, else its latest checkpoint) "
+                    "for --episodes deterministic episodes on its task; print the success "
+                    "rate per run, then a Markdown table of mean ± std over seeds per task "
+                    "and algorithm, in the layout of the paper's Table II.")
+    parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
+                        help="run directories written by `franka-composer train`")
+    parser.add_argument("--episodes", type=int, default=20,
+                        help="test episodes per model (paper: 20)")
+    parser.add_argument("--seed", type=int, default=2024,
+                        help="seed of the test episodes (the same for every run)")
+    parser.add_argument("--device", choices=DEVICES, default="auto",
+                        help="where the policy runs")
+    parser.add_argument("--out", type=pathlib.Path, default=None,
+                        help="also write the Markdown table (and per-seed notes) here")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from franka_composer.training.evaluation import evaluate_policy
+    from franka_composer.training.models import load_model, make_env
+    from franka_composer.training.report import RunResult, markdown_table, seeds_note
+    from franka_composer.training.runs import RunDir
+
+    if args.episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
+    results = []
+    for root in args.runs:
+        run_dir = RunDir(root)
+        config = run_dir.read_config()
+        env = make_env(config.task, terminate_on_success=config.terminate_on_success)
+        try:
+            model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device)
+            outcome = evaluate_policy(model, env, args.episodes, seed=args.seed)
+        finally:
+            env.close()
+        result = RunResult(str(root), config.task, config.algo, config.seed,
+                           int(model.num_timesteps), outcome.success_rate)
+        results.append(result)
+        print(f"{root}: {config.task} {config.algo} seed {config.seed}, {result.steps} steps: "
+              f"success {100 * outcome.success_rate:.1f} % over {args.episodes} episodes")
+    table = markdown_table(results)
+    notes = seeds_note(results)
+    print(f"\nSuccess rate %, mean ± std over seeds, {args.episodes} episodes per model:\n")
+    print(table + "\n" + notes, end="")
+    if args.out:
+        args.out.write_text(table + "\n" + notes)
+    return 0

@@ -1,0 +1,27 @@
+"""`franka-composer plot`: success-rate curves of training runs (the paper's Fig. 4)."""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "plot", help="success-rate curves of runs: one panel per task, one line per algorithm",
+        description="Read each run's eval.csv and draw the median success rate over seeds "
+                    "(runs of the same task and algorithm), with median ± std shaded, one "
+                    "panel per task and one line per algorithm, as in the paper's Fig. 4.")
+    parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
+                        help="run directories written by `franka-composer train`")
+    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("curves.png"),
+                        help="image file to write (PNG, PDF or SVG by extension)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from franka_composer.training.curves import plot_curves
+
+    drawn = plot_curves(args.runs, args.out)
+    print(f"{len(drawn)} curve(s) -> {args.out}")
+    return 0

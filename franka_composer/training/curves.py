@@ -1,0 +1,70 @@
+"""Success-rate curves as in the paper's Fig. 4: one panel per task, one line per algorithm,
+the median over seeds with median ± std shaded (clipped to [0, 1])."""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from franka_composer.training.hyperparams import ALGOS
+from franka_composer.training.report import TABLE_II_TASKS, TASK_TITLES
+from franka_composer.training.runs import RunDir, read_eval_rows
+
+COLOURS = {"ddpg": "tab:green", "sac": "tab:blue", "tqc": "tab:red"}
+
+
+def seed_curves(run_dirs: list[pathlib.Path]) -> dict[tuple[str, str], list[dict[int, float]]]:
+    """{(task, algo): [per-seed {steps: success rate}]} from the runs' eval.csv files."""
+    curves: dict[tuple[str, str], list[dict[int, float]]] = {}
+    for root in run_dirs:
+        run = RunDir(pathlib.Path(root))
+        config = run.read_config()
+        rows = read_eval_rows(run.eval_csv)
+        if not rows:
+            raise ValueError(f"{root} has no evaluations yet (no eval.csv rows)")
+        curves.setdefault((config.task, config.algo), []).append(
+            {row["steps"]: row["success_rate"] for row in rows})
+    return curves
+
+
+def summarise(seeds: list[dict[int, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps evaluated in every seed, and the median and std of success there."""
+    steps = sorted(set.intersection(*(set(s) for s in seeds)))
+    values = np.array([[s[step] for step in steps] for s in seeds])
+    return np.array(steps), np.median(values, axis=0), np.std(values, axis=0)
+
+
+def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path) -> list[tuple[str, str]]:
+    """Writes the figure to `out`; returns the (task, algo) lines drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    curves = seed_curves(run_dirs)
+    tasks = [t for t in TABLE_II_TASKS if any(t == task for task, _ in curves)]
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
+    drawn = []
+    for ax, task in zip(axes[0], tasks):
+        for algo in ALGOS:
+            if (task, algo) not in curves:
+                continue
+            seeds = curves[(task, algo)]
+            steps, median, std = summarise(seeds)
+            ax.plot(steps, median, color=COLOURS[algo],
+                    label=f"{algo.upper()} ({len(seeds)} seed{'s' * (len(seeds) > 1)})")
+            ax.fill_between(steps, np.clip(median - std, 0, 1), np.clip(median + std, 0, 1),
+                            color=COLOURS[algo], alpha=0.2, linewidth=0)
+            drawn.append((task, algo))
+        ax.set_title(f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}")
+        ax.set_xlabel("environment steps")
+        ax.set_ylim(-0.02, 1.02)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left")
+    axes[0][0].set_ylabel("success rate")
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return drawn

@@ -1,0 +1,104 @@
+"""A training run from start (or from its last checkpoint) to its total step count.
+
+Interrupting it (Ctrl-C, or SIGTERM from a scheduler) writes a checkpoint first, so
+`resume` continues with the same step counter, replay buffer and eval.csv.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import pathlib
+import signal
+
+from stable_baselines3.common.callbacks import CallbackList
+
+from franka_composer.training.callbacks import (CheckpointCallback, EvaluationCallback,
+                                                ProgressCallback, WallClock, save_checkpoint)
+from franka_composer.training.models import build_model, load_model, make_env
+from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows, write_eval_rows
+
+#: The evaluation env's seed is offset from the training seed so they never share episodes.
+EVAL_SEED_OFFSET = 10_000
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM raises KeyboardInterrupt inside the block, so it checkpoints like Ctrl-C."""
+    def handler(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def start(root: pathlib.Path, config: RunConfig) -> RunDir:
+    """Creates a run directory for `config`; one that already holds a run is a ValueError."""
+    run = RunDir(pathlib.Path(root))
+    if run.config_path.exists():
+        raise ValueError(f"{run.root} already holds a run; pass --resume to continue it "
+                         "or choose another --out")
+    run.write_config(config)
+    return run
+
+
+def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
+          device: str = "auto", checkpoint_every: int = 50_000, progress: bool = True):
+    """Trains `run` up to its total steps (`total_steps` overrides and is saved); returns the
+    model. With `resume`, starts from the latest checkpoint."""
+    config = run.read_config()
+    if total_steps is not None:
+        config = RunConfig(config.task, config.algo, config.seed,
+                           config.hyperparameters.replace(total_steps=total_steps),
+                           config.terminate_on_success)
+        run.write_config(config)
+    hp = config.hyperparameters
+    env = make_env(config.task, terminate_on_success=config.terminate_on_success)
+    eval_env = make_env(config.task, terminate_on_success=config.terminate_on_success)
+    tensorboard = str(run.tensorboard) if importlib.util.find_spec("tensorboard") else None
+
+    state = run.read_state()
+    if resume:
+        if not state:
+            raise ValueError(f"{run.root} has no complete checkpoint to resume from "
+                             "(it stopped before its first one): delete it to start again")
+        model = load_model(config.algo, run.checkpoint_model, env=env, device=device)
+        model.load_replay_buffer(run.checkpoint_buffer)
+        # Evaluations logged after the checkpoint belong to steps that will be redone.
+        rows = read_eval_rows(run.eval_csv)
+        write_eval_rows(run.eval_csv, [r for r in rows if r["steps"] <= state["steps"]])
+        # Fresh episodes for the resumed stream, still a function of the seed.
+        model.set_random_seed(config.seed + int(state["steps"]))
+    else:
+        model = build_model(config.task, config.algo, hp, env, seed=config.seed,
+                            device=device, tensorboard_log=tensorboard)
+    clock = WallClock(state.get("wall_time_s", 0.0) if resume else 0.0)
+    if tensorboard:
+        model.tensorboard_log = tensorboard
+
+    evaluation = EvaluationCallback(eval_env, run, clock, every=hp.eval_every,
+                                    episodes=hp.eval_episodes,
+                                    seed=config.seed + EVAL_SEED_OFFSET)
+    callbacks = CallbackList([
+        evaluation,
+        CheckpointCallback(run, clock, every=checkpoint_every),
+        ProgressCallback(hp.total_steps, evaluation, enabled=progress),
+    ])
+    remaining = hp.total_steps - model.num_timesteps
+    try:
+        with _sigterm_as_interrupt():
+            if remaining > 0:
+                model.learn(total_timesteps=remaining, callback=callbacks,
+                            reset_num_timesteps=not resume, tb_log_name="run")
+    except KeyboardInterrupt:
+        save_checkpoint(model, run, clock)
+        raise
+    finally:
+        env.close()
+        eval_env.close()
+    save_checkpoint(model, run, clock)
+    model.save(run.final_model)
+    return model

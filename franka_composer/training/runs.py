@@ -1,0 +1,127 @@
+"""A training run on disk: what it was asked to do, its evaluations and its checkpoints.
+
+    RUN_DIR/config.json          task, algorithm, seed, options, hyperparameters
+    RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
+    RUN_DIR/model.zip            the final model (written when training completes)
+    RUN_DIR/checkpoint/          latest model.zip, replay_buffer.pkl, state.json
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import pathlib
+
+from franka_composer.training.hyperparams import Hyperparameters
+
+EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """What a run trains: enough to rebuild its model and environments on resume."""
+
+    task: str
+    algo: str
+    seed: int
+    hyperparameters: Hyperparameters
+    terminate_on_success: bool = True
+
+    def to_dict(self) -> dict:
+        return {"task": self.task, "algo": self.algo, "seed": self.seed,
+                "terminate_on_success": self.terminate_on_success,
+                "hyperparameters": self.hyperparameters.to_dict()}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "RunConfig":
+        return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
+                   terminate_on_success=bool(data["terminate_on_success"]),
+                   hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
+
+
+@dataclasses.dataclass(frozen=True)
+class RunDir:
+    """Paths inside one run directory."""
+
+    root: pathlib.Path
+
+    @property
+    def config_path(self) -> pathlib.Path:
+        return self.root / "config.json"
+
+    @property
+    def eval_csv(self) -> pathlib.Path:
+        return self.root / "eval.csv"
+
+    @property
+    def final_model(self) -> pathlib.Path:
+        return self.root / "model.zip"
+
+    @property
+    def checkpoint(self) -> pathlib.Path:
+        return self.root / "checkpoint"
+
+    @property
+    def checkpoint_model(self) -> pathlib.Path:
+        return self.checkpoint / "model.zip"
+
+    @property
+    def checkpoint_buffer(self) -> pathlib.Path:
+        return self.checkpoint / "replay_buffer.pkl"
+
+    @property
+    def checkpoint_state(self) -> pathlib.Path:
+        return self.checkpoint / "state.json"
+
+    @property
+    def tensorboard(self) -> pathlib.Path:
+        return self.root / "tensorboard"
+
+    def read_config(self) -> RunConfig:
+        if not self.config_path.is_file():
+            raise ValueError(f"{self.root} is not a training run (no config.json)")
+        return RunConfig.from_dict(json.loads(self.config_path.read_text()))
+
+    def write_config(self, config: RunConfig) -> None:
+        self.root.mkdir(parents=True, exist_ok=True)
+        self.config_path.write_text(json.dumps(config.to_dict(), indent=2) + "\n")
+
+    def read_state(self) -> dict:
+        """The latest checkpoint's {"steps", "wall_time_s"}; {} without a checkpoint."""
+        if not self.checkpoint_state.is_file():
+            return {}
+        return json.loads(self.checkpoint_state.read_text())
+
+    def best_model(self) -> pathlib.Path:
+        """The final model, else the latest checkpoint (a run that was interrupted)."""
+        for path in (self.final_model, self.checkpoint_model):
+            if path.is_file():
+                return path
+        raise ValueError(f"{self.root} has no model yet (neither model.zip nor a checkpoint)")
+
+
+def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
+    """The rows of an eval.csv as floats (steps as int); [] when it does not exist."""
+    if not path.is_file():
+        return []
+    with path.open(newline="") as f:
+        return [{k: (int(float(v)) if k == "steps" else float(v)) for k, v in row.items()}
+                for row in csv.DictReader(f)]
+
+
+def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
+    """Rewrites an eval.csv with `rows` (used to drop rows past a checkpoint on resume)."""
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=EVAL_COLUMNS)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def append_eval_row(path: pathlib.Path, row: dict[str, float]) -> None:
+    new = not path.is_file()
+    with path.open("a", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=EVAL_COLUMNS)
+        if new:
+            writer.writeheader()
+        writer.writerow(row)

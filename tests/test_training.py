@@ -1,0 +1,185 @@
+"""Training, evaluation and plotting through the command line, on tiny runs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+pytest.importorskip("sb3_contrib")
+
+from franka_composer import cli  # noqa: E402
+from franka_composer.training import ALGOS, TABLE_I, hyperparameters  # noqa: E402
+from franka_composer.training.models import build_model, load_model, make_env  # noqa: E402
+from franka_composer.training.runs import RunDir, read_eval_rows  # noqa: E402
+
+#: Small enough for seconds per run; learning starts after two 50-step episodes.
+TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
+        "--learning-starts", "100", "--eval-every", "100", "--eval-episodes", "2",
+        "--threads", "1", "--no-progress", "--device", "cpu"]
+
+
+def _train(out, algo, steps, *extra):
+    return cli.main(["train", "--task", "push", "--algo", algo, "--seed", "1",
+                     "--out", str(out), "--total-steps", str(steps), *TINY, *extra])
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """One 300-step push run per algorithm."""
+    root = tmp_path_factory.mktemp("runs")
+    dirs = {}
+    for algo in ALGOS:
+        dirs[algo] = root / algo
+        assert _train(dirs[algo], algo, 300) == 0
+    return dirs
+
+
+def test_table_i_is_the_papers():
+    for (task, algo), hp in TABLE_I.items():
+        wide = task == "slide"
+        assert hp.net_arch == ((512,) * 3 if wide else (256,) * 3)
+        assert hp.batch_size == (2048 if wide else 512)
+        assert hp.total_steps == (1_000_000 if wide else 500_000)
+        assert (hp.buffer_size, hp.learning_rate, hp.tau, hp.gamma) == (1_000_000, 1e-3,
+                                                                         0.05, 0.95)
+        assert (hp.eval_every, hp.eval_episodes) == (2000, 15)
+        assert (hp.her_goal_selection_strategy, hp.her_n_sampled_goal) == ("future", 4)
+        assert hp.action_noise_std == (None if algo == "tqc" else 0.2)
+        assert hp.ent_coef == (None if algo == "ddpg" else "auto")
+        assert hp.update_schedule == "step"
+    tqc = hyperparameters("push", "tqc")
+    assert (tqc.n_critics, tqc.n_quantiles, tqc.top_quantiles_to_drop_per_net) == (2, 25, 2)
+
+
+def test_bad_names_are_value_errors_listing_choices():
+    with pytest.raises(ValueError, match="ddpg, sac, tqc"):
+        hyperparameters("push", "ppo")
+    with pytest.raises(ValueError, match="push"):
+        hyperparameters("stack", "sac")
+    with pytest.raises(ValueError, match="valid: .*batch_size"):
+        hyperparameters("push", "sac").replace(batchsize=3)
+    with pytest.raises(SystemExit):
+        cli.main(["train", "--algo", "ppo"])
+
+
+def test_built_model_has_table_i_settings():
+    env = make_env("push")
+    tqc = build_model("push", "tqc", hyperparameters("push", "tqc"), env, seed=0, device="cpu")
+    assert tqc.batch_size == 512 and tqc.tau == 0.05 and tqc.gamma == 0.95
+    assert tqc.top_quantiles_to_drop_per_net == 2 and tqc.critic.n_quantiles == 25
+    assert len(tqc.critic.q_networks) == 2 and tqc.critic.n_critics == 2
+    assert [m.out_features for m in tqc.actor.latent_pi if hasattr(m, "out_features")] == [256] * 3
+    assert tqc.replay_buffer.n_sampled_goal == 4 and tqc.action_noise is None
+    sac = build_model("push", "sac", hyperparameters("push", "sac").replace(
+        update_schedule="episode", buffer_size=1000), env, seed=0, device="cpu")
+    assert sac.action_noise._sigma.tolist() == [0.2] * 3
+    assert (sac.train_freq.frequency, sac.train_freq.unit.value, sac.gradient_steps) == (
+        1, "episode", -1)
+    ddpg = build_model("push", "ddpg", hyperparameters("push", "ddpg").replace(
+        train_every=4, buffer_size=1000), env, seed=0, device="cpu")
+    assert (ddpg.train_freq.frequency, ddpg.train_freq.unit.value, ddpg.gradient_steps) == (
+        4, "step", 1)
+    with pytest.raises(ValueError, match="train_every"):
+        hyperparameters("push", "ddpg").replace(update_schedule="episode", train_every=4)
+    env.close()
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_tiny_run_logs_evaluations_and_saves_model(runs, algo):
+    run = RunDir(runs[algo])
+    rows = read_eval_rows(run.eval_csv)
+    assert [r["steps"] for r in rows] == [0, 100, 200, 300]
+    assert all(0.0 <= r["success_rate"] <= 1.0 and -50 <= r["mean_reward"] <= 0 for r in rows)
+    assert np.all(np.diff([r["wall_time_s"] for r in rows]) > 0)
+    config = json.loads(run.config_path.read_text())
+    assert (config["algo"], config["hyperparameters"]["net_arch"]) == (algo, [16, 16])
+    env = make_env("push")
+    assert load_model(algo, run.final_model, env=env, device="cpu").num_timesteps == 300
+    env.close()
+
+
+def test_resume_continues_step_count_buffer_and_csv(tmp_path):
+    out = tmp_path / "run"
+    assert _train(out, "sac", 200, "--checkpoint-every", "100") == 0
+    state = RunDir(out).read_state()
+    assert state["steps"] == 200
+    assert _train(out, "sac", 400, "--resume") == 0
+    rows = read_eval_rows(RunDir(out).eval_csv)
+    assert [r["steps"] for r in rows] == [0, 100, 200, 300, 400]
+    assert rows[3]["wall_time_s"] > state["wall_time_s"]
+    env = make_env("push")
+    model = load_model("sac", RunDir(out).final_model, env=env, device="cpu")
+    model.load_replay_buffer(RunDir(out).checkpoint_buffer)
+    assert model.num_timesteps == 400
+    assert model.replay_buffer.size() == 400  # The first 200 came back from the checkpoint.
+    env.close()
+
+
+def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
+    with pytest.raises(ValueError, match="--resume"):
+        _train(runs["ddpg"], "ddpg", 300)
+    RunDir(tmp_path / "bare").write_config(RunDir(runs["ddpg"]).read_config())
+    with pytest.raises(ValueError, match="no complete checkpoint"):
+        _train(tmp_path / "bare", "ddpg", 300, "--resume")
+
+
+def test_no_terminate_on_success_reaches_the_env(tmp_path):
+    out = tmp_path / "fetch_semantics"
+    assert _train(out, "ddpg", 100, "--no-terminate-on-success") == 0
+    config = RunDir(out).read_config()
+    assert config.terminate_on_success is False
+    env = make_env("push", terminate_on_success=config.terminate_on_success)
+    assert env.unwrapped.task.terminate_on_success is False
+    env.close()
+
+
+def test_evaluate_prints_table_ii_layout(runs, tmp_path, capsys):
+    table = tmp_path / "table.md"
+    assert cli.main(["evaluate", *map(str, runs.values()), "--episodes", "2",
+                     "--device", "cpu", "--out", str(table)]) == 0
+    printed = capsys.readouterr().out
+    lines = table.read_text().splitlines()
+    assert lines[:2] == ["| Tasks | DDPG | SAC | TQC |", "|---|---|---|---|"]
+    cells = lines[2].split("|")[1:-1]
+    assert cells[0].strip() == "Push"
+    rates = [float(c.split("±")[0]) for c in cells[1:]]
+    assert all(r in (0.0, 50.0, 100.0) for r in rates)  # 2 episodes, one seed each.
+    assert [c.split("±")[1].strip() for c in cells[1:]] == ["0.0"] * 3
+    assert printed.count("over 2 episodes") == 3
+
+
+def test_plot_draws_one_line_per_algorithm(runs, tmp_path):
+    import matplotlib.image
+
+    out = tmp_path / "curves.png"
+    assert cli.main(["plot", *map(str, runs.values()), "--out", str(out)]) == 0
+    image = matplotlib.image.imread(out)
+    assert image.shape[0] == 432 and image.shape[1] == 540  # One panel, 4.5 x 3.6 in.
+    assert np.ptp(image[..., :3]) > 0.5  # Not blank.
+
+
+def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "interrupted"
+    command = [sys.executable, "-m", "franka_composer", "train", "--task", "push", "--algo",
+               "ddpg", "--seed", "1", "--out", str(out), "--total-steps", "100000", *TINY]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not any(r["steps"] >= 200 for r in read_eval_rows(RunDir(out).eval_csv)):
+        assert time.monotonic() < deadline and process.poll() is None
+        time.sleep(0.2)
+    process.send_signal(signal.SIGTERM)
+    stdout, _ = process.communicate(timeout=60)
+    assert process.returncode == 130 and "--resume" in stdout
+    steps = RunDir(out).read_state()["steps"]
+    assert steps >= 200
+    assert _train(out, "ddpg", steps + 100, "--resume") == 0
+    evaluated = [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)]
+    assert evaluated == sorted(set(evaluated)) and evaluated[-1] == steps + 100
