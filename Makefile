@@ -4,7 +4,6 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 # Menagerie's Panda: a local copy beside the project when there is no internet.
 export MENAGERIE_ROOT ?= $(abspath ../shared/menagerie)
-export MUJOCO_GL ?= egl
 export OMP_NUM_THREADS ?= 1
 
 .PHONY: setup demo test bench clean

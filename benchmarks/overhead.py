@@ -52,19 +52,22 @@ def breakdown(task: str) -> dict[str, float]:
         "gym.make step (wrappers included)": best_us(gym_step, 1000),
         "adapter step": best_us(adapter_step, 1000),
         "Composer step": best_us(lambda: composer_env.step(action), 1000),
-        "physics.step(25) (dm_control)": best_us(lambda: physics.step(25), 1000),
+        "physics.step(25) (dm_control's)": best_us(lambda: physics.step(25), 1000),
+        "fused physics step (ours)": best_us(composer_env._step_physics, 1000),
         "mj_step(model, data, 25)": best_us(
             lambda: mujoco.mj_step(physics.model.ptr, physics.data.ptr, 25), 1000),
         "controller.apply (before_step)": best_us(apply_action, 5000),
     }
     parts.update({
         "observables (8 reads)": best_us(composer_env._read_observation, 5000),
-        "reward + discount + termination": best_us(
+        "distance + reward + discount + termination": best_us(
+            lambda: (task_object.after_step(physics, None),
+                     composer_env._make_timestep(False, observation)), 5000),
+        "reward + discount + termination (no distance)": best_us(
             lambda: composer_env._make_timestep(False, observation), 5000),
         "adapter observation dict": best_us(lambda: adapter._observation(observation), 5000),
-        "adapter is_success + compute_reward": best_us(
-            lambda: (adapter._is_success(goals),
-                     adapter.compute_reward(goals["achieved_goal"], goals["desired_goal"])),
+        "compute_reward, one pair (HER's call)": best_us(
+            lambda: adapter.compute_reward(goals["achieved_goal"], goals["desired_goal"]),
             5000),
     })
     return parts
@@ -76,7 +79,7 @@ def main(tasks: list[str]) -> int:
         floor = parts["mj_step(model, data, 25)"]
         print(f"\n{task}")
         for name, micros in parts.items():
-            print(f"  {name:38s} {micros:7.1f} us  ({micros / floor:5.2f} x mj_step)")
+            print(f"  {name:46s} {micros:7.1f} us  ({micros / floor:5.2f} x mj_step)")
     return 0
 
 

@@ -4,11 +4,10 @@
 Gymnasium ids `Franka{Push,Slide,PickAndPlace}{Sparse,Dense}-v0`.
 """
 
-import os as _os
+from franka_composer import headless_gl as _headless_gl
 
-# Headless by default: without a display, dm_control would try GLFW (and warn) on import.
-if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
-    _os.environ["MUJOCO_GL"] = "egl"
+# Headless by default (EGL, loaded at the first frame): see `headless_gl`.
+_headless_gl.choose_headless_backend()
 
 from franka_composer.adapters import ENV_IDS, FrankaGoalEnv, register_envs  # noqa: E402
 from franka_composer.suite import load  # noqa: E402

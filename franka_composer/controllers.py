@@ -9,6 +9,7 @@ gripper is actuated, changes the commanded finger width by at most `max_finger_s
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import numpy as np
 from dm_env import specs
@@ -82,7 +83,8 @@ class MocapController:
         return self._action_spec
 
     def initialize_episode(self, physics) -> None:
-        """Puts the mocap target on the tool centre point, so the weld starts slack.
+        """Puts the mocap target on the tool centre point, so the weld starts slack, and
+        takes the views `apply` reads and writes each step.
 
         Call after the arm is configured and `physics.forward()` has run."""
         tcp = physics.bind(self._panda.tcp_site)
@@ -91,6 +93,7 @@ class MocapController:
         target = physics.bind(self._target)
         target.mocap_pos = tcp.xpos
         target.mocap_quat = quat
+        self._views = _StepViews.of(physics, self._panda, self._target)
 
     def validate(self, action) -> np.ndarray:
         """The action as a float64 vector; a clear error for a wrong shape or a non-finite
@@ -102,22 +105,49 @@ class MocapController:
                 f"action must have shape {expected} ({_describe(self._settings)}), "
                 f"got shape {array.shape}"
             )
-        if not np.all(np.isfinite(array)):
+        if not np.isfinite(array).all():
             raise ValueError(f"action must be finite, got {array.tolist()}")
         return array
 
     def apply(self, physics, action) -> None:
         """Sets the mocap target (and gripper command) for the next control step.
 
-        Components are clipped to [-1, 1], as in Fetch."""
+        Components are clipped to [-1, 1], as in Fetch. Reads and writes go through the
+        views taken at the episode's start (physics.bind costs a few microseconds a call,
+        and this runs every step)."""
         action = np.clip(self.validate(action), -1.0, 1.0)
-        settings = self._settings
-        target = np.array(physics.bind(self._panda.tcp_site).xpos) + settings.max_tcp_step * action[:3]
+        settings, views = self._settings, self._views
+        target = views.tcp_pos + settings.max_tcp_step * action[:3]
         target[2] = max(target[2], settings.min_tcp_height)
-        physics.bind(self._target).mocap_pos = target
+        views.mocap_pos[:] = target
         if settings.actuated_gripper:
-            width = self._panda.finger_width(physics) + settings.max_finger_step * action[3]
-            physics.bind(self._panda.gripper_actuator).ctrl = np.clip(width, 0.0, MAX_FINGER_WIDTH)
+            width = views.finger_width() + settings.max_finger_step * action[3]
+            views.ctrl[views.gripper] = min(max(width, 0.0), MAX_FINGER_WIDTH)
+
+
+class _StepViews(NamedTuple):
+    """NumPy views into one physics' MjData, valid while that physics lives: Composer
+    builds a new physics only on recompiling, and then initialises the episode again."""
+
+    tcp_pos: np.ndarray  # The tool centre point's xpos (3,).
+    mocap_pos: np.ndarray  # The target's mocap_pos (3,).
+    qpos: np.ndarray
+    fingers: tuple[int, int]  # qpos addresses of the two finger joints.
+    ctrl: np.ndarray
+    gripper: int  # The gripper servo's index in ctrl.
+
+    @classmethod
+    def of(cls, physics, panda: Panda, target) -> "_StepViews":
+        left, right = (int(a) for a in physics.bind(panda.finger_joints).qposadr)
+        return cls(tcp_pos=physics.bind(panda.tcp_site).xpos.view(np.ndarray),
+                   mocap_pos=physics.bind(target).mocap_pos.view(np.ndarray),
+                   qpos=physics.data.qpos, fingers=(left, right), ctrl=physics.data.ctrl,
+                   gripper=int(physics.bind(panda.gripper_actuator).element_id))
+
+    def finger_width(self) -> float:
+        """Distance between the fingers (m): the sum of the two finger joints' slides."""
+        left, right = self.fingers
+        return float(self.qpos[left] + self.qpos[right])
 
 
 def _describe(settings: ControlSettings) -> str:

@@ -17,27 +17,25 @@ Two more costs go the same way (measured in BENCHMARKS.md):
   is cleared instead (same trajectories and observations, bit for bit).
 - Composer compiles the MJCF a second time on the first reset, for `initialize_episode_mjcf`
   hooks; none of ours has one, so the model compiled in `__init__` is kept.
-- Compiling Menagerie's Panda (400k visual mesh vertices) takes ~1 s and ~250 MB at peak.
-  The compiled model is saved as an MJB file keyed by a hash of the MuJoCo version, the
-  generated XML and every asset's bytes, and later loads read that file: the same model,
-  byte for byte. The folder is `$FRANKA_COMPOSER_CACHE`, else
-  `$XDG_CACHE_HOME/franka_composer` (default `~/.cache/franka_composer`);
-  `FRANKA_COMPOSER_CACHE=off` disables it.
+- The model is compiled through `model_cache.compile_physics`, which reads a compiled
+  model saved by an earlier process when there is one.
+- The substeps run in one fused call (`_step_physics`): dm_control's own `Physics.step`
+  does the same MuJoCo calls with ~15 us more Python around them.
 """
 
 from __future__ import annotations
-
-import hashlib
-import os
-import pathlib
 
 import dm_env
 import mujoco
 import numpy as np
 from absl import logging
-from dm_control import composer, mjcf
+from dm_control import composer
 from dm_control.composer.environment import _callable_is_trivial
 from dm_control.rl import control
+
+from franka_composer.model_cache import compile_physics
+
+_RK4 = mujoco.mjtIntegrator.mjINT_RK4.value
 
 
 class Environment(composer.Environment):
@@ -139,7 +137,7 @@ class Environment(composer.Environment):
         if direct is None:
             updater.prepare_for_next_control_step()
         try:
-            self._physics.step(self._n_sub_steps)
+            self._step_physics()
             if self._physics.legacy_step:
                 # A control written before the step (the gripper servo) marked the physics
                 # dirty, and the first binding read after it would run a whole mj_forward
@@ -162,11 +160,39 @@ class Environment(composer.Environment):
             observation = self._read_observation()
         return self._make_timestep(physics_is_divergent, observation)
 
+    def _step_physics(self) -> None:
+        """`physics.step(n_sub_steps)`: dm_control's legacy step (mj_step2, mj_step(n - 1),
+        mj_step1, so positions and velocities describe the state after the step) and its
+        PhysicsError when MuJoCo raised a new warning, in fewer Python calls. Other
+        integrators and non-legacy stepping go through dm_control itself."""
+        physics = self._physics
+        if physics is not getattr(self, "_fused_physics", None):
+            self._fused_physics = physics
+            self._fused = None
+            if physics.legacy_step and physics.model.opt.integrator != _RK4:
+                self._fused = (physics.model.ptr, physics.data.ptr, physics.data.warning.number)
+        if self._fused is None:
+            physics.step(self._n_sub_steps)
+            return
+        model, data, warnings = self._fused
+        before = warnings.copy()
+        mujoco.mj_step2(model, data)
+        if self._n_sub_steps > 1:
+            mujoco.mj_step(model, data, self._n_sub_steps - 1)
+        mujoco.mj_step1(model, data)
+        if (warnings > before).any():
+            names = [name for name, new in zip(mujoco.mjtWarning.__members__, warnings > before)
+                     if new]
+            raise control.PhysicsError(
+                f"Physics state is invalid. Warning(s) raised: {', '.join(names)}")
+
     def _make_timestep(self, physics_is_divergent: bool, obs: dict) -> dm_env.TimeStep:
+        # A diverged step still gets the task's reward for the state it reports (MuJoCo has
+        # reset it): Composer's fixed 0.0 would be the sparse reward for reaching the goal.
+        reward = self._task.get_reward(self._physics_proxy)
         if physics_is_divergent:
-            reward, discount, terminating = 0.0, 0.0, True
+            discount, terminating = 0.0, True
         else:
-            reward = self._task.get_reward(self._physics_proxy)
             discount = self._task.get_discount(self._physics_proxy)
             terminating = (self._task.should_terminate_episode(self._physics_proxy)
                            or self._physics.time() >= self._time_limit)
@@ -174,55 +200,3 @@ class Environment(composer.Environment):
             return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, obs)
         self._reset_next_step = True
         return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, obs)
-
-
-#: Compiled models kept (each ~35 MB: the Panda's visual meshes); the least recently used
-#: beyond this are deleted.
-MAX_CACHED_MODELS = 8
-
-
-def model_cache_dir() -> pathlib.Path | None:
-    """Where compiled models are kept, or None when caching is off."""
-    configured = os.environ.get("FRANKA_COMPOSER_CACHE")
-    if configured is not None:
-        return None if configured.lower() in ("", "0", "off", "false") else pathlib.Path(configured)
-    base = os.environ.get("XDG_CACHE_HOME") or pathlib.Path.home() / ".cache"
-    return pathlib.Path(base) / "franka_composer"
-
-
-def compile_physics(mjcf_model) -> mjcf.Physics:
-    """`mjcf.Physics.from_mjcf_model`, through the compiled-model cache when it is on."""
-    xml = mjcf_model.to_xml_string()
-    assets = mjcf_model.get_assets()
-    directory = model_cache_dir()
-    if directory is None:
-        return mjcf.Physics.from_xml_string(xml, assets)
-    digest = hashlib.blake2b(mujoco.__version__.encode() + b"\0" + xml.encode())
-    for name in sorted(assets):
-        contents = assets[name]
-        digest.update(b"\0" + name.encode() + b"\0")
-        digest.update(contents.encode() if isinstance(contents, str) else contents)
-    path = directory / f"{digest.hexdigest()[:32]}.mjb"
-    if path.is_file():
-        try:
-            physics = mjcf.Physics.from_binary_path(str(path))
-            os.utime(path)  # Recently used: evicted last.
-            return physics
-        except Exception as error:  # pylint: disable=broad-except
-            logging.warning("ignoring unreadable compiled model %s: %s", path, error)
-    physics = mjcf.Physics.from_xml_string(xml, assets)
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-        partial = path.with_suffix(f".{os.getpid()}.partial")
-        mujoco.mj_saveModel(physics.model.ptr, str(partial), None)
-        os.replace(partial, path)  # Atomic: parallel workers never read half a file.
-        _evict_oldest(directory)
-    except OSError as error:
-        logging.warning("could not cache the compiled model in %s: %s", directory, error)
-    return physics
-
-
-def _evict_oldest(directory: pathlib.Path) -> None:
-    models = sorted(directory.glob("*.mjb"), key=lambda p: p.stat().st_mtime, reverse=True)
-    for stale in models[MAX_CACHED_MODELS:]:
-        stale.unlink(missing_ok=True)

@@ -1,4 +1,5 @@
-"""Test set-up: Menagerie from ../shared/menagerie when offline, headless GL, one thread."""
+"""Test set-up: Menagerie from ../shared/menagerie when offline, one thread. Headless GL is
+left to the package (EGL, loaded at the first frame), so the tests run the users' default."""
 
 from __future__ import annotations
 
@@ -9,7 +10,6 @@ _REPO = pathlib.Path(__file__).resolve().parents[1]
 _SHARED_MENAGERIE = _REPO.parent / "shared" / "menagerie"
 if "MENAGERIE_ROOT" not in os.environ and _SHARED_MENAGERIE.is_dir():
     os.environ["MENAGERIE_ROOT"] = str(_SHARED_MENAGERIE)
-os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402

@@ -185,5 +185,17 @@ def test_physics_divergence_ends_the_episode_with_a_warning_and_reset_recovers(c
     assert np.all(np.isfinite(timestep.observation["block/position"]))
 
 
+def test_a_diverged_step_is_not_rewarded_as_reaching_the_goal():
+    """Composer would give a diverged step a reward of 0, the sparse reward for success."""
+    env = franka_composer.load("push", seed=0)
+    env.reset()
+    env.physics.data.qvel[-6:] = 1e12
+    timestep = env.step(np.zeros(3, np.float32))
+    assert timestep.last() and not env.task.success
+    assert timestep.reward == -1.0
+    assert timestep.reward == env.task.compute_reward(timestep.observation["block/position"],
+                                                      timestep.observation["goal"])
+
+
 def test_every_task_config_is_loadable_by_name():
     assert tuple(TASK_CONFIGS) == franka_composer.ALL_TASKS

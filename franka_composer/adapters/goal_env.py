@@ -2,8 +2,9 @@
 
 It only reshapes what the task exposes: the flat `observation` is the task's
 `observation_fields` concatenated in order (velocities times the control period), the goals
-are the task's achieved/desired goal observables, and the reward is the task's
-`compute_reward` on them: the same function HER calls to relabel.
+are the task's achieved/desired goal observables, the reward is the timestep's (the task's
+reward function on those goals: the same function `compute_reward`, which HER calls to
+relabel, runs) and `is_success` is the task's.
 """
 
 from __future__ import annotations
@@ -103,15 +104,15 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         obs = self._observation(self._timestep.observation)
         if self.render_mode == "human":
             self.render()
-        return obs, {"is_success": self._is_success(obs)}
+        return obs, {"is_success": self._task.success}
 
     def step(self, action):
         if self._timestep is None:
             raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
         self._timestep = self._env.step(action)
         obs = self._observation(self._timestep.observation)
-        info = {"is_success": self._is_success(obs)}
-        reward = self.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)[()]
+        info = {"is_success": self._task.success}
+        reward = OBS_DTYPE(self._timestep.reward)
         terminated = bool(self._timestep.last())
         if terminated:
             self._timestep = None  # Composer would reset on the next step: make it explicit.
@@ -165,9 +166,6 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             "achieved_goal": np.array(composer_obs[self._task.achieved_goal_key], dtype=OBS_DTYPE),
             "desired_goal": np.array(composer_obs[self._task.desired_goal_key], dtype=OBS_DTYPE),
         }
-
-    def _is_success(self, obs: dict) -> bool:
-        return bool(self._task.is_success(obs["achieved_goal"], obs["desired_goal"]))
 
 
 def _check_render_size(width: int, height: int) -> None:

@@ -16,7 +16,7 @@ from dm_control.composer import define
 from dm_control.composer.observation import observable
 
 from franka_composer import assets
-from franka_composer.entities.features import DerivedFeature
+from franka_composer.entities.features import ArrayFeature
 
 #: Neutral arm configuration (rad), hand pointing straight down above the workspace.
 NEUTRAL_ARM_QPOS = (0.00, 0.41, 0.00, -1.85, 0.00, 2.26, 0.79)
@@ -164,17 +164,17 @@ class PandaObservables(composer.Observables):
 
     @define.observable
     def tcp_pos(self):
-        return observable.MJCFFeature("xpos", self._entity.tcp_site)
+        return ArrayFeature("xpos", self._entity.tcp_site)
 
     @define.observable
     def tcp_velp(self):
-        return observable.MJCFFeature("sensordata", self._entity.tcp_velocity)
+        return ArrayFeature("sensordata", self._entity.tcp_velocity)
 
     @define.observable
     def finger_width(self):
         """Distance between the fingers (m), shape (1,)."""
-        return DerivedFeature("qpos", self._entity.finger_joints,
-                              lambda qpos: np.array([float(np.sum(qpos))]))
+        return ArrayFeature("qpos", self._entity.finger_joints,
+                            lambda qpos: np.array([float(np.sum(qpos))]))
 
     @define.observable
     def joints_pos(self):

@@ -13,7 +13,7 @@ import numpy as np
 from dm_control.composer import define
 from dm_control.entities.props import primitive
 
-from franka_composer.entities.features import DerivedFeature
+from franka_composer.entities.features import ArrayFeature
 
 
 class Prop(primitive.Primitive):
@@ -52,12 +52,29 @@ class Puck(Prop):
 
 
 class PropObservables(primitive.PrimitiveObservables):
-    """The free-prop observables plus the orientation as Euler angles."""
+    """The free-prop observables (world frame, per second), read through views of MjData
+    (`features.ArrayFeature`), plus the orientation as Euler angles."""
+
+    @define.observable
+    def position(self):
+        return ArrayFeature("sensordata", self._entity.position)
+
+    @define.observable
+    def orientation(self):
+        return ArrayFeature("sensordata", self._entity.orientation)
+
+    @define.observable
+    def linear_velocity(self):
+        return ArrayFeature("sensordata", self._entity.linear_velocity)
+
+    @define.observable
+    def angular_velocity(self):
+        return ArrayFeature("sensordata", self._entity.angular_velocity)
 
     @define.observable
     def orientation_euler(self):
         """Roll, pitch, yaw (rad): x-y-z extrinsic angles of the prop's orientation."""
-        return DerivedFeature("sensordata", self._entity.orientation, quat_to_euler)
+        return ArrayFeature("sensordata", self._entity.orientation, quat_to_euler)
 
 
 def quat_to_euler(quat: np.ndarray) -> np.ndarray:

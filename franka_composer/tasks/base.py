@@ -70,10 +70,7 @@ class GoalTask(composer.Task):
         neutral_arm_qpos=NEUTRAL_ARM_QPOS,
         initial_finger_width: float = 0.0,
     ) -> None:
-        if reward_type not in rewards.REWARD_TYPES:
-            raise ValueError(
-                f"unknown reward_type {reward_type!r}; valid: {', '.join(rewards.REWARD_TYPES)}"
-            )
+        rewards.check_reward_type(reward_type)
         if not distance_threshold > 0:
             raise ValueError(f"distance_threshold must be > 0 (m), got {distance_threshold}")
         if not 0.0 <= workspace.goal_in_air_probability <= 1.0:
@@ -87,6 +84,11 @@ class GoalTask(composer.Task):
         self._neutral_arm_qpos = np.asarray(neutral_arm_qpos, dtype=np.float64)
         self._initial_finger_width = float(initial_finger_width)
         self._goal = np.zeros(3)
+        # Goal distance (m) at the end of the last step or reset: computed once per step
+        # (`after_step`) for the reward, the discount, termination and the adapter's success.
+        self._distance = np.float64(np.inf)
+        self._success = False
+        self._achieved_view = None  # The prop position's slice of MjData, per episode.
 
         arena.attach(panda)
         arena.add_free_entity(prop)
@@ -210,6 +212,12 @@ class GoalTask(composer.Task):
         return np.array(physics.bind(self._prop.position).sensordata)
 
     @property
+    def success(self) -> bool:
+        """Whether the object ended the last control step (or reset) within
+        `distance_threshold` of the goal."""
+        return self._success
+
+    @property
     def goal(self) -> np.ndarray:
         """Desired goal position (m, world frame) of this episode."""
         return self._goal.copy()
@@ -223,6 +231,15 @@ class GoalTask(composer.Task):
         self._goal_marker.set_position(physics, self._goal)
         physics.forward()
         self._controller.initialize_episode(physics)
+        # A view, not a binding: this is read every step (valid while this physics lives;
+        # Composer makes a new one only when recompiling, and initialises again then).
+        self._achieved_view = physics.bind(self._prop.position).sensordata.view(np.ndarray)
+        self._update_distance(physics)
+
+    def _update_distance(self, physics) -> None:
+        self._distance = rewards.goal_distance(self._achieved_view, self._goal)
+        self._success = bool(rewards.success_from_distance(self._distance,
+                                                           self._distance_threshold))
 
     def _sample_goal(self, random_state: np.random.RandomState) -> np.ndarray:
         height = self._prop.resting_height + self._arena.surface_height
@@ -237,13 +254,19 @@ class GoalTask(composer.Task):
     def before_step(self, physics, action, random_state) -> None:
         self._controller.apply(physics, action)
 
+    def after_step(self, physics, random_state) -> None:
+        self._update_distance(physics)
+
+    # Reward, discount and termination describe the state at the end of the last control
+    # step (Composer calls them right after `after_step`), from the distance computed there.
+
     def get_reward(self, physics) -> float:
-        return float(self.compute_reward(self.achieved_goal(physics), self._goal))
+        return float(rewards.reward_from_distance(self._distance, self._reward_type,
+                                                  self._distance_threshold))
 
     def get_discount(self, physics) -> float:
         # Reaching the goal with terminate_on_success is a true terminal state.
         return 0.0 if self.should_terminate_episode(physics) else 1.0
 
     def should_terminate_episode(self, physics) -> bool:
-        return self._terminate_on_success and bool(
-            self.is_success(self.achieved_goal(physics), self._goal))
+        return self._terminate_on_success and self.success
