@@ -7,14 +7,16 @@ environment then calls `physics.step(n_sub_steps)` once, which MuJoCo runs in C,
 back to Composer's loop otherwise. Both paths produce the same states, bit for bit
 (`tests/test_environment.py`).
 
-Two more costs go the same way (measured in BENCHMARKS.md):
+More costs go the same way (measured in BENCHMARKS.md):
 - When every observable is read once per control step with no delay, buffer or aggregator
   (the default), the step calls the observables directly instead of scheduling them through
   Composer's observation buffers: same values, a fraction of the Python time.
-- A control written before the step (the gripper's) leaves dm_control's physics "dirty",
-  so the first observable read after the step runs an extra `mj_forward`; the step's own
-  closing `mj_step1` has already brought positions and velocities up to date, so the flag
-  is cleared instead (same trajectories and observations, bit for bit).
+- A state or control written through a binding before the step (by a user's hook, say)
+  leaves dm_control's physics "dirty", so the first binding read after the step would run
+  an extra `mj_forward`; the step's own closing `mj_step1` has already brought positions
+  and velocities up to date, so the flag is cleared instead (same trajectories and
+  observations, bit for bit). (Our controller writes through MjData views and marks
+  nothing dirty.)
 - Composer compiles the MJCF a second time on the first reset, for `initialize_episode_mjcf`
   hooks; none of ours has one, so the model compiled in `__init__` is kept.
 - The model is compiled through `model_cache.compile_physics`, which reads a compiled
@@ -139,10 +141,9 @@ class Environment(composer.Environment):
         try:
             self._step_physics()
             if self._physics.legacy_step:
-                # A control written before the step (the gripper servo) marked the physics
-                # dirty, and the first binding read after it would run a whole mj_forward
-                # (~6 % of a step) to refresh what the legacy step's closing mj_step1 has
-                # just computed.
+                # A binding write before the step marked the physics dirty, and the first
+                # binding read after it would run a whole mj_forward (~6 % of a step) to
+                # refresh what the legacy step's closing mj_step1 has just computed.
                 self._physics._dirty = False  # pylint: disable=protected-access
             physics_is_divergent = False
         except control.PhysicsError as error:
