@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -183,3 +184,77 @@ def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
     assert _train(out, "ddpg", steps + 100, "--resume") == 0
     evaluated = [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)]
     assert evaluated == sorted(set(evaluated)) and evaluated[-1] == steps + 100
+
+
+def test_sbx_model_has_table_i_settings():
+    import sbx  # In the test extra: a missing sbx is a failure here, not a skip.
+    env = make_env("push")
+    tqc = build_model("push", "tqc", hyperparameters("push", "tqc").replace(buffer_size=1000),
+                      env, seed=0, device="cpu", backend="sbx")
+    assert isinstance(tqc, sbx.TQC)
+    assert (tqc.batch_size, tqc.tau, tqc.gamma, tqc.learning_rate) == (512, 0.05, 0.95, 1e-3)
+    assert (tqc.qf_learning_rate, tqc.policy_delay, tqc.action_noise) == (1e-3, 1, None)
+    assert (tqc.policy.n_quantiles, tqc.policy.n_target_quantiles) == (25, 46)
+    assert tqc.policy.net_arch_pi == tqc.policy.net_arch_qf == [256] * 3
+    assert (tqc.policy.dropout_rate, tqc.policy.layer_norm) == (0.0, False)
+    assert tqc.replay_buffer.n_sampled_goal == 4 and tqc.target_entropy == -3.0
+    sac = build_model("push", "sac", hyperparameters("push", "sac").replace(
+        update_schedule="episode", buffer_size=1000), env, seed=0, device="cpu", backend="sbx")
+    assert sac.action_noise._sigma.tolist() == [0.2] * 3 and sac.ent_coef_init == "auto"
+    assert (sac.train_freq.frequency, sac.train_freq.unit.value, sac.gradient_steps) == (
+        1, "episode", -1)
+    assert sac.policy.n_critics == 2 and sac.qf_learning_rate == 1e-3
+    ddpg = build_model("push", "ddpg", hyperparameters("push", "ddpg").replace(
+        buffer_size=1000), env, seed=0, device="cpu", backend="sbx")
+    assert ddpg.policy.n_critics == 1 and ddpg.qf_learning_rate == 1e-3  # sbx's default: 1e-3.
+    assert (ddpg.policy_delay, ddpg.target_noise_clip) == (1, 0.0)  # No TD3 tricks.
+    env.close()
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_sbx_run_trains_resumes_and_evaluates(tmp_path, algo, capsys):
+    import sbx  # In the test extra: a missing sbx is a failure here, not a skip.
+
+    out = tmp_path / algo
+    cores = os.sched_getaffinity(0)
+    assert _train(out, algo, 200, "--backend", "sbx", "--checkpoint-every", "100") == 0
+    assert os.sched_getaffinity(0) == cores  # --threads 1 pinned the run, not the caller.
+    assert RunDir(out).read_config().backend == "sbx"
+    assert RunDir(out).read_state()["steps"] == 200
+    assert _train(out, algo, 300, "--resume") == 0  # The backend comes from config.json.
+    rows = read_eval_rows(RunDir(out).eval_csv)
+    assert [r["steps"] for r in rows] == [0, 100, 200, 300]
+    env = make_env("push")
+    model = load_model(algo, RunDir(out).final_model, env=env, device="cpu", backend="sbx")
+    assert isinstance(model, getattr(sbx, algo.upper())) and model.num_timesteps == 300
+    model.load_replay_buffer(RunDir(out).checkpoint_buffer)
+    assert model.replay_buffer.size() == 300  # The first 200 came back from the checkpoint.
+    env.close()
+    capsys.readouterr()
+    assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
+    assert "300 steps" in capsys.readouterr().out
+
+
+def test_sbx_backend_without_sbx_is_a_value_error(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "sbx", None)  # `import sbx` raises ImportError.
+    with pytest.raises(ValueError, match="pip install sbx-rl"):
+        _train(tmp_path / "run", "sac", 100, "--backend", "sbx")
+    assert not (tmp_path / "run").exists()  # Refused before the run directory was made.
+
+
+def test_config_without_backend_resumes_as_sb3(tmp_path):
+    from stable_baselines3 import SAC
+
+    out = tmp_path / "old"
+    assert _train(out, "sac", 100, "--checkpoint-every", "100") == 0
+    config = json.loads(RunDir(out).config_path.read_text())
+    assert config.pop("backend") == "sb3"
+    RunDir(out).config_path.write_text(json.dumps(config))  # As written before --backend.
+    assert RunDir(out).read_config().backend == "sb3"
+    assert _train(out, "sac", 200, "--resume") == 0
+    assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
+    env = make_env("push")
+    assert type(load_model("sac", RunDir(out).final_model, env=env, device="cpu")) is SAC
+    env.close()

@@ -43,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
         config = run_dir.read_config()
         env = make_env(config.task, terminate_on_success=config.terminate_on_success)
         try:
-            model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device)
+            model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device,
+                               backend=config.backend)
             outcome = evaluate_policy(model, env, args.episodes, seed=args.seed)
         finally:
             env.close()

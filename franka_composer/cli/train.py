@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
 import pathlib
 
 from franka_composer.tasks import ALL_TASKS
-from franka_composer.training.hyperparams import ALGOS, UPDATE_SCHEDULES
+from franka_composer.training.hyperparams import ALGOS, BACKENDS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 
 
@@ -37,6 +39,11 @@ def add_parser(subparsers) -> None:
                     "checkpoints and the final model.zip to the run directory.")
     parser.add_argument("--task", choices=ALL_TASKS, default="push", help="task to learn")
     parser.add_argument("--algo", choices=ALGOS, default="tqc", help="learning algorithm")
+    parser.add_argument("--backend", choices=BACKENDS, default="sb3",
+                        help="'sb3' (default, the paper's): Stable-Baselines3 on PyTorch; "
+                             "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
+                             "Table I settings (RESULTS.md compares their speed). A resumed "
+                             "run keeps the backend it was started with")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the run")
     parser.add_argument("--out", type=pathlib.Path, default=None,
                         help="run directory (default runs/TASK-ALGO-seedSEED)")
@@ -79,24 +86,46 @@ def add_parser(subparsers) -> None:
                         help="steps between checkpoints of model and replay buffer "
                              "(default 50000; one is also written on Ctrl-C / SIGTERM)")
     parser.add_argument("--threads", type=_positive_int, default=None,
-                        help="torch CPU threads (default: torch's, or OMP_NUM_THREADS)")
+                        help="CPU threads for the networks (default: the library's, or "
+                             "OMP_NUM_THREADS). torch's thread count with sb3; with sbx, "
+                             "whose XLA CPU runtime has no thread-count setting, the process "
+                             "is pinned to this many cores")
     parser.add_argument("--no-progress", dest="progress", action="store_false",
                         help="no progress bar")
     parser.set_defaults(func=run)
 
 
-def run(args: argparse.Namespace) -> int:
+@contextlib.contextmanager
+def _limit_threads(threads: int | None, backend: str):
+    """At most `threads` CPU threads for the networks. torch has a setting; XLA's CPU
+    runtime sizes its thread pool from the cores the process may use, so sbx is pinned
+    (before JAX starts its runtime: the first model built) and unpinned afterwards, for
+    callers that go on in the same process."""
     import torch
 
+    pinned = None
+    if threads:
+        torch.set_num_threads(threads)
+        if backend == "sbx" and hasattr(os, "sched_setaffinity"):
+            pinned = os.sched_getaffinity(0)
+            os.sched_setaffinity(0, sorted(pinned)[:threads])
+    try:
+        yield
+    finally:
+        if pinned is not None:
+            os.sched_setaffinity(0, pinned)
+
+
+def run(args: argparse.Namespace) -> int:
     from franka_composer.training import hyperparameters, loop
+    from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunConfig, RunDir
 
-    if args.threads:
-        torch.set_num_threads(args.threads)
     out = args.out or pathlib.Path("runs") / f"{args.task}-{args.algo}-seed{args.seed}"
     if args.resume:
         run_dir = RunDir(out)
     else:
+        algorithm_class(args.algo, args.backend)  # A missing sbx fails before the run exists.
         hp = hyperparameters(args.task, args.algo).replace(
             update_schedule=args.update_schedule, train_every=args.train_every,
             net_arch=args.net_arch,
@@ -104,11 +133,12 @@ def run(args: argparse.Namespace) -> int:
             learning_starts=args.learning_starts, eval_every=args.eval_every,
             eval_episodes=args.eval_episodes)
         run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
-                                            args.terminate_on_success))
+                                            args.terminate_on_success, args.backend))
     try:
-        model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
-                           device=args.device, checkpoint_every=args.checkpoint_every,
-                           progress=args.progress)
+        with _limit_threads(args.threads, run_dir.read_config().backend):
+            model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
+                               device=args.device, checkpoint_every=args.checkpoint_every,
+                               progress=args.progress)
     except KeyboardInterrupt:
         print(f"interrupted: checkpoint saved; continue with "
               f"franka-composer train --resume --out {run_dir.root}")

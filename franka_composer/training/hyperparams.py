@@ -18,6 +18,11 @@ ALGOS = ("ddpg", "sac", "tqc")
 #: then does as many gradient steps as it collected (same updates per step, batched).
 UPDATE_SCHEDULES = ("step", "episode")
 
+#: Which implementation runs the algorithms: "sb3" is Stable-Baselines3 / sb3-contrib on
+#: PyTorch (the paper's); "sbx" is sbx-rl, SB3's port to JAX (the `jax` extra), with the
+#: same Table I settings and SB3's replay buffers and rollout loop.
+BACKENDS = ("sb3", "sbx")
+
 
 @dataclasses.dataclass(frozen=True)
 class Hyperparameters:

@@ -7,6 +7,7 @@ Interrupting it (Ctrl-C, or SIGTERM from a scheduler) writes a checkpoint first,
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import importlib.util
 import pathlib
 import signal
@@ -51,9 +52,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     model. With `resume`, starts from the latest checkpoint."""
     config = run.read_config()
     if total_steps is not None:
-        config = RunConfig(config.task, config.algo, config.seed,
-                           config.hyperparameters.replace(total_steps=total_steps),
-                           config.terminate_on_success)
+        config = dataclasses.replace(
+            config, hyperparameters=config.hyperparameters.replace(total_steps=total_steps))
         run.write_config(config)
     hp = config.hyperparameters
     env = make_env(config.task, terminate_on_success=config.terminate_on_success)
@@ -65,7 +65,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         if not state:
             raise ValueError(f"{run.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
-        model = load_model(config.algo, run.checkpoint_model, env=env, device=device)
+        model = load_model(config.algo, run.checkpoint_model, env=env, device=device,
+                           backend=config.backend)
         model.load_replay_buffer(run.checkpoint_buffer)
         # Evaluations logged after the checkpoint belong to steps that will be redone.
         rows = read_eval_rows(run.eval_csv)
@@ -74,7 +75,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         model.set_random_seed(config.seed + int(state["steps"]))
     else:
         model = build_model(config.task, config.algo, hp, env, seed=config.seed,
-                            device=device, tensorboard_log=tensorboard)
+                            device=device, tensorboard_log=tensorboard,
+                            backend=config.backend)
     clock = WallClock(state.get("wall_time_s", 0.0) if resume else 0.0)
     if tensorboard:
         model.tensorboard_log = tensorboard

@@ -1,7 +1,7 @@
-"""Environments and Stable-Baselines3 models built from a run's settings.
+"""Environments and Stable-Baselines3 (or sbx) models built from a run's settings.
 
-One function turns (task, algorithm, `Hyperparameters`) into a model, so a fresh run, a
-resumed run and an evaluation all see the same construction.
+One function turns (task, algorithm, `Hyperparameters`, backend) into a model, so a fresh
+run, a resumed run and an evaluation all see the same construction.
 """
 
 from __future__ import annotations
@@ -10,14 +10,27 @@ import gymnasium as gym
 import numpy as np
 
 from franka_composer.adapters.registration import env_id
-from franka_composer.training.hyperparams import ALGOS, Hyperparameters, check_choice
+from franka_composer.training.hyperparams import (ALGOS, BACKENDS, Hyperparameters,
+                                                  check_choice)
 
 DEVICES = ("auto", "cpu", "cuda")
 
+#: What `--backend sbx` needs when sbx-rl is missing.
+SBX_MISSING = ("--backend sbx needs sbx-rl (Stable-Baselines3 ported to JAX): "
+               "pip install sbx-rl, or pip install 'franka_composer[jax]'")
 
-def algorithm_class(algo: str):
-    """The SB3 / sb3-contrib class for `algo` (imported lazily: training is an extra)."""
+
+def algorithm_class(algo: str, backend: str = "sb3"):
+    """The class of `algo` in `backend`: SB3 / sb3-contrib, or sbx (imported lazily: training
+    is an extra, and JAX takes seconds to import); a missing sbx is a ValueError."""
     check_choice("algorithm", algo, ALGOS)
+    check_choice("backend", backend, BACKENDS)
+    if backend == "sbx":
+        try:
+            import sbx
+        except ImportError as error:
+            raise ValueError(SBX_MISSING) from error
+        return {"ddpg": sbx.DDPG, "sac": sbx.SAC, "tqc": sbx.TQC}[algo]
     if algo == "tqc":
         from sb3_contrib import TQC
 
@@ -55,9 +68,36 @@ def _schedule_kwargs(hp: Hyperparameters) -> dict:
     return dict(train_freq=hp.train_every, gradient_steps=1)
 
 
+def _sbx_kwargs(algo: str, hp: Hyperparameters) -> dict:
+    """sbx settings whose defaults differ from SB3's, pinned to SB3's algorithm.
+
+    sbx lets the critic have its own learning rate (DDPG's default is 1e-3 whatever the
+    actor's) and delay the actor (`policy_delay`); SB3 uses one rate and updates the actor
+    after every critic step (DDPG: forced by sbx). Dropout and layer norm in the critics
+    (DroQ / CrossQ-style options) are off in SB3. The target entropy is -dim(action) in both.
+    """
+    if algo == "tqc" and hp.n_critics != 2:
+        raise ValueError(f"sbx's TQC has exactly 2 critics, got n_critics={hp.n_critics}")
+    kwargs = dict(qf_learning_rate=hp.learning_rate)
+    if algo in ("sac", "tqc"):
+        kwargs.update(policy_delay=1, target_entropy="auto")
+    return kwargs
+
+
+def _policy(algo_class, backend: str):
+    """SB3's "MultiInputPolicy" for the Dict observations; sbx flattens Dict observations in
+    every policy, but its DDPG lists only "MlpPolicy" (which SB3's checks refuse for a Dict
+    space), so the policy class itself is passed there."""
+    if backend == "sb3" or "MultiInputPolicy" in algo_class.policy_aliases:
+        return "MultiInputPolicy"
+    return algo_class.policy_aliases["MlpPolicy"]
+
+
 def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed: int,
-                device: str = "auto", tensorboard_log: str | None = None):
+                device: str = "auto", tensorboard_log: str | None = None,
+                backend: str = "sb3"):
     """A fresh HER model with `hp` (Table I unless overridden) on `env`."""
+    algo_class = algorithm_class(algo, backend)
     from stable_baselines3 import HerReplayBuffer
     from stable_baselines3.common.noise import NormalActionNoise
 
@@ -80,9 +120,12 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
     if algo == "tqc":
         kwargs["policy_kwargs"].update(n_critics=hp.n_critics, n_quantiles=hp.n_quantiles)
         kwargs["top_quantiles_to_drop_per_net"] = hp.top_quantiles_to_drop_per_net
-    return algorithm_class(algo)("MultiInputPolicy", env, **kwargs)
+    if backend == "sbx":
+        kwargs.update(_sbx_kwargs(algo, hp))
+        kwargs["policy_kwargs"].update(dropout_rate=0.0, layer_norm=False)
+    return algo_class(_policy(algo_class, backend), env, **kwargs)
 
 
-def load_model(algo: str, path, *, env: gym.Env, device: str = "auto"):
+def load_model(algo: str, path, *, env: gym.Env, device: str = "auto", backend: str = "sb3"):
     """A saved model on `env` (HER models cannot be loaded without their env)."""
-    return algorithm_class(algo).load(path, env=env, device=resolve_device(device))
+    return algorithm_class(algo, backend).load(path, env=env, device=resolve_device(device))

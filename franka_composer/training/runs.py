@@ -1,6 +1,6 @@
 """A training run on disk: what it was asked to do, its evaluations and its checkpoints.
 
-    RUN_DIR/config.json          task, algorithm, seed, options, hyperparameters
+    RUN_DIR/config.json          task, algorithm, seed, backend, options, hyperparameters
     RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
     RUN_DIR/model.zip            the final model (written when training completes)
     RUN_DIR/checkpoint/          latest model.zip, replay_buffer.pkl, state.json
@@ -13,30 +13,40 @@ import dataclasses
 import json
 import pathlib
 
-from franka_composer.training.hyperparams import Hyperparameters
+from franka_composer.training.hyperparams import BACKENDS, Hyperparameters, check_choice
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 
 
 @dataclasses.dataclass(frozen=True)
 class RunConfig:
-    """What a run trains: enough to rebuild its model and environments on resume."""
+    """What a run trains: enough to rebuild its model and environments on resume.
+
+    `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
+    wrote it, so resume and evaluate read it from here.
+    """
 
     task: str
     algo: str
     seed: int
     hyperparameters: Hyperparameters
     terminate_on_success: bool = True
+    backend: str = "sb3"
+
+    def __post_init__(self) -> None:
+        check_choice("backend", self.backend, BACKENDS)
 
     def to_dict(self) -> dict:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
-                "terminate_on_success": self.terminate_on_success,
+                "terminate_on_success": self.terminate_on_success, "backend": self.backend,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
+        # Runs written before the JAX backend existed have no "backend": they are SB3's.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
+                   backend=data.get("backend", "sb3"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
 
 
