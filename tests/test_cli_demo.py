@@ -58,3 +58,17 @@ def test_unknown_task_is_an_error_naming_the_valid_ones(capsys):
         main(["demo", "--tasks", "push,stack", "--no-video"])
     assert exit_info.value.code == 2
     assert "valid tasks: push, slide, pick_and_place" in capsys.readouterr().err
+
+
+def test_count_options_take_whole_positive_numbers_and_name_a_bad_one(capsys):
+    import argparse
+
+    from franka_composer.cli.options import positive_int
+
+    assert positive_int("20") == 20 and positive_int("5e5") == 500_000
+    for bad in ("0", "-3", "1.5", "ten", "nan", "inf"):
+        with pytest.raises(argparse.ArgumentTypeError, match=f"positive integer, got '{bad}'"):
+            positive_int(bad)
+    with pytest.raises(SystemExit):
+        main(["evaluate", "runs/x", "--episodes", "0"])
+    assert "--episodes: must be a positive integer, got '0'" in capsys.readouterr().err

@@ -19,7 +19,7 @@ import time
 from importlib import metadata
 
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.demo import positive_int
+from franka_composer.cli.options import positive_int
 from franka_composer.tasks import ALL_TASKS
 
 #: Issue 5's targets: (JSON path within a task's result, comparison, bound).

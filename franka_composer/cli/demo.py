@@ -13,6 +13,7 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
+from franka_composer.cli.options import positive_int
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -111,10 +112,3 @@ def parse_tasks(text: str) -> tuple[str, ...]:
             f"unknown task(s) {', '.join(unknown) or '(none given)'}; valid tasks: "
             f"{', '.join(franka_composer.ALL_TASKS)}")
     return tasks
-
-
-def positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
-    return value

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
+from franka_composer.cli.options import positive_int
 from franka_composer.training.models import DEVICES
 
 
@@ -18,7 +19,7 @@ def add_parser(subparsers) -> None:
                     "and algorithm, in the layout of the paper's Table II.")
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
                         help="run directories written by `franka-composer train`")
-    parser.add_argument("--episodes", type=int, default=20,
+    parser.add_argument("--episodes", type=positive_int, default=20,
                         help="test episodes per model (paper: 20)")
     parser.add_argument("--seed", type=int, default=2024,
                         help="seed of the test episodes (the same for every run)")
@@ -35,8 +36,6 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.report import RunResult, markdown_table, seeds_note
     from franka_composer.training.runs import RunDir
 
-    if args.episodes < 1:
-        raise ValueError(f"--episodes must be >= 1, got {args.episodes}")
     results = []
     for root in args.runs:
         run_dir = RunDir(root)

@@ -14,7 +14,7 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.demo import positive_int
+from franka_composer.cli.options import positive_int
 from franka_composer.policies import make_expert, rollout
 
 

@@ -7,16 +7,10 @@ import contextlib
 import os
 import pathlib
 
+from franka_composer.cli.options import positive_int
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
-
-
-def _positive_int(text: str) -> int:
-    value = int(float(text))  # Accepts 5e5.
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return value
 
 
 def _net_arch(text: str) -> tuple[int, ...]:
@@ -51,7 +45,7 @@ def add_parser(subparsers) -> None:
                         help="continue the run in --out from its latest checkpoint: same "
                              "step counter, replay buffer and eval.csv; its saved settings "
                              "are used (only --total-steps and --device may change)")
-    parser.add_argument("--total-steps", type=_positive_int, default=None,
+    parser.add_argument("--total-steps", type=positive_int, default=None,
                         help="environment steps to train (Table I: 5e5, slide 1e6)")
     parser.add_argument("--device", choices=DEVICES, default="auto",
                         help="where the networks run: auto picks cuda when torch sees a GPU")
@@ -66,26 +60,26 @@ def add_parser(subparsers) -> None:
                              "env step; 'episode': collect an episode, then as many gradient "
                              "steps as steps collected: the same updates per step, 10-23 %% "
                              "more steps/s on CPU (RESULTS.md)")
-    parser.add_argument("--train-every", type=_positive_int, default=None,
+    parser.add_argument("--train-every", type=positive_int, default=None,
                         help="env steps per gradient step with the 'step' schedule (paper: "
                              "1); 4 trains ~4x faster per env step on CPU but learns less "
                              "per step: a budget setting, not the paper's")
     parser.add_argument("--net-arch", type=_net_arch, default=None,
                         help="hidden layer sizes, e.g. 256,256,256 (Table I per task)")
-    parser.add_argument("--batch-size", type=_positive_int, default=None,
+    parser.add_argument("--batch-size", type=positive_int, default=None,
                         help="minibatch size (Table I: 512, slide 2048)")
-    parser.add_argument("--buffer-size", type=_positive_int, default=None,
+    parser.add_argument("--buffer-size", type=positive_int, default=None,
                         help="replay buffer transitions (Table I: 1e6)")
     parser.add_argument("--learning-starts", type=int, default=None,
                         help="random-action steps before learning (SB3's default 100)")
-    parser.add_argument("--eval-every", type=_positive_int, default=None,
+    parser.add_argument("--eval-every", type=positive_int, default=None,
                         help="steps between evaluations (Table I: 2000)")
-    parser.add_argument("--eval-episodes", type=_positive_int, default=None,
+    parser.add_argument("--eval-episodes", type=positive_int, default=None,
                         help="deterministic episodes per evaluation (Table I: 15)")
-    parser.add_argument("--checkpoint-every", type=_positive_int, default=50_000,
+    parser.add_argument("--checkpoint-every", type=positive_int, default=50_000,
                         help="steps between checkpoints of model and replay buffer "
                              "(default 50000; one is also written on Ctrl-C / SIGTERM)")
-    parser.add_argument("--threads", type=_positive_int, default=None,
+    parser.add_argument("--threads", type=positive_int, default=None,
                         help="CPU threads for the networks (default: the library's, or "
                              "OMP_NUM_THREADS). torch's thread count with sb3; with sbx, "
                              "whose XLA CPU runtime has no thread-count setting, the process "
