@@ -59,6 +59,8 @@ def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path) -> list[tuple[s
             drawn.append((task, algo))
         ax.set_title(f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}")
         ax.set_xlabel("environment steps")
+        # "20k" rather than "20000": full numbers run into each other on a narrow panel.
+        ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k" if x else "0")
         ax.set_ylim(-0.02, 1.02)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left")
