@@ -234,9 +234,9 @@ class GoalTask(composer.Task):
         # A view, not a binding: this is read every step (valid while this physics lives;
         # Composer makes a new one only when recompiling, and initialises again then).
         self._achieved_view = physics.bind(self._prop.position).sensordata.view(np.ndarray)
-        self._update_distance(physics)
+        self._update_distance()
 
-    def _update_distance(self, physics) -> None:
+    def _update_distance(self) -> None:
         self._distance = rewards.goal_distance(self._achieved_view, self._goal)
         self._success = bool(rewards.success_from_distance(self._distance,
                                                            self._distance_threshold))
@@ -255,7 +255,7 @@ class GoalTask(composer.Task):
         self._controller.apply(physics, action)
 
     def after_step(self, physics, random_state) -> None:
-        self._update_distance(physics)
+        self._update_distance()
 
     # Reward, discount and termination describe the state at the end of the last control
     # step (Composer calls them right after `after_step`), from the distance computed there.
