@@ -26,7 +26,6 @@ import numpy as np
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.entities.panda import MAX_FINGER_WIDTH
 
 #: Pairs in the batch `compute_reward` is timed on (HER relabels batches of this order).
 REWARD_BATCH = 1024
@@ -43,45 +42,32 @@ class Episode:
 
 
 class Floor:
-    """The env's compiled model (a copy) in a bare `mj_step(model, data, nstep)` loop, with
-    the controller's law written out in NumPy: the mocap target is the TCP plus
-    `max_tcp_step` times the action (z clamped), and the gripper servo gets the finger
-    width plus `max_finger_step` times the 4th component."""
+    """The env's compiled model (a copy) in a bare MuJoCo loop, driven by the env
+    controller's own action law (`MocapLaw.on` this copy). Each control step makes the
+    env's own MuJoCo calls (`mj_step2`, `mj_step(n - 1)`, `mj_step1`: the work of
+    `mj_step(n)`, ending with positions and velocities current for the next action), so it
+    simulates exactly what the env simulates."""
 
     def __init__(self, env: gym.Env) -> None:
         unwrapped = env.unwrapped
         physics = unwrapped.composer_env.physics
-        task = unwrapped.task
-        settings = task.controller.settings
         self.model = copy.copy(physics.model.ptr)
         self.data = mujoco.MjData(self.model)
-        self._tcp = physics.bind(task.panda.tcp_site).element_id
-        self._mocap = self.model.body(task.controller.target.full_identifier).mocapid[0]
-        self._fingers = physics.bind(task.panda.finger_joints).qposadr
-        self._gripper = physics.bind(task.panda.gripper_actuator).element_id
+        self._law = unwrapped.task.controller.law.on(self.model, self.data)
         self._n_sub_steps = int(round(unwrapped.dt / self.model.opt.timestep))
-        self._settings = settings
 
     def replay(self, episode: Episode) -> tuple[float, int]:
         """Seconds and total contacts for the episode's actions from its start state."""
-        model, data, settings = self.model, self.data, self._settings
-        tcp, mocap, fingers, gripper = self._tcp, self._mocap, self._fingers, self._gripper
-        tcp_step, finger_step = settings.max_tcp_step, settings.max_finger_step
-        min_height, actuated = settings.min_tcp_height, settings.actuated_gripper
-        n_sub_steps = self._n_sub_steps
+        model, data, law, n_sub_steps = self.model, self.data, self._law, self._n_sub_steps
         mujoco.mj_setState(model, data, episode.state, _STATE)
         mujoco.mj_forward(model, data)
         contacts = 0
         start = time.perf_counter()
         for action in episode.actions:
-            action = np.clip(action, -1.0, 1.0)
-            target = data.site_xpos[tcp] + tcp_step * action[:3]
-            target[2] = max(target[2], min_height)
-            data.mocap_pos[mocap] = target
-            if actuated:
-                width = data.qpos[fingers].sum() + finger_step * action[3]
-                data.ctrl[gripper] = min(max(width, 0.0), MAX_FINGER_WIDTH)
-            mujoco.mj_step(model, data, nstep=n_sub_steps)
+            law(action)
+            mujoco.mj_step2(model, data)
+            mujoco.mj_step(model, data, nstep=n_sub_steps - 1)
+            mujoco.mj_step1(model, data)
             contacts += data.ncon
         return time.perf_counter() - start, contacts
 
@@ -162,6 +148,7 @@ def run_env(env: gym.Env, floor: Floor, steps: int, choose_action, on_reset=None
 
 
 def _measure_run(env: gym.Env, steps: int, choose_action, on_reset=None) -> dict:
+    env.reset(seed=0)  # The controller's law is bound at the first reset.
     floor = Floor(env)
     run_env(env, floor, min(steps, 200), choose_action, on_reset)  # Warm-up.
     return run_env(env, floor, steps, choose_action, on_reset).summary()

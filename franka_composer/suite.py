@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+from franka_composer import seeding
 from franka_composer.environment import Environment
 from franka_composer.tasks import build_task, task_config
 
@@ -16,17 +19,21 @@ def load(name: str, *, reward_type: str = "sparse", seed=None,
     Args:
       name: one of `franka_composer.ALL_TASKS`.
       reward_type: "sparse" (0 at the goal, else -1) or "dense" (-distance).
-      seed: an int, a `np.random.RandomState`, or None; the only randomness of the episodes.
+      seed: a non-negative int (any size: `franka_composer.seeding`), a
+        `np.random.RandomState`, or None; the only randomness of the episodes.
       **task_kwargs: overrides of the task's `TaskConfig` fields, e.g.
         `terminate_on_success=False`, `distance_threshold=0.03`.
 
     Raises:
-      ValueError: unknown task name or option, naming the valid ones.
+      ValueError: unknown task name or option, naming the valid ones; a seed that is not a
+        non-negative int.
 
     The environment has no time limit of its own (the Gymnasium adapter truncates at 50
     steps), compiles the MJCF once, and ends an episode with a warning, not an exception,
     if the physics diverges.
     """
+    if seed is not None and not isinstance(seed, np.random.RandomState):
+        seed = seeding.random_state(seed)
     task = build_task(task_config(name, reward_type=reward_type, **task_kwargs))
     return Environment(
         task,

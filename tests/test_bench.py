@@ -16,7 +16,7 @@ import pytest
 from dm_control import composer
 
 import franka_composer
-from franka_composer import benchmark
+from franka_composer import benchmark, seeding
 from franka_composer.cli import main
 from franka_composer.cli.bench import TARGETS
 from franka_composer.entities.props import quat_to_euler
@@ -60,9 +60,9 @@ def test_bench_rejects_an_unknown_task_naming_the_valid_ones(capsys):
     assert "pick_and_place" in capsys.readouterr().err
 
 
-def test_floor_follows_the_env_trajectory():
-    """Same model, start state and actions: the floor ends where the env ends (the floor's
-    control law reads the TCP one substep stale, hence a tolerance, not equality)."""
+def test_floor_follows_the_env_trajectory_bit_for_bit():
+    """Same model, start state, actions, action law and MuJoCo calls: the floor ends exactly
+    where the env ends (one code path, one machine)."""
     env = gym.make("FrankaPickAndPlaceSparse-v0")
     env.reset(seed=1)
     physics = env.unwrapped.composer_env.physics
@@ -75,7 +75,8 @@ def test_floor_follows_the_env_trajectory():
     floor = benchmark.Floor(env)
     seconds, contacts = floor.replay(episode)
     assert seconds > 0 and contacts > 0
-    np.testing.assert_allclose(floor.data.qpos, physics.data.qpos, atol=2e-3)
+    np.testing.assert_array_equal(floor.data.qpos, physics.data.qpos)
+    np.testing.assert_array_equal(floor.data.qvel, physics.data.qvel)
 
 
 def test_cached_model_is_byte_identical_to_a_fresh_compile(tmp_path, monkeypatch):
@@ -100,8 +101,8 @@ def test_fast_resets_and_steps_match_composer_over_episodes():
     Composer: identical observations at every reset and step of several episodes."""
     ours = franka_composer.load("pick_and_place", seed=5, terminate_on_success=False)
     task = build_task(task_config("pick_and_place", terminate_on_success=False))
-    reference = composer.Environment(task, random_state=5, time_limit=float("inf"),
-                                     strip_singleton_obs_buffer_dim=True)
+    reference = composer.Environment(task, random_state=seeding.random_state(5),
+                                     time_limit=float("inf"), strip_singleton_obs_buffer_dim=True)
     rng = np.random.default_rng(0)
     for _ in range(3):
         pairs = [(ours.reset(), reference.reset())]
@@ -125,13 +126,17 @@ def test_an_observable_enabled_between_episodes_appears_after_the_next_reset():
     assert env.step(np.zeros(3, np.float32)).observation["panda/joints_pos"].shape == (7,)
 
 
-def test_quat_to_euler_equals_the_numpy_formula_bit_for_bit():
+def test_quat_to_euler_matches_the_numpy_formula_to_a_few_ulp():
+    """Two implementations of one formula (scalar `math` against vectorised NumPy): NumPy's
+    vectorised arctan2 takes a different SIMD path on AVX-512 CPUs and may differ in the
+    last bit, so equality is to a few units in the last place, not bit for bit."""
     rng = np.random.default_rng(0)
     quats = rng.normal(size=(2000, 4))
     quats[::3] = [1, 0, 0, 0] + 1e-4 * quats[::3]  # Near identity: small angles.
     quats /= np.linalg.norm(quats, axis=1, keepdims=True)
-    for w, x, y, z in quats:
-        expected = [np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
-                    np.arcsin(np.clip(2 * (w * y - z * x), -1, 1)),
-                    np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))]
-        np.testing.assert_array_equal(quat_to_euler(np.array([w, x, y, z])), expected)
+    w, x, y, z = quats.T
+    expected = np.stack([np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                         np.arcsin(np.clip(2 * (w * y - z * x), -1, 1)),
+                         np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))], axis=1)
+    actual = np.array([quat_to_euler(q) for q in quats])
+    np.testing.assert_array_max_ulp(actual, expected, maxulp=4)

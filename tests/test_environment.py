@@ -6,15 +6,15 @@ import numpy as np
 from dm_control import composer
 
 import franka_composer
-from franka_composer import suite
+from franka_composer import seeding, suite
 from franka_composer.environment import Environment
 from franka_composer.tasks import build_task, task_config
 
 
 def _composer_reference(name: str, seed: int) -> composer.Environment:
     task = build_task(task_config(name, terminate_on_success=False))
-    return composer.Environment(task, random_state=seed, time_limit=float("inf"),
-                                strip_singleton_obs_buffer_dim=True)
+    return composer.Environment(task, random_state=seeding.random_state(seed),
+                                time_limit=float("inf"), strip_singleton_obs_buffer_dim=True)
 
 
 def test_batched_substeps_match_composers_loop_bit_for_bit(task_name):

@@ -40,16 +40,6 @@ def test_zero_action_holds_the_tcp_still(task_name):
     assert _hand_tilt_degrees(env) < 5.0
 
 
-def test_tcp_is_never_commanded_below_the_surface():
-    env = franka_composer.load("push", seed=0, terminate_on_success=False, object_range=(0, 0),
-                               object_centre=(0.3, 0.3))
-    env.reset()
-    for _ in range(15):
-        timestep = env.step(np.array([0, 0, -1], np.float32))
-    assert env.physics.bind(env.task.controller.target).mocap_pos[2] == pytest.approx(0.0)
-    assert timestep.observation["panda/tcp_pos"][2] > -0.01
-
-
 def _grasp_block(env):
     timestep = env.reset()
     block = timestep.observation["block/position"].copy()

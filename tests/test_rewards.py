@@ -39,3 +39,18 @@ def test_unknown_reward_type_and_bad_goal_shape_raise_clear_errors():
         rewards.compute_reward(np.zeros(3), np.zeros(3), "shaped", 0.05)
     with pytest.raises(ValueError, match=r"goals must end in an axis of 3"):
         rewards.compute_reward(np.zeros(2), np.zeros(2), "sparse", 0.05)
+
+
+def test_a_nan_goal_is_not_a_success_and_gets_the_failure_reward():
+    goal = np.array([np.nan, 0.0, 0.0])
+    assert rewards.compute_reward(np.zeros(3), goal, "sparse", 0.05) == -1.0
+    assert not rewards.is_success(np.zeros(3), goal, 0.05)
+    assert np.isnan(rewards.compute_reward(np.zeros(3), goal, "dense", 0.05))
+    batch = rewards.compute_reward(np.zeros((3, 3)), [[0, 0, 0], [np.nan] * 3, [1, 0, 0]],
+                                   "sparse", 0.05)
+    np.testing.assert_array_equal(batch, [0.0, -1.0, -1.0])
+
+
+def test_the_sparse_success_reward_is_positive_zero():
+    reward = rewards.compute_reward(np.zeros(3), np.zeros(3), "sparse", 0.05)
+    assert reward == 0.0 and not np.signbit(reward)

@@ -258,3 +258,36 @@ def test_config_without_backend_resumes_as_sb3(tmp_path):
     env = make_env("push")
     assert type(load_model("sac", RunDir(out).final_model, env=env, device="cpu")) is SAC
     env.close()
+
+
+def test_the_early_stopping_rule_ends_a_run_and_resume_keeps_it_ended(tmp_path, monkeypatch):
+    """5 consecutive evaluations at >= 95 % (here 3 at 100 %) end the run before its budget;
+    outcome.json records it, and --resume does not train it further."""
+    from franka_composer.training import callbacks
+    from franka_composer.training.evaluation import EvalResult
+
+    rates = iter([0.5, 1.0, 0.9, 1.0, 1.0, 1.0] + [0.0] * 50)
+    monkeypatch.setattr(callbacks, "evaluate_policy",
+                        lambda *args, **kwargs: EvalResult(2, next(rates), -10.0))
+    out = tmp_path / "early"
+    assert _train(out, "ddpg", 2000, "--stop-at-success", "0.95", "--stop-after", "3") == 0
+    rows = read_eval_rows(RunDir(out).eval_csv)
+    assert [r["steps"] for r in rows] == [0, 100, 200, 300, 400, 500]
+    outcome = RunDir(out).read_outcome()
+    assert outcome["steps"] == 500 and outcome["stopped_early"] is True
+    config = RunDir(out).read_config().hyperparameters
+    assert (config.stop_success_rate, config.stop_after_evaluations) == (0.95, 3)
+    assert _train(out, "ddpg", 3000, "--resume") == 0
+    assert RunDir(out).read_outcome()["steps"] == 500
+    assert len(read_eval_rows(RunDir(out).eval_csv)) == 6
+
+
+def test_a_run_without_the_rule_records_that_it_went_the_distance(runs):
+    outcome = RunDir(runs["sac"]).read_outcome()
+    assert outcome["steps"] == 300 and outcome["stopped_early"] is False
+
+
+def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["train", "--stop-at-success", "1.5"])
+    assert "must be a success rate in (0, 1], got '1.5'" in capsys.readouterr().err

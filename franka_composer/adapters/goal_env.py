@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from franka_composer import suite
+from franka_composer import seeding, suite
 from franka_composer.arenas.floor import MAX_RENDER_SIZE
 from franka_composer.tasks.rewards import goal_distance
 
@@ -94,12 +94,14 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return self._env
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if seed is not None:
+            seeding.check_seed(seed)  # Before anything is reseeded.
         super().reset(seed=seed)
         if seed is not None or self._timestep is None:
             # The episode stream is a function of the seed; unseeded first resets draw it
             # from Gymnasium's np_random so `reset()` alone is still reproducible per env.
-            self._env.random_state.seed(
-                seed if seed is not None else int(self.np_random.integers(2**31 - 1)))
+            seeding.reseed(self._env.random_state,
+                           seed if seed is not None else int(self.np_random.integers(2**63 - 1)))
         self._timestep = self._env.reset()
         obs = self._observation(self._timestep.observation)
         if self.render_mode == "human":

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dm_control import composer
 
+from franka_composer.contacts import FLOOR_SOLMIX, make_stiff
+
 #: Camera framing the arm, the object square and the slide goals out to x = 1.15 m, looking
 #: at (0.6, 0, 0.2) from the front right: (pos, xyaxes, vertical field of view in degrees).
 WORKSPACE_CAMERA = dict(pos=(1.7, -0.95, 0.9), xyaxes=(0.654, 0.757, 0.0, -0.328, 0.284, 0.901),
@@ -49,6 +51,7 @@ class FloorArena(composer.Arena):
             "geom", name="floor", type="plane", size=(2.5, 2.5, 0.1), material=material,
             friction=(friction, 0.005, 0.0001),
         )
+        make_stiff(self._floor, solmix=FLOOR_SOLMIX)
         root.worldbody.add("light", name="key", pos=(0.6, -0.6, 2.0), dir=(0, 0.3, -1),
                            directional=True, castshadow=False, diffuse=(0.5, 0.5, 0.5))
         root.worldbody.add("light", name="fill", pos=(0.6, 0.6, 2.0), dir=(0, -0.3, -1),

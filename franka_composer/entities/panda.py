@@ -63,6 +63,11 @@ class Panda(composer.Robot):
         if self._mjcf_root.keyframe is not None:
             for key in self._mjcf_root.keyframe.all_children():
                 key.remove()
+        # The real arm's joint torque limits (Menagerie's servo force ranges: 87 N m on joints
+        # 1-4, 12 N m on 5-7), kept before the servos go: they bound how hard the hand can
+        # press (`surface_guard.py`).
+        self._arm_torque_limits = tuple(
+            _force_limit(self._mjcf_root.find("actuator", name)) for name in _ARM_ACTUATORS)
         for actuator_name in _ARM_ACTUATORS:
             self._mjcf_root.find("actuator", actuator_name).remove()
         for body_name in _MOVING_BODIES:
@@ -127,6 +132,16 @@ class Panda(composer.Robot):
         return self._arm_joints
 
     @property
+    def arm_torque_limits(self) -> tuple[float, ...]:
+        """Largest torque (N m) each arm joint can exert, joint 1 first (the real Panda's)."""
+        return self._arm_torque_limits
+
+    @property
+    def colliding_bodies(self) -> tuple:
+        """The bodies whose geoms touch the world: the hand and the two fingers."""
+        return tuple(self._mjcf_root.find("body", b) for b in _COLLIDING_BODIES)
+
+    @property
     def finger_joints(self) -> tuple:
         return self._finger_joints
 
@@ -184,3 +199,15 @@ class PandaObservables(composer.Observables):
     def joints_vel(self):
         return observable.MJCFFeature("qvel", self._entity.joints)
 
+
+def _force_limit(actuator) -> float:
+    """An actuator's largest force magnitude, from its own `forcerange` or its default
+    class's (Menagerie sets 87 N m in the class, 12 N m on the wrist actuators)."""
+    forcerange = actuator.forcerange
+    dclass = actuator.dclass
+    while forcerange is None and dclass is not None:
+        forcerange = dclass.general.forcerange if dclass.general is not None else None
+        dclass = dclass.parent
+    if forcerange is None:
+        raise ValueError(f"actuator {actuator.name!r} has no force range")
+    return float(max(abs(forcerange[0]), abs(forcerange[1])))

@@ -13,6 +13,7 @@ import numpy as np
 from dm_control.composer import define
 from dm_control.entities.props import primitive
 
+from franka_composer.contacts import make_stiff
 from franka_composer.entities.features import ArrayFeature
 
 
@@ -35,6 +36,7 @@ class Block(Prop):
         # between the finger pads.
         super()._build(geom_type="box", size=(half_size,) * 3, name=name, mass=mass,
                        friction=(friction, 0.005, 0.0001), condim=4, rgba=rgba)
+        make_stiff(self.geom)
         self.resting_height = half_size
 
 
@@ -48,6 +50,7 @@ class Puck(Prop):
         # like an air-hockey puck; its sliding friction alone sets how far it goes.
         super()._build(geom_type="cylinder", size=(radius, half_height), name=name, mass=mass,
                        friction=(friction, 0.0, 0.0), condim=3, rgba=rgba)
+        make_stiff(self.geom)
         self.resting_height = half_height
 
 

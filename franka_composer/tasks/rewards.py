@@ -41,14 +41,15 @@ def check_reward_type(reward_type: str) -> str:
 
 
 def reward_from_distance(distance, reward_type: str, distance_threshold: float) -> np.ndarray:
-    """Sparse: 0 below `distance_threshold`, else -1. Dense: -distance. Float64."""
+    """Sparse: 0.0 where `success_from_distance`, else -1.0 (a NaN distance is not a
+    success). Dense: -distance. Float64."""
     if check_reward_type(reward_type) == "sparse":
-        return -(np.asarray(distance) >= distance_threshold).astype(np.float64)
+        return np.where(success_from_distance(distance, distance_threshold), 0.0, -1.0)
     return -np.asarray(distance, dtype=np.float64)
 
 
 def success_from_distance(distance, distance_threshold: float) -> np.ndarray:
-    """Whether the object is within `distance_threshold` (m) of the goal."""
+    """Whether the object is within `distance_threshold` (m) of the goal (False for NaN)."""
     return np.asarray(distance) < distance_threshold
 
 

@@ -11,7 +11,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from tqdm import tqdm
 
 from franka_composer.training.evaluation import evaluate_policy
-from franka_composer.training.runs import RunDir, append_eval_row
+from franka_composer.training.runs import RunDir, append_eval_row, read_eval_rows
 
 
 class WallClock:
@@ -38,19 +38,28 @@ def save_checkpoint(model, run: RunDir, clock: WallClock) -> None:
 
 class EvaluationCallback(BaseCallback):
     """Every `every` steps, `episodes` deterministic episodes on a separate env -> a row of
-    eval.csv (and TensorBoard's eval/success_rate when a TensorBoard logger is set)."""
+    eval.csv (and TensorBoard's eval/success_rate when a TensorBoard logger is set).
+
+    With `stop_success_rate`, training stops once `stop_after` consecutive evaluations (those
+    already in eval.csv when resuming included) all reach it; `stopped_early` says so."""
 
     def __init__(self, env: gym.Env, run: RunDir, clock: WallClock, *, every: int,
-                 episodes: int, seed: int) -> None:
+                 episodes: int, seed: int, stop_success_rate: float | None = None,
+                 stop_after: int = 5) -> None:
         super().__init__()
         self._env, self._run, self._clock = env, run, clock
         self._every, self._episodes, self._seed = every, episodes, seed
+        self._stop_success_rate, self._stop_after = stop_success_rate, stop_after
         self._next = 0
         self._last_evaluated = -1
+        self._streak = 0
+        self.stopped_early = False
         self.last_success_rate: float | None = None
 
     def _on_training_start(self) -> None:
         # A fresh run evaluates the untrained policy at step 0; a resumed one continues.
+        for row in read_eval_rows(self._run.eval_csv):
+            self._count(row["success_rate"])
         if self.num_timesteps == 0:
             self.evaluate()
         self._next = (self.num_timesteps // self._every + 1) * self._every
@@ -59,7 +68,14 @@ class EvaluationCallback(BaseCallback):
         if self.num_timesteps >= self._next:
             self.evaluate()
             self._next += self._every
-        return True
+        return not self.stopped_early
+
+    def _count(self, success_rate: float) -> None:
+        """Extends or breaks the streak of evaluations at or above the stopping rate."""
+        if self._stop_success_rate is None:
+            return
+        self._streak = self._streak + 1 if success_rate >= self._stop_success_rate else 0
+        self.stopped_early = self._streak >= self._stop_after
 
     def _on_training_end(self) -> None:
         # The curve ends where training ended, even off the evaluation grid.
@@ -71,6 +87,7 @@ class EvaluationCallback(BaseCallback):
         seed = self._seed if self.last_success_rate is None else None
         result = evaluate_policy(self.model, self._env, self._episodes, seed=seed)
         self.last_success_rate = result.success_rate
+        self._count(result.success_rate)
         append_eval_row(self._run.eval_csv, {
             "steps": self.num_timesteps, "wall_time_s": round(self._clock(), 2),
             "success_rate": result.success_rate, "mean_reward": result.mean_reward})

@@ -46,6 +46,10 @@ class Hyperparameters:
         Table I; 1 is the paper's). 4 does a quarter of the updates: about 4x the steps/s
         on CPU, where gradient steps dominate, but less learning per step: a budget
         setting, not the paper's.
+      stop_success_rate, stop_after_evaluations: stop before `total_steps` once
+        `stop_after_evaluations` consecutive evaluations all reach `stop_success_rate` (not
+        in Table I; None, the default, never stops early; the Table II campaign uses 0.95
+        and 5).
     """
 
     net_arch: tuple[int, ...] = (256, 256, 256)
@@ -67,6 +71,8 @@ class Hyperparameters:
     learning_starts: int = 100
     update_schedule: str = "step"
     train_every: int = 1
+    stop_success_rate: float | None = None
+    stop_after_evaluations: int = 5
 
     def replace(self, **overrides) -> "Hyperparameters":
         """A copy with `overrides` (None values are ignored); unknown names are a ValueError."""
@@ -84,6 +90,11 @@ class Hyperparameters:
                              f"valid: {', '.join(UPDATE_SCHEDULES)}")
         if overrides.get("train_every", self.train_every) != 1 and schedule != "step":
             raise ValueError("train_every > 1 needs update_schedule 'step'")
+        rate = overrides.get("stop_success_rate", self.stop_success_rate)
+        if rate is not None and not 0.0 < rate <= 1.0:
+            raise ValueError(f"stop_success_rate must be in (0, 1], got {rate}")
+        if overrides.get("stop_after_evaluations", self.stop_after_evaluations) < 1:
+            raise ValueError("stop_after_evaluations must be >= 1")
         return dataclasses.replace(self, **overrides)
 
     def to_dict(self) -> dict:

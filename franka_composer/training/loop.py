@@ -83,13 +83,17 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
 
     evaluation = EvaluationCallback(eval_env, run, clock, every=hp.eval_every,
                                     episodes=hp.eval_episodes,
-                                    seed=config.seed + EVAL_SEED_OFFSET)
+                                    seed=config.seed + EVAL_SEED_OFFSET,
+                                    stop_success_rate=hp.stop_success_rate,
+                                    stop_after=hp.stop_after_evaluations)
     callbacks = CallbackList([
         evaluation,
         CheckpointCallback(run, clock, every=checkpoint_every),
         ProgressCallback(hp.total_steps, evaluation, enabled=progress),
     ])
     remaining = hp.total_steps - model.num_timesteps
+    if run.read_outcome().get("stopped_early"):
+        remaining = 0  # It met the stopping rule: more steps would not be the same run.
     try:
         with _sigterm_as_interrupt():
             if remaining > 0:
@@ -103,4 +107,6 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         eval_env.close()
     save_checkpoint(model, run, clock)
     model.save(run.final_model)
+    stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
+    run.write_outcome(int(model.num_timesteps), stopped_early, clock())
     return model

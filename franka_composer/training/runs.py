@@ -3,6 +3,7 @@
     RUN_DIR/config.json          task, algorithm, seed, backend, options, hyperparameters
     RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
     RUN_DIR/model.zip            the final model (written when training completes)
+    RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early
     RUN_DIR/checkpoint/          latest model.zip, replay_buffer.pkl, state.json
 """
 
@@ -63,6 +64,21 @@ class RunDir:
     @property
     def eval_csv(self) -> pathlib.Path:
         return self.root / "eval.csv"
+
+    @property
+    def outcome_path(self) -> pathlib.Path:
+        return self.root / "outcome.json"
+
+    def read_outcome(self) -> dict:
+        """{"steps", "stopped_early", "wall_time_s"} of a finished run; {} before it ends."""
+        if not self.outcome_path.is_file():
+            return {}
+        return json.loads(self.outcome_path.read_text())
+
+    def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float) -> None:
+        self.outcome_path.write_text(json.dumps(
+            {"steps": steps, "stopped_early": stopped_early,
+             "wall_time_s": round(wall_time_s, 2)}) + "\n")
 
     @property
     def final_model(self) -> pathlib.Path:

@@ -1,0 +1,163 @@
+"""Contact fidelity: the hand cannot press objects into the floor or launch them, its
+fingertips stay on the floor's surface, and the force it delivers is bounded like a real
+Panda's (contacts.py, surface_guard.py)."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+
+import franka_composer
+from conftest import move_tcp_to
+
+#: A full downward command for this many steps is the press of the contact-physics issue.
+PRESS_STEPS = 80
+
+
+def _robot_contacts(env):
+    """(contact, normal force N) for each active contact between the hand and the world."""
+    physics = env.physics
+    model, data = physics.model.ptr, physics.data.ptr
+    robot = set(physics.bind(env.task.panda.mjcf_model.find_all("body")).element_id)
+    force = np.zeros(6)
+    found = []
+    for i in range(data.ncon):
+        contact = data.contact[i]
+        if contact.efc_address < 0:
+            continue
+        if (model.geom_bodyid[contact.geom1] in robot) != (model.geom_bodyid[contact.geom2] in robot):
+            mujoco.mj_contactForce(model, data, i, force)
+            found.append((contact, force[0]))
+    return found
+
+
+def _gripper(env, value):
+    """The gripper part of an action: [value] where the gripper is actuated, else []."""
+    return [value] if env.action_spec().shape[0] == 4 else []
+
+
+def _closed(env):
+    """`move_tcp_to`'s gripper argument that keeps the hand closed."""
+    return -1.0 if env.action_spec().shape[0] == 4 else None
+
+
+def _hover_over_object(env, height):
+    """Puts the closed hand's fingertips `height` (m) above the object's top, centred on
+    it to 1 mm; returns the timestep."""
+    timestep = env.reset()
+    key = env.task.achieved_goal_key
+    start = timestep.observation[key].copy()
+    top = start[2] + env.task.prop.resting_height
+    fingertips = env.task.controller.law.guard.reach_below_tcp()
+    return move_tcp_to(env, timestep, [start[0], start[1], top + fingertips + height],
+                       gripper=_closed(env), max_steps=60, tolerance=0.001)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(task_name, seed):
+    """Issue 11's press: full -z with x, y following the object for 80 steps."""
+    env = franka_composer.load(task_name, seed=seed, terminate_on_success=False)
+    timestep = _hover_over_object(env, height=0.03)
+    key = env.task.achieved_goal_key
+    velocity_key = f"{key.split('/')[0]}/linear_velocity"
+    start = timestep.observation[key].copy()
+    resting = env.task.prop.resting_height
+    lowest, fastest = np.inf, 0.0
+    for _ in range(PRESS_STEPS):
+        xy = np.clip((timestep.observation[key][:2] - timestep.observation["panda/tcp_pos"][:2])
+                     / 0.05, -1, 1)
+        timestep = env.step(np.array([*xy, -1.0, *_gripper(env, -1.0)], np.float32))
+        lowest = min(lowest, timestep.observation[key][2])
+        fastest = max(fastest, np.linalg.norm(timestep.observation[velocity_key][:2]))
+    assert _robot_contacts(env), "the hand never touched the object"
+    assert lowest > resting - 0.002  # Measured: < 0.001 mm below rest.
+    assert fastest < 0.3  # m/s; measured < 0.01.
+    assert np.linalg.norm(timestep.observation[key][:2] - start[:2]) < 0.01
+
+
+def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_it(task_name):
+    """The hand starts beside the object and a full diagonal command carries it over the
+    object's top within one step: the surface under the path, not only under the hand,
+    bounds the target (without it: 25 kN at landing, the puck shoved 2 cm)."""
+    env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
+    timestep = env.reset()
+    key = env.task.achieved_goal_key
+    start = timestep.observation[key].copy()
+    top = start[2] + env.task.prop.resting_height
+    fingertips = env.task.controller.law.guard.reach_below_tcp()
+    side = 0.045
+    timestep = move_tcp_to(env, timestep, [start[0] - side, start[1], top + fingertips + 0.02],
+                           gripper=_closed(env), max_steps=60, tolerance=0.001)
+    start = timestep.observation[key].copy()
+    timestep = env.step(np.array([side / 0.05, 0, -1, *_gripper(env, -1.0)], np.float32))
+    forces = [sum(f for _, f in _robot_contacts(env))]
+    for _ in range(5):
+        timestep = env.step(np.array([0, 0, -1, *_gripper(env, -1.0)], np.float32))
+        forces.append(sum(f for _, f in _robot_contacts(env)))
+    assert max(forces) < 150.0  # N: the arm's limit here is ~135 N; measured < 10.
+    assert timestep.observation[key][2] > start[2] - 0.002
+    assert np.linalg.norm(timestep.observation[key][:2] - start[:2]) < 0.005
+
+
+def _press_bare_floor(x, y, steps=40):
+    env = franka_composer.load("push", seed=0, terminate_on_success=False,
+                               object_range=(0, 0), object_centre=(0.3, 0.45))
+    timestep = env.reset()
+    timestep = move_tcp_to(env, timestep, [x, y, 0.05], max_steps=60)
+    deepest, forces = 0.0, []
+    floor = env.physics.bind(env.task.root_entity.floor).element_id
+    for _ in range(steps):
+        env.step(np.array([0, 0, -1], np.float32))
+        floor_contacts = [(c, f) for c, f in _robot_contacts(env) if floor in (c.geom1, c.geom2)]
+        deepest = max([deepest] + [-c.dist for c, _ in floor_contacts])
+        forces.append(sum(f for _, f in floor_contacts))
+    return env, deepest, forces
+
+
+def test_fingertips_pressing_the_bare_floor_stay_within_two_millimetres_of_it():
+    env, deepest, forces = _press_bare_floor(0.6, 0.0)
+    assert forces[-1] > 0  # Pressing, not hovering.
+    assert deepest < 0.002  # Measured 0.03 mm (before: 6-7 mm).
+
+
+@pytest.mark.parametrize("x, y", [(0.45, 0.15), (0.6, 0.0), (0.75, -0.15)])
+def test_steady_press_force_reaches_but_never_exceeds_what_the_arm_can_push(x, y):
+    """The press settles at the force the arm's joint torques allow straight down there
+    (within a few percent below it: the contacts take a little of the target's depth)."""
+    env, _, forces = _press_bare_floor(x, y)
+    limit = env.task.controller.law.guard.max_push_force()
+    steady = forces[-10:]
+    assert 100.0 < limit < 140.0  # N, over the object square (joint 2's 87 N m limit).
+    assert max(steady) <= 1.02 * limit
+    assert min(steady) >= 0.7 * limit  # Measured ~0.83: the bound is reached, not avoided.
+
+
+def test_the_push_force_bound_follows_from_the_joint_torque_limits():
+    env = franka_composer.load("push", seed=0)
+    env.reset()
+    panda = env.task.panda
+    assert panda.arm_torque_limits == (87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0)
+    physics = env.physics
+    model, data = physics.model.ptr, physics.data.ptr
+    jacobian = np.zeros((3, model.nv))
+    mujoco.mj_jacSite(model, data, jacobian, None, physics.bind(panda.tcp_site).element_id)
+    vertical = jacobian[2, physics.bind(panda.joints).dofadr]
+    with np.errstate(divide="ignore"):  # Joint 1 turns about the vertical: no lever.
+        expected = np.min(np.asarray(panda.arm_torque_limits) / np.abs(vertical))
+    assert env.task.controller.law.guard.max_push_force() == pytest.approx(expected, rel=1e-12)
+    # A force that large straight down needs no joint beyond its limit, and one joint at it.
+    torques = np.abs(vertical * expected)
+    assert np.all(torques <= np.asarray(panda.arm_torque_limits) + 1e-9)
+    assert np.isclose(torques, panda.arm_torque_limits).any()
+
+
+def test_the_hand_moves_freely_where_nothing_is_beneath_it():
+    """The guard only acts near surfaces: far above them a full downward step is the
+    controller's plain law (target = TCP - 5 cm)."""
+    env = franka_composer.load("push", seed=0, terminate_on_success=False)
+    timestep = env.reset()
+    tcp = timestep.observation["panda/tcp_pos"].copy()
+    env.step(np.array([0, 0, -1], np.float32))
+    target = env.physics.bind(env.task.controller.target).mocap_pos
+    np.testing.assert_array_equal(target, tcp + 0.05 * np.array([0, 0, -1.0]))

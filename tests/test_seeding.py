@@ -1,0 +1,77 @@
+"""Seeds: every valid Gymnasium seed works, the episode is a function of it in both
+interfaces, and a refused seed changes nothing."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import franka_composer
+from franka_composer import seeding
+
+BIG_SEEDS = (2**32 - 1, 2**32, 2**64 + 5, 10**30)
+
+
+@pytest.mark.parametrize("seed", BIG_SEEDS)
+def test_any_non_negative_int_seeds_a_reproducible_episode(seed):
+    env = gym.make("FrankaPushSparse-v0")
+    first = env.reset(seed=seed)[0]
+    env.reset()
+    again = env.reset(seed=seed)[0]
+    for key in first:
+        np.testing.assert_array_equal(first[key], again[key])
+    other = env.reset(seed=seed + 1)[0]
+    assert not np.array_equal(first["desired_goal"], other["desired_goal"])
+
+
+def test_the_dm_env_and_gymnasium_interfaces_start_the_same_episode_for_a_seed():
+    for seed in (0, 7, 2**40):
+        timestep = franka_composer.load("pick_and_place", seed=seed).reset()
+        obs, _ = gym.make("FrankaPickAndPlaceSparse-v0").reset(seed=seed)
+        np.testing.assert_array_equal(timestep.observation["goal"], obs["desired_goal"])
+        np.testing.assert_array_equal(timestep.observation["block/position"],
+                                      obs["achieved_goal"])
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, "3", True, np.int64(-2)])
+def test_a_refused_seed_raises_and_leaves_the_episode_stream_as_it_was(bad):
+    env = gym.make("FrankaSlideSparse-v0")
+    env.reset(seed=3)
+    expected = gym.make("FrankaSlideSparse-v0")
+    expected.reset(seed=3)
+    with pytest.raises(ValueError, match="seed must be a non-negative int"):
+        env.reset(seed=bad)
+    np.testing.assert_array_equal(env.reset()[0]["desired_goal"],
+                                  expected.reset()[0]["desired_goal"])
+
+
+def test_load_refuses_a_negative_seed_naming_it():
+    with pytest.raises(ValueError, match=r"seed must be a non-negative int, got -4"):
+        franka_composer.load("push", seed=-4)
+
+
+def test_a_random_state_is_used_as_given():
+    state = np.random.RandomState(5)
+    env = franka_composer.load("push", seed=state)
+    assert env.random_state is state
+
+
+def test_sb3_vector_env_seeded_at_the_top_of_numpys_range_steps():
+    from stable_baselines3.common.env_util import make_vec_env
+
+    venv = make_vec_env("FrankaPushSparse-v0", n_envs=2, seed=2**32 - 1)
+    try:
+        obs = venv.reset()
+        assert obs["observation"].shape == (2, 18)
+        assert not np.array_equal(obs["desired_goal"][0], obs["desired_goal"][1])
+    finally:
+        venv.close()
+
+
+def test_seed_sequence_spreads_neighbouring_seeds():
+    """Seeds 0 and 1 give unrelated streams (SeedSequence, not MT19937's seed(int))."""
+    draws = [seeding.random_state(s).uniform(size=1000) for s in (0, 1)]
+    assert abs(np.corrcoef(*draws)[0, 1]) < 0.1
+    np.testing.assert_array_equal(seeding.random_state(0).uniform(size=5),
+                                  seeding.random_state(0).uniform(size=5))
