@@ -250,6 +250,32 @@ def vector_steps_per_s(task: str, workers: int, steps: int) -> float:
         envs.close()
 
 
+def resident_mb() -> float:
+    """This process's resident set size now (MB), from /proc/self/statm (Linux)."""
+    with open("/proc/self/statm") as file:
+        pages = int(file.read().split()[1])
+    return pages * resource.getpagesize() / 2**20
+
+
+def memory_per_env_mb(task: str, render_mode: str | None, count: int) -> dict:
+    """Resident memory of one env (`gym.make` + reset) and of each of `count` more, in this
+    process: what a vector-env worker or a process holding many envs pays per env."""
+    import gc
+
+    name = env_id(task, "sparse")
+    before = resident_mb()
+    envs = [gym.make(name, render_mode=render_mode)]
+    envs[0].reset(seed=0)
+    gc.collect()
+    first = resident_mb()
+    for index in range(count):
+        envs.append(gym.make(name, render_mode=render_mode))
+        envs[-1].reset(seed=index + 1)
+    gc.collect()
+    return {"first_env_mb": first - before, "per_additional_env_mb": (resident_mb() - first) / count,
+            "envs": count + 1}
+
+
 def peak_rss_mb() -> float:
     """Peak resident set size of this process so far (Linux reports KiB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -281,10 +307,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, required=True)
     parser.add_argument("--reset-samples", type=int, default=50)
     parser.add_argument("--render-frames", type=int, default=0)
+    parser.add_argument("--memory-envs", type=int, default=0,
+                        help="measure only the memory of this many more envs")
+    parser.add_argument("--render-mode", default=None,
+                        help="with --memory-envs: the envs' render_mode (default None)")
     parser.add_argument("--vector-workers", type=int, default=0,
                         help="measure only AsyncVectorEnv throughput with this many workers")
     args = parser.parse_args(argv)
-    if args.vector_workers > 0:
+    if args.memory_envs > 0:
+        result = memory_per_env_mb(args.task, args.render_mode, args.memory_envs)
+    elif args.vector_workers > 0:
         result = {"steps_per_s": vector_steps_per_s(args.task, args.vector_workers, args.steps)}
     else:
         result = measure_task(args.task, args.steps, args.reset_samples, args.render_frames)

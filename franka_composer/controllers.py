@@ -122,9 +122,14 @@ class MocapController:
         return self._law
 
     def validate(self, action) -> np.ndarray:
-        """The action as a float64 vector; a clear error for a wrong shape or a non-finite
-        value, before anything reaches MuJoCo."""
-        array = np.asarray(action, dtype=np.float64)
+        """The action as a float64 vector; a clear error for anything but real numbers
+        (strings, objects, complex, bools), a wrong shape or a non-finite value, before
+        anything reaches MuJoCo."""
+        raw = np.asarray(action)
+        if raw.dtype.kind not in "iuf":
+            raise ValueError(f"action must be an array of real numbers "
+                             f"({_describe(self._settings)}), got dtype {raw.dtype}")
+        array = raw.astype(np.float64, copy=False)
         expected = self._action_spec.shape
         if array.shape != expected:
             raise ValueError(

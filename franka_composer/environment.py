@@ -40,8 +40,32 @@ from franka_composer.model_cache import compile_physics
 _RK4 = mujoco.mjtIntegrator.mjINT_RK4.value
 
 
+class EnvironmentClosedError(RuntimeError):
+    """`reset`, `step` or `physics` used after `close()`."""
+
+
 class Environment(composer.Environment):
     """Composer's environment with the substep loop batched where nothing observes it."""
+
+    def close(self) -> None:
+        """Frees the physics; closing again is harmless, anything else after it raises
+        `EnvironmentClosedError`."""
+        if self._physics is not None:
+            super().close()
+
+    @property
+    def closed(self) -> bool:
+        return self._physics is None
+
+    @property
+    def physics(self):
+        self._check_open()
+        return super().physics
+
+    def _check_open(self) -> None:
+        if self._physics is None:
+            raise EnvironmentClosedError(
+                "this environment is closed (close() freed its physics): make a new one")
 
     def __init__(self, task, **kwargs) -> None:
         super().__init__(task, **kwargs)
@@ -122,6 +146,7 @@ class Environment(composer.Environment):
         return {name: np.array(read()) for name, read in self._direct}
 
     def reset(self) -> dm_env.TimeStep:
+        self._check_open()
         self._updater_rebuilt = False
         timestep = super().reset()
         if self._updater_rebuilt:
@@ -131,6 +156,7 @@ class Environment(composer.Environment):
         return timestep
 
     def step(self, action) -> dm_env.TimeStep:
+        self._check_open()
         if self._reset_next_step or not getattr(self, "_batch_substeps", False):
             return super().step(action)
         self._hooks.before_step(self._physics_proxy, action, self._random_state)

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 
 import gymnasium as gym
-import mujoco
 import numpy as np
 import pytest
 from dm_control import composer
@@ -20,7 +19,6 @@ from franka_composer import benchmark, seeding
 from franka_composer.cli import main
 from franka_composer.cli.bench import TARGETS
 from franka_composer.entities.props import quat_to_euler
-from franka_composer.environment import compile_physics
 from franka_composer.tasks import build_task, task_config
 
 _RUN_FIGURES = ("steps_per_s_resets_included", "steps_per_s_resets_excluded",
@@ -31,7 +29,7 @@ def test_bench_command_writes_every_figure(tmp_path, capsys):
     out = tmp_path / "results.json"
     assert main(["bench", "--tasks", "push", "--steps", "60", "--reset-samples", "3",
                  "--render-frames", "2", "--cold-start-samples", "1",
-                 "--vector-workers", "1", "--out", str(out)]) == 0
+                 "--vector-workers", "1", "--memory-envs", "2", "--out", str(out)]) == 0
     results = json.loads(out.read_text())
     assert {"python", "mujoco", "dm-control", "gymnasium"} <= set(results["versions"])
     assert results["machine"]["nproc"] >= 1
@@ -49,6 +47,10 @@ def test_bench_command_writes_every_figure(tmp_path, capsys):
     assert push["render"]["ms_per_frame"] > 0
     assert push["cold_start"]["median_s"] > 0 and push["cold_start"]["uncached_s"] > 0
     assert push["vector_steps_per_s"]["1"] > 0
+    lean, full = push["memory"]["none"], push["memory"]["rgb_array"]
+    assert lean["envs"] == full["envs"] == 3
+    # Measured 20 and 71 MB: the visual meshes are most of an env.
+    assert 0 < lean["per_additional_env_mb"] < full["per_additional_env_mb"]
     assert set(push["targets"]) == set(TARGETS)
     table = capsys.readouterr().out
     assert "| push |" in table and str(out) in table
@@ -77,23 +79,6 @@ def test_floor_follows_the_env_trajectory_bit_for_bit():
     assert seconds > 0 and contacts > 0
     np.testing.assert_array_equal(floor.data.qpos, physics.data.qpos)
     np.testing.assert_array_equal(floor.data.qvel, physics.data.qvel)
-
-
-def test_cached_model_is_byte_identical_to_a_fresh_compile(tmp_path, monkeypatch):
-    monkeypatch.setenv("FRANKA_COMPOSER_CACHE", str(tmp_path))
-    root = build_task(task_config("push")).root_entity.mjcf_model
-    compiled = compile_physics(root)  # Compiles, then writes the cache.
-    assert len(list(tmp_path.glob("*.mjb"))) == 1
-    cached = compile_physics(root)  # Reads the cache.
-    assert _model_bytes(cached.model.ptr) == _model_bytes(compiled.model.ptr)
-    monkeypatch.setenv("FRANKA_COMPOSER_CACHE", "off")
-    assert _model_bytes(compile_physics(root).model.ptr) == _model_bytes(compiled.model.ptr)
-
-
-def _model_bytes(model: mujoco.MjModel) -> bytes:
-    buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
-    mujoco.mj_saveModel(model, None, buffer)
-    return buffer.tobytes()
 
 
 def test_fast_resets_and_steps_match_composer_over_episodes():

@@ -236,3 +236,51 @@ def test_short_sac_her_run_learns_without_error(task_name):
     assert model.num_timesteps == 250
     action, _ = model.predict(env.reset(seed=0)[0], deterministic=True)
     assert env.action_space.contains(action)
+
+
+def test_an_env_that_never_renders_simulates_what_a_rendering_env_does(task_name):
+    """render_mode=None leaves the Panda's visual meshes out (~50 MB less per env); they have
+    no mass and no contacts, so both envs give the same trajectories, bit for bit."""
+    from franka_composer.policies import make_expert
+
+    id_ = env_id(task_name, "sparse")
+    lean = gym.make(id_, terminate_on_success=False)
+    full = gym.make(id_, render_mode="rgb_array", terminate_on_success=False)
+    lean_model = lean.unwrapped.composer_env.physics.model
+    full_model = full.unwrapped.composer_env.physics.model
+    assert (lean_model.geom_group == 2).sum() == 0 < (full_model.geom_group == 2).sum()
+    expert = make_expert(task_name)
+    rng = np.random.default_rng(0)
+    for episode in range(2):
+        expert.reset()
+        a, b = lean.reset(seed=episode)[0], full.reset(seed=episode)[0]
+        for _ in range(50):
+            action = expert(a) if episode == 0 else rng.uniform(-1, 1, lean.action_space.shape)
+            a, reward_a, *_ = lean.step(np.asarray(action, np.float32))
+            b, reward_b, *_ = full.step(np.asarray(action, np.float32))
+            for key in a:
+                np.testing.assert_array_equal(a[key], b[key])
+            assert reward_a == reward_b
+
+
+def test_rendering_from_another_thread_is_refused_clearly():
+    import threading
+
+    env = gym.make("FrankaPushSparse-v0", render_mode="rgb_array", width=64, height=64)
+    env.reset(seed=0)
+    assert env.render().shape == (64, 64, 3)
+    errors = []
+    thread = threading.Thread(target=lambda: errors.append(_render_error(env)))
+    thread.start()
+    thread.join()
+    assert "renders only from the thread that first rendered it" in errors[0]
+    assert env.render().shape == (64, 64, 3)  # The first thread still renders.
+    env.close()
+
+
+def _render_error(env) -> str:
+    try:
+        env.render()
+    except RuntimeError as error:
+        return str(error)
+    return "no error"

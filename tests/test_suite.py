@@ -151,7 +151,7 @@ def test_bad_option_values_raise_clear_errors():
         franka_composer.load("push", reward_type="shaped")
     with pytest.raises(ValueError, match="distance_threshold must be > 0"):
         franka_composer.load("push", distance_threshold=0.0)
-    with pytest.raises(ValueError, match="goal_in_air_probability must be in"):
+    with pytest.raises(ValueError, match=r"goal_in_air_probability must be >= 0 and <= 1, got 1.5"):
         franka_composer.load("pick_and_place", goal_in_air_probability=1.5)
 
 

@@ -60,7 +60,7 @@ def test_bad_names_are_value_errors_listing_choices():
         hyperparameters("push", "ppo")
     with pytest.raises(ValueError, match="push"):
         hyperparameters("stack", "sac")
-    with pytest.raises(ValueError, match="valid: .*batch_size"):
+    with pytest.raises(ValueError, match="valid hyperparameters: .*batch_size"):
         hyperparameters("push", "sac").replace(batchsize=3)
     with pytest.raises(SystemExit):
         cli.main(["train", "--algo", "ppo"])

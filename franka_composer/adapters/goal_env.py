@@ -9,6 +9,9 @@ relabel, runs) and `is_success` is the task's.
 
 from __future__ import annotations
 
+import os
+import sys
+import threading
 from typing import Any
 
 import gymnasium as gym
@@ -17,7 +20,8 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from franka_composer import seeding, suite
-from franka_composer.arenas.floor import MAX_RENDER_SIZE
+from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
+from franka_composer.validation import check_choice
 from franka_composer.tasks.rewards import goal_distance
 
 #: dtype of every observation array and of rewards.
@@ -47,17 +51,25 @@ class FrankaGoalEnv(gym.Env, EzPickle):
                  camera: str = "workspace", **task_kwargs: Any) -> None:
         EzPickle.__init__(self, task, reward_type, render_mode, width, height, camera,
                           **task_kwargs)
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, "
-                             f"{', '.join(self.metadata['render_modes'])}")
-        self._env = suite.load(task, reward_type=reward_type, **task_kwargs)
+        # Every rendering argument is checked before anything is built or reaches MuJoCo.
+        if render_mode is not None:
+            check_choice("render_mode", render_mode, tuple(self.metadata["render_modes"]),
+                         also="None")
+        if render_mode == "human":
+            _check_display()
+        _check_render_size(width, height)
+        check_choice("camera", camera, CAMERAS)
+        # An env that never renders leaves the Panda's visual meshes out (~40 MB per env).
+        self._env = suite.load(task, reward_type=reward_type,
+                               renderable=render_mode is not None, **task_kwargs)
         self._task = self._env.task
         self.task_name = task
         self.render_mode = render_mode
-        _check_render_size(width, height)
         self._width, self._height, self._camera = width, height, camera
         self._renderer = None
+        self._render_thread = None  # The thread whose GL context renders this env.
         self._timestep = None
+        self._closed = False
 
         self._fields = self._task.observation_fields
         self._keys = tuple(field.key for field in self._fields)
@@ -94,8 +106,14 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return self._env
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Starts an episode; `seed` (any non-negative int) makes it a function of the seed.
+        `options` is accepted only empty: this env has no reset options."""
+        self._check_open()
         if seed is not None:
             seeding.check_seed(seed)  # Before anything is reseeded.
+        if options:
+            raise ValueError(f"unknown reset option(s) {', '.join(map(repr, sorted(options)))}; "
+                             "this environment takes none (task options go to gym.make)")
         super().reset(seed=seed)
         if seed is not None or self._timestep is None:
             # The episode stream is a function of the seed; unseeded first resets draw it
@@ -109,6 +127,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return obs, {"is_success": self._task.success}
 
     def step(self, action):
+        self._check_open()
         if self._timestep is None:
             raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
         self._timestep = self._env.step(action)
@@ -137,6 +156,17 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return np.zeros(np.shape(goal_distance(achieved_goal, desired_goal)), dtype=bool)
 
     def render(self):
+        self._check_open()
+        if self.render_mode is None:
+            return None
+        # A GL context belongs to the thread that made it (dm_control's and the viewer's).
+        thread = threading.get_ident()
+        if self._render_thread is None:
+            self._render_thread = thread
+        elif thread != self._render_thread:
+            raise RuntimeError("this env renders only from the thread that first rendered it "
+                               "(its GL context belongs to that thread): render there, or "
+                               "make one env per thread")
         if self.render_mode == "rgb_array":
             return self._env.physics.render(self._height, self._width, camera_id=self._camera)
         if self.render_mode == "human":
@@ -150,11 +180,20 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return None
 
     def close(self) -> None:
+        """Frees the viewer and the physics; closing again is harmless, and `reset`, `step`
+        and `render` afterwards raise Gymnasium's ClosedEnvironmentError."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        if getattr(self, "_env", None) is not None and self._env._physics is not None:
+        if getattr(self, "_env", None) is not None:
             self._env.close()
+        self._closed = True
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise gym.error.ClosedEnvironmentError(
+                f"this {self.spec.id if self.spec else type(self).__name__} environment is "
+                "closed: make a new one")
 
     # ----- Reshaping ------------------------------------------------------------------------
 
@@ -172,5 +211,16 @@ class FrankaGoalEnv(gym.Env, EzPickle):
 
 def _check_render_size(width: int, height: int) -> None:
     for name, value in (("width", width), ("height", height)):
-        if not (isinstance(value, (int, np.integer)) and 0 < value <= MAX_RENDER_SIZE):
+        if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
+                or not 0 < value <= MAX_RENDER_SIZE):
             raise ValueError(f"{name} must be an int in [1, {MAX_RENDER_SIZE}], got {value!r}")
+
+
+def _check_display() -> None:
+    """`human` rendering opens a GLFW window; without a display GLFW aborts the whole
+    process (an assertion in C, no Python exception), so refuse before it is touched."""
+    if sys.platform.startswith(("linux", "freebsd", "openbsd")) and not (
+            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise RuntimeError("render_mode='human' needs a display, and none was found (neither "
+                           "DISPLAY nor WAYLAND_DISPLAY is set): use render_mode='rgb_array' "
+                           "for headless frames, or set DISPLAY")

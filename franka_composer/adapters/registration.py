@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import gymnasium as gym
 
+from franka_composer.adapters.goal_env import FrankaGoalEnv
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.tasks.rewards import REWARD_TYPES
 
 MAX_EPISODE_STEPS = 50
-ENTRY_POINT = "franka_composer.adapters.goal_env:FrankaGoalEnv"
+ENTRY_POINT = "franka_composer.adapters.registration:make_registered"
 
 
 def env_id(task: str, reward_type: str, version: int = 0) -> str:
@@ -28,10 +29,25 @@ ENV_IDS: dict[str, tuple[str, str]] = {
 }
 
 
+def make_registered(registered_id: str, task: str, reward_type: str,
+                    **options) -> FrankaGoalEnv:
+    """What `gym.make(id, **options)` builds. The id fixes the task and the reward type
+    (its spec's kwargs); a `task` or `reward_type` passed to `gym.make` that differs is an
+    error naming the id to use instead."""
+    fixed_task, fixed_reward_type = ENV_IDS[registered_id]
+    if (task, reward_type) != (fixed_task, fixed_reward_type):
+        wanted = env_id(task, reward_type) if (task, reward_type) in ENV_IDS.values() else None
+        raise ValueError(
+            f"{registered_id} is the {fixed_reward_type} {fixed_task} task: its task and "
+            f"reward_type cannot be changed" + (f"; use {wanted!r}" if wanted else ""))
+    return FrankaGoalEnv(task, reward_type, **options)
+
+
 def register_envs() -> None:
     """Registers every id once (re-importing is harmless)."""
     for id_, (task, reward_type) in ENV_IDS.items():
         if id_ not in gym.registry:
             gym.register(id=id_, entry_point=ENTRY_POINT,
-                         kwargs={"task": task, "reward_type": reward_type},
+                         kwargs={"registered_id": id_, "task": task,
+                                 "reward_type": reward_type},
                          max_episode_steps=MAX_EPISODE_STEPS)

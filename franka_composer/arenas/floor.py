@@ -17,6 +17,9 @@ WORKSPACE_CAMERA = dict(pos=(1.7, -0.95, 0.9), xyaxes=(0.654, 0.757, 0.0, -0.328
 #: Camera looking straight down on the workspace.
 TOP_CAMERA = dict(pos=(0.75, 0.0, 1.6), xyaxes=(0.0, -1.0, 0.0, 1.0, 0.0, 0.0))
 
+#: The arena's cameras, by name.
+CAMERAS = ("workspace", "top")
+
 #: Largest frame `physics.render` can return (offscreen buffer), pixels.
 MAX_RENDER_SIZE = 1024
 

@@ -32,6 +32,7 @@ TARGETS = {
     "compute_reward(1024) us": (("compute_reward_1024_us",), "<=", 50.0),
     "peak RSS MB": (("peak_rss_mb",), "<=", 200.0),
     "cold start s": (("cold_start", "median_s"), "<=", 1.5),
+    "MB per extra env, not rendering": (("memory", "none", "per_additional_env_mb"), "<=", 40.0),
 }
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _COLD_START = """\
@@ -68,6 +69,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--vector-workers", type=positive_int, nargs="*", default=[1, 2],
                         metavar="N", help="AsyncVectorEnv worker counts to measure, random "
                         "actions, --steps env steps in all (default: 1 2; none: skip)")
+    parser.add_argument("--memory-envs", type=positive_int, default=10,
+                        help="envs made after the first, in a fresh process, to measure the "
+                        "resident memory each adds, without and with rendering (default 10)")
     parser.add_argument("--out", default="results.json",
                         help="JSON file for every figure (default: results.json)")
     parser.set_defaults(func=run)
@@ -90,6 +94,11 @@ def run(args: argparse.Namespace) -> int:
                 ["--task", task, "--steps", str(args.steps),
                  "--vector-workers", str(workers)])["steps_per_s"]
             for workers in args.vector_workers}
+        result["memory"] = {
+            mode: _measure_in_fresh_process(
+                ["--task", task, "--steps", "1", "--memory-envs", str(args.memory_envs)]
+                + (["--render-mode", mode] if mode != "none" else []))
+            for mode in ("none", "rgb_array")}
         result["targets"] = check_targets(result)
         results["tasks"][task] = result
     results["machine"]["load_average_after"] = os.getloadavg()
@@ -188,7 +197,7 @@ def format_table(results: dict) -> str:
     """The stdout report: one row per task, then each target's verdict."""
     header = ("| task | random steps/s (with / without resets) | floor | ratio "
               "| expert steps/s (with / without) | floor | ratio | reset ms | reward(1024) us "
-              "| RSS MB | cold s | render ms | vector 1 / 2 workers |")
+              "| RSS MB | MB/env (no render / render) | cold s | render ms | vector 1 / 2 workers |")
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for task, result in results["tasks"].items():
         cells = [task]
@@ -202,9 +211,12 @@ def format_table(results: dict) -> str:
                       _number(run["floor_steps_per_s"]), _number(run["overhead_ratio"], 2)]
         render = result.get("render", {}).get("ms_per_frame")
         vector = " / ".join(_number(v) for v in result["vector_steps_per_s"].values()) or "-"
+        memory = " / ".join(_number(result["memory"][mode]["per_additional_env_mb"], 1)
+                            for mode in ("none", "rgb_array"))
         cells += [_number(result["reset_ms_median"], 2),
                   _number(result["compute_reward_1024_us"], 1),
-                  _number(result["peak_rss_mb"]), _number(result["cold_start"]["median_s"], 2),
+                  _number(result["peak_rss_mb"]), memory,
+                  _number(result["cold_start"]["median_s"], 2),
                   _number(render, 1), vector]
         lines.append("| " + " | ".join(cells) + " |")
     lines.append("")

@@ -57,9 +57,15 @@ ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 0
 class Panda(composer.Robot):
     """Menagerie's Panda with a tool-centre-point site and a width-controlled gripper."""
 
-    def _build(self, name: str = "panda") -> None:
+    def _build(self, name: str = "panda", visual_meshes: bool = True) -> None:
+        """`visual_meshes=False` leaves out the visual geoms and the meshes only they use
+        (34 MB of mesh files and 35 MB compiled, per env): for envs that never render. The
+        visual geoms have no mass (every body has its own inertial) and no contacts, so
+        the simulation is the same."""
         self._mjcf_root = mjcf.from_path(str(assets.panda_xml()))
         self._mjcf_root.model = name
+        if not visual_meshes:
+            _remove_visual_geoms(self._mjcf_root)
         if self._mjcf_root.keyframe is not None:
             for key in self._mjcf_root.keyframe.all_children():
                 key.remove()
@@ -132,6 +138,19 @@ class Panda(composer.Robot):
         return self._arm_joints
 
     @property
+    def arm_joint_ranges(self) -> tuple[tuple[float, float], ...]:
+        """Each arm joint's (lowest, highest) angle (rad), joint 1 first."""
+        return tuple(tuple(float(v) for v in _resolved(joint, "joint", "range"))
+                     for joint in self._arm_joints)
+
+    def check_arm_qpos(self, name: str, qpos) -> None:
+        """A ValueError naming `name` unless every angle lies within its joint's range."""
+        for index, (angle, (low, high)) in enumerate(zip(qpos, self.arm_joint_ranges)):
+            if not low <= angle <= high:
+                raise ValueError(f"{name}[{index}] = {angle!r} is outside joint{index + 1}'s "
+                                 f"range [{low:g}, {high:g}] rad")
+
+    @property
     def arm_torque_limits(self) -> tuple[float, ...]:
         """Largest torque (N m) each arm joint can exert, joint 1 first (the real Panda's)."""
         return self._arm_torque_limits
@@ -200,14 +219,36 @@ class PandaObservables(composer.Observables):
         return observable.MJCFFeature("qvel", self._entity.joints)
 
 
-def _force_limit(actuator) -> float:
-    """An actuator's largest force magnitude, from its own `forcerange` or its default
-    class's (Menagerie sets 87 N m in the class, 12 N m on the wrist actuators)."""
-    forcerange = actuator.forcerange
-    dclass = actuator.dclass
-    while forcerange is None and dclass is not None:
-        forcerange = dclass.general.forcerange if dclass.general is not None else None
+def _remove_visual_geoms(root: mjcf.RootElement) -> None:
+    """Removes the geoms of Menagerie's "visual" class, then the meshes nothing uses."""
+    for geom in root.find_all("geom"):
+        if geom.dclass is not None and geom.dclass.dclass == "visual":
+            geom.remove()
+    used = {geom.mesh for geom in root.find_all("geom") if geom.mesh is not None}
+    for mesh in root.asset.find_all("mesh"):
+        if mesh not in used:
+            mesh.remove()
+
+
+def _resolved(element, tag: str, attribute: str):
+    """An MJCF attribute as MuJoCo resolves it: the element's own value, else that of its
+    default class, else of the class's parents (Menagerie sets many in its classes)."""
+    value, dclass = getattr(element, attribute), element.dclass
+    ancestor = element.parent
+    while dclass is None and ancestor is not None:  # The nearest body's childclass.
+        dclass = getattr(ancestor, "childclass", None)
+        ancestor = ancestor.parent
+    while value is None and dclass is not None:
+        defaults = getattr(dclass, tag)
+        value = getattr(defaults, attribute) if defaults is not None else None
         dclass = dclass.parent
-    if forcerange is None:
-        raise ValueError(f"actuator {actuator.name!r} has no force range")
+    if value is None:
+        raise ValueError(f"{tag} {element.name!r} has no {attribute}")
+    return value
+
+
+def _force_limit(actuator) -> float:
+    """An actuator's largest force magnitude (Menagerie: 87 N m in the class, 12 N m on the
+    wrist actuators)."""
+    forcerange = _resolved(actuator, "general", "forcerange")
     return float(max(abs(forcerange[0]), abs(forcerange[1])))

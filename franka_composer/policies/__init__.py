@@ -11,6 +11,7 @@ from franka_composer.policies.pick_and_place import PickAndPlaceExpert
 from franka_composer.policies.push import PushExpert
 from franka_composer.policies.rollout import Trajectories, rollout
 from franka_composer.policies.slide import SlideExpert
+from franka_composer.validation import check_choice
 
 #: The expert class for each task name in `franka_composer.ALL_TASKS`.
 EXPERTS: dict[str, type[Expert]] = {
@@ -22,9 +23,7 @@ EXPERTS: dict[str, type[Expert]] = {
 
 def make_expert(task: str) -> Expert:
     """A fresh expert for `task`; unknown names are a ValueError listing the valid ones."""
-    if task not in EXPERTS:
-        raise ValueError(f"no expert for task {task!r}; valid tasks: {', '.join(EXPERTS)}")
-    return EXPERTS[task]()
+    return EXPERTS[check_choice("task", task, tuple(EXPERTS))]()
 
 
 __all__ = ["EXPERTS", "Expert", "Trajectories", "make_expert", "rollout"]

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from franka_composer.tasks.base import GoalTask, ObservationField, PhysicsSettings
+from franka_composer.tasks.base import GoalTask, ObservationField
 from franka_composer.tasks.builder import build_task
-from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.config import PhysicsSettings, TaskConfig
 from franka_composer.tasks.pick_and_place import PICK_AND_PLACE
 from franka_composer.tasks.push import PUSH
 from franka_composer.tasks.slide import SLIDE
+from franka_composer.validation import check_choice
 
 #: Every task, by the name `franka_composer.load` takes.
 TASK_CONFIGS: dict[str, TaskConfig] = {
@@ -21,8 +22,7 @@ ALL_TASKS: tuple[str, ...] = tuple(TASK_CONFIGS)
 
 def task_config(name: str, **overrides) -> TaskConfig:
     """The named task's configuration with `overrides`; clear errors for unknown names."""
-    if name not in TASK_CONFIGS:
-        raise ValueError(f"unknown task {name!r}; valid tasks: {', '.join(ALL_TASKS)}")
+    check_choice("task", name, ALL_TASKS)
     return TASK_CONFIGS[name].replace(**overrides)
 
 

@@ -6,7 +6,6 @@ A `GoalTask` is wired from ready-made entities (arena, Panda, prop, goal marker)
 
 from __future__ import annotations
 
-import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -20,20 +19,8 @@ from franka_composer.controllers import ControlSettings, MocapController
 from franka_composer.entities import GoalMarker, Panda, Prop
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.tasks import rewards
+from franka_composer.tasks.config import PhysicsSettings
 from franka_composer.tasks.workspaces import Workspace
-
-
-@dataclasses.dataclass(frozen=True)
-class PhysicsSettings:
-    """MuJoCo options for a task (see each task module for why its values were chosen)."""
-
-    timestep: float = 0.002
-    integrator: str = "implicitfast"
-    cone: str = "elliptic"
-    impratio: float = 1.0
-    noslip_iterations: int = 0
-    iterations: int = 50
-    ls_iterations: int = 20
 
 
 class ObservationField(NamedTuple):
@@ -70,12 +57,6 @@ class GoalTask(composer.Task):
         neutral_arm_qpos=NEUTRAL_ARM_QPOS,
         initial_finger_width: float = 0.0,
     ) -> None:
-        rewards.check_reward_type(reward_type)
-        if not distance_threshold > 0:
-            raise ValueError(f"distance_threshold must be > 0 (m), got {distance_threshold}")
-        if not 0.0 <= workspace.goal_in_air_probability <= 1.0:
-            raise ValueError("goal_in_air_probability must be in [0, 1], got "
-                             f"{workspace.goal_in_air_probability}")
         self._arena, self._panda, self._prop, self._goal_marker = arena, panda, prop, goal_marker
         self._workspace = workspace
         self._reward_type = reward_type

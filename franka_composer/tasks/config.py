@@ -8,9 +8,41 @@ from __future__ import annotations
 import dataclasses
 
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
-from franka_composer.tasks.base import PhysicsSettings
+from franka_composer.tasks.rewards import REWARD_TYPES
+from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
+                                        check_vector)
 
 PROP_KINDS = ("block", "puck")
+#: How many numbers `object_size` holds per prop kind: a cube's half-size; a cylinder's
+#: radius and half-height.
+_OBJECT_SIZE_LENGTH = {"block": 1, "puck": 2}
+#: MuJoCo's integrators and friction cones, by their MJCF names.
+INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+CONES = ("pyramidal", "elliptic")
+
+
+@dataclasses.dataclass(frozen=True)
+class PhysicsSettings:
+    """MuJoCo options for a task (see each task module for why its values were chosen).
+    Every field is checked when the record is made."""
+
+    timestep: float = 0.002
+    integrator: str = "implicitfast"
+    cone: str = "elliptic"
+    impratio: float = 1.0
+    noslip_iterations: int = 0
+    iterations: int = 50
+    ls_iterations: int = 20
+
+    def __post_init__(self) -> None:
+        _set(self, "timestep", check_number("physics.timestep", self.timestep, above=0.0))
+        check_choice("physics.integrator", self.integrator, INTEGRATORS)
+        check_choice("physics.cone", self.cone, CONES)
+        _set(self, "impratio", check_number("physics.impratio", self.impratio, above=0.0))
+        for name, minimum in (("noslip_iterations", 0), ("iterations", 1),
+                              ("ls_iterations", 1)):
+            _set(self, name, check_number(f"physics.{name}", getattr(self, name),
+                                          minimum=minimum, integer=True))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -60,13 +92,43 @@ class TaskConfig:
     max_finger_step: float = 0.2
     neutral_arm_qpos: tuple[float, ...] = NEUTRAL_ARM_QPOS
 
+    def __post_init__(self) -> None:
+        """Checks every option's type, shape and range, naming the option and what it
+        accepts; numbers and sequences are stored as floats and tuples."""
+        check_choice("prop_kind", self.prop_kind, PROP_KINDS)
+        _set(self, "object_size", check_vector(
+            "object_size", self.object_size, _OBJECT_SIZE_LENGTH[self.prop_kind], above=0.0))
+        for name in ("object_mass", "distance_threshold", "control_timestep", "max_tcp_step",
+                     "max_finger_step"):
+            _set(self, name, check_number(name, getattr(self, name), above=0.0))
+        for name in ("object_friction", "floor_friction", "goal_max_height"):
+            _set(self, name, check_number(name, getattr(self, name), minimum=0.0))
+        _set(self, "goal_in_air_probability", check_number(
+            "goal_in_air_probability", self.goal_in_air_probability, minimum=0.0, maximum=1.0))
+        for name in ("object_centre", "goal_centre"):
+            _set(self, name, check_vector(name, getattr(self, name), 2))
+        for name in ("object_range", "goal_range"):
+            _set(self, name, check_vector(name, getattr(self, name), 2, minimum=0.0))
+        _set(self, "neutral_arm_qpos", check_vector("neutral_arm_qpos",
+                                                    self.neutral_arm_qpos, 7))
+        for name in ("actuated_gripper", "terminate_on_success"):
+            check_bool(name, getattr(self, name))
+        check_choice("reward_type", self.reward_type, REWARD_TYPES)
+        if not isinstance(self.physics, PhysicsSettings):
+            raise ValueError(f"physics must be a PhysicsSettings record, got {self.physics!r}")
+        substeps = self.control_timestep / self.physics.timestep
+        if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6 * substeps:
+            raise ValueError(f"control_timestep must be a whole multiple of the physics "
+                             f"timestep ({self.physics.timestep:g} s), got "
+                             f"{self.control_timestep!r}")
+
     def replace(self, **overrides) -> "TaskConfig":
-        """A copy with `overrides`; an unknown name is a ValueError listing the valid ones."""
-        valid = {f.name for f in dataclasses.fields(self)}
-        unknown = sorted(set(overrides) - valid)
-        if unknown:
-            raise ValueError(
-                f"unknown task option(s) {', '.join(map(repr, unknown))}; "
-                f"valid options: {', '.join(sorted(valid))}"
-            )
+        """A copy with `overrides`; an unknown name is a ValueError listing the valid ones,
+        a bad value one naming the option and what it accepts."""
+        check_names("task option", overrides, (f.name for f in dataclasses.fields(self)))
         return dataclasses.replace(self, **overrides)
+
+
+def _set(record, name: str, value) -> None:
+    """Stores a checked, normalised value on a frozen record (from `__post_init__`)."""
+    object.__setattr__(record, name, value)

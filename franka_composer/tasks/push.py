@@ -1,7 +1,6 @@
 """Push: slide a block along the floor to a goal on the floor, gripper locked closed."""
 
-from franka_composer.tasks.base import PhysicsSettings
-from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.config import PhysicsSettings, TaskConfig
 
 # Block-on-floor contacts need no slip correction: noslip is off (it costs ~30 % per step).
 PHYSICS = PhysicsSettings(noslip_iterations=0, impratio=1.0)

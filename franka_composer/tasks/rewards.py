@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from franka_composer.validation import check_choice
+
 REWARD_TYPES = ("sparse", "dense")
 
 
@@ -34,10 +36,7 @@ def goal_distance(achieved_goal, desired_goal) -> np.ndarray:
 
 def check_reward_type(reward_type: str) -> str:
     """`reward_type` if valid, else a ValueError naming the valid ones."""
-    if reward_type not in REWARD_TYPES:
-        raise ValueError(
-            f"unknown reward_type {reward_type!r}; valid: {', '.join(REWARD_TYPES)}")
-    return reward_type
+    return check_choice("reward_type", reward_type, REWARD_TYPES)
 
 
 def reward_from_distance(distance, reward_type: str, distance_threshold: float) -> np.ndarray:

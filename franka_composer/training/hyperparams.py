@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 
 from franka_composer.tasks import ALL_TASKS
+from franka_composer.validation import check_choice, check_names
 
 #: Learning algorithms, in the column order of the paper's Table II.
 ALGOS = ("ddpg", "sac", "tqc")
@@ -77,17 +78,12 @@ class Hyperparameters:
     def replace(self, **overrides) -> "Hyperparameters":
         """A copy with `overrides` (None values are ignored); unknown names are a ValueError."""
         overrides = {k: v for k, v in overrides.items() if v is not None}
-        valid = {f.name for f in dataclasses.fields(self)}
-        unknown = sorted(set(overrides) - valid)
-        if unknown:
-            raise ValueError(f"unknown hyperparameter(s) {', '.join(map(repr, unknown))}; "
-                             f"valid: {', '.join(sorted(valid))}")
+        check_names("hyperparameter", overrides, (f.name for f in dataclasses.fields(self)))
         if "net_arch" in overrides:
             overrides["net_arch"] = tuple(int(n) for n in overrides["net_arch"])
-        schedule = overrides.get("update_schedule", self.update_schedule)
-        if schedule not in UPDATE_SCHEDULES:
-            raise ValueError(f"unknown update_schedule {schedule!r}; "
-                             f"valid: {', '.join(UPDATE_SCHEDULES)}")
+        schedule = check_choice("update_schedule",
+                                overrides.get("update_schedule", self.update_schedule),
+                                UPDATE_SCHEDULES)
         if overrides.get("train_every", self.train_every) != 1 and schedule != "step":
             raise ValueError("train_every > 1 needs update_schedule 'step'")
         rate = overrides.get("stop_success_rate", self.stop_success_rate)
@@ -121,13 +117,6 @@ TABLE_I: dict[tuple[str, str], Hyperparameters] = {
     (task, algo): Hyperparameters(**_PER_TASK[task], **_PER_ALGO[algo])
     for task in ALL_TASKS for algo in ALGOS
 }
-
-
-def check_choice(kind: str, value: str, choices: tuple[str, ...]) -> str:
-    """`value` if it is one of `choices`, else a ValueError naming them."""
-    if value not in choices:
-        raise ValueError(f"unknown {kind} {value!r}; valid: {', '.join(choices)}")
-    return value
 
 
 def hyperparameters(task: str, algo: str) -> Hyperparameters:

@@ -10,8 +10,8 @@ import gymnasium as gym
 import numpy as np
 
 from franka_composer.adapters.registration import env_id
-from franka_composer.training.hyperparams import (ALGOS, BACKENDS, Hyperparameters,
-                                                  check_choice)
+from franka_composer.training.hyperparams import ALGOS, BACKENDS, Hyperparameters
+from franka_composer.validation import check_choice
 
 DEVICES = ("auto", "cpu", "cuda")
 

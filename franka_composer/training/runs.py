@@ -14,7 +14,8 @@ import dataclasses
 import json
 import pathlib
 
-from franka_composer.training.hyperparams import BACKENDS, Hyperparameters, check_choice
+from franka_composer.training.hyperparams import BACKENDS, Hyperparameters
+from franka_composer.validation import check_choice
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 
