@@ -6,13 +6,15 @@ BIN := $(VENV)/bin
 export MENAGERIE_ROOT ?= $(abspath ../shared/menagerie)
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test test-fast bench clean
 
+# The tested set of packages (constraints.txt) within setup.cfg's ranges; torch first, as
+# the CPU build (an unpinned torch pulls a multi-GB CUDA build).
 $(BIN)/activate:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --upgrade pip
-	$(BIN)/pip install torch==2.13.0
-	$(BIN)/pip install -e ".[test,train]"
+	$(BIN)/pip install -c constraints.txt torch==2.13.0
+	$(BIN)/pip install -c constraints.txt -e ".[test,train]"
 
 setup: $(BIN)/activate
 
@@ -22,8 +24,11 @@ demo: setup
 test: setup
 	$(BIN)/python -m pytest -q
 
+test-fast: setup
+	$(BIN)/python -m pytest -q -m "not slow"
+
 bench: setup
-	$(BIN)/franka-composer bench
+	$(BIN)/python benchmarks/bench.py
 
 clean:
 	rm -rf $(VENV) demo_output

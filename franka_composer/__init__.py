@@ -6,7 +6,7 @@ Gymnasium ids `Franka{Push,Slide,PickAndPlace}{Sparse,Dense}-v0`.
 
 from franka_composer import headless_gl as _headless_gl
 
-# Headless by default (EGL, loaded at the first frame): see `headless_gl`.
+# Headless by default (EGL where there is no display): see `headless_gl`.
 _headless_gl.choose_headless_backend()
 
 from franka_composer.adapters import ENV_IDS, FrankaGoalEnv, register_envs  # noqa: E402

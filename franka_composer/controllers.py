@@ -46,18 +46,26 @@ class ControlSettings:
       max_finger_step: metres the finger width changes per control step for a gripper
         action of 1 (0.2 > 0.08: one full command opens or closes the hand).
       actuated_gripper: whether the action has a 4th, gripper, component; if not, the
-        fingers are held at `locked_finger_width`.
-      locked_finger_width: finger width (m) held when the gripper is not actuated.
+        fingers are held closed.
     """
 
     max_tcp_step: float = 0.05
     max_finger_step: float = 0.2
     actuated_gripper: bool = False
-    locked_finger_width: float = 0.0
 
     @property
     def action_size(self) -> int:
         return 4 if self.actuated_gripper else 3
+
+    def tcp_action(self, tcp, target, max_speed: float = 1.0) -> np.ndarray:
+        """The action law inverted: the position part of an action that takes the tool centre
+        point from `tcp` to `target` (m) in one step if it is that close, else straight
+        towards it at `max_speed` (a fraction of a full step). For scripted policies."""
+        step = (np.asarray(target) - tcp) / self.max_tcp_step
+        norm = np.linalg.norm(step)
+        if norm > max_speed:
+            step *= max_speed / norm
+        return step
 
 
 class MocapController:

@@ -1,16 +1,13 @@
-"""Headless OpenGL: chosen when the package is imported, loaded at the first frame.
+"""Headless OpenGL by default: `MUJOCO_GL=egl` where there is no display.
 
-Without a display, dm_control needs `MUJOCO_GL` set before it is imported (else it tries
-GLFW and warns), so importing franka_composer sets it to `egl` when the user has not. But
-dm_control also loads its backend at import, and its EGL backend opens an EGL display right
-then: Mesa's drivers, ~55 MB resident in every process (every vector-env worker), whether
-it ever renders or not. So when franka_composer is the one choosing, dm_control's renderer
-module is imported with rendering disabled and the EGL backend is loaded by `Physics`
-when it makes its first rendering context. MuJoCo itself and child processes see
-`MUJOCO_GL=egl` as usual (children that import franka_composer defer again).
-
-A `MUJOCO_GL` or `DISPLAY` the user set is left alone: dm_control then loads what it says,
-as usual.
+dm_control picks its GL backend from `MUJOCO_GL` once, when it is first imported, and without
+a display its default (GLFW) cannot render. So importing franka_composer, which imports
+dm_control, first sets `MUJOCO_GL=egl` (a GPU's EGL, or Mesa's software EGL) when neither the
+user nor a display has chosen: frames render headless out of the box. A `MUJOCO_GL`,
+`DISPLAY` or `WAYLAND_DISPLAY` the user set is left alone (`osmesa` with Debian's
+`libosmesa6` where EGL is missing). dm_control's EGL backend opens its display at import,
+~55 MB in every process (BENCHMARKS.md); a process that never renders can avoid it with
+`MUJOCO_GL=disable`.
 """
 
 from __future__ import annotations
@@ -18,37 +15,12 @@ from __future__ import annotations
 import os
 import sys
 
-#: Marks a `MUJOCO_GL=egl` that franka_composer chose (so child processes defer too).
-_CHOSEN_HERE = "FRANKA_COMPOSER_CHOSE_MUJOCO_GL"
-_deferred = False
-
 
 def choose_headless_backend() -> None:
-    """Sets `MUJOCO_GL=egl` without a display, deferring dm_control's EGL backend; call
-    before dm_control's renderer is imported (it reads `MUJOCO_GL` once)."""
-    global _deferred
-    ours = os.environ.get(_CHOSEN_HERE) == "1" and os.environ.get("MUJOCO_GL") == "egl"
-    if not ours and ("MUJOCO_GL" in os.environ or os.environ.get("DISPLAY")):
+    """Sets `MUJOCO_GL=egl` without a display or a user's choice; call before dm_control is
+    imported (it reads `MUJOCO_GL` once)."""
+    if "MUJOCO_GL" in os.environ or "dm_control._render" in sys.modules:
+        return  # The user chose, or dm_control already has.
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
         return
-    os.environ["MUJOCO_GL"], os.environ[_CHOSEN_HERE] = "egl", "1"
-    if "dm_control._render" in sys.modules:
-        return  # Imported before us with its own choice: nothing to defer.
-    os.environ["MUJOCO_GL"] = "disable"
-    try:
-        import dm_control._render  # noqa: F401  # pylint: disable=unused-import
-    finally:
-        os.environ["MUJOCO_GL"] = "egl"
-    _deferred = True
-
-
-def load_deferred_backend() -> None:
-    """Loads dm_control's EGL backend if `choose_headless_backend` deferred it."""
-    global _deferred
-    if not _deferred:
-        return
-    from dm_control import _render  # pylint: disable=g-import-not-at-top
-
-    _render.Renderer = _render._import_egl()  # pylint: disable=protected-access
-    _render.BACKEND, _render.USING_GPU = "egl", True
-    _deferred = False
-
+    os.environ["MUJOCO_GL"] = "egl"

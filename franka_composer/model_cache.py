@@ -27,9 +27,8 @@ import time
 import mujoco
 import numpy as np
 from absl import logging
+from dm_control import mjcf
 from dm_control.mujoco import wrapper
-
-from franka_composer.physics import Physics
 
 #: Compiled models kept (each ~35 MB with the Panda's visual meshes, ~6 MB without); the
 #: least recently used beyond this are deleted.
@@ -48,18 +47,18 @@ def model_cache_dir() -> pathlib.Path | None:
     return pathlib.Path(base) / "franka_composer"
 
 
-def compile_physics(mjcf_model) -> Physics:
-    """`Physics.from_mjcf_model` (with dm_control's readable compile errors), through the
+def compile_physics(mjcf_model) -> mjcf.Physics:
+    """`mjcf.Physics.from_mjcf_model` (with dm_control's readable compile errors), through the
     compiled-model cache when it is on."""
     directory = model_cache_dir()
     if directory is None:
-        return Physics.from_mjcf_model(mjcf_model)
+        return mjcf.Physics.from_mjcf_model(mjcf_model)
     key = model_key(mjcf_model)
     for path in sorted(directory.glob(f"{key}.*.mjb")):
         physics = _load_verified(path)
         if physics is not None:
             return physics
-    physics = Physics.from_mjcf_model(mjcf_model)
+    physics = mjcf.Physics.from_mjcf_model(mjcf_model)
     _save(physics, directory, key)
     return physics
 
@@ -80,7 +79,7 @@ def _content_digest(data: bytes) -> str:
     return hashlib.blake2b(data).hexdigest()[:_DIGEST_CHARS]
 
 
-def _load_verified(path: pathlib.Path) -> Physics | None:
+def _load_verified(path: pathlib.Path) -> mjcf.Physics | None:
     """The model in `path` if its bytes match the digest in its name; else None (and the
     file deleted, where it can be)."""
     try:
@@ -102,10 +101,10 @@ def _load_verified(path: pathlib.Path) -> Physics | None:
         os.utime(path)  # Recently used: evicted last. A hint only (read-only caches).
     except OSError:
         pass
-    return Physics.from_model(wrapper.MjModel(model))
+    return mjcf.Physics.from_model(wrapper.MjModel(model))
 
 
-def _save(physics: Physics, directory: pathlib.Path, key: str) -> None:
+def _save(physics: mjcf.Physics, directory: pathlib.Path, key: str) -> None:
     model = physics.model.ptr
     buffer = np.empty(mujoco.mj_sizeModel(model), dtype=np.uint8)
     mujoco.mj_saveModel(model, None, buffer)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from franka_composer import seeding
-from franka_composer.environment import Environment
+from franka_composer.environment import GoalEnvironment
+from franka_composer.fast_path import make_environment
 from franka_composer.tasks import build_task, task_config
 
 #: Times Composer retries an episode whose initialisation raised EpisodeInitializationError.
@@ -13,7 +14,7 @@ MAX_RESET_ATTEMPTS = 10
 
 
 def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool = True,
-         **task_kwargs) -> Environment:
+         **task_kwargs) -> GoalEnvironment:
     """Builds the named task as a Composer (dm_env) environment.
 
     Args:
@@ -32,14 +33,16 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
         non-negative int.
 
     The environment has no time limit of its own (the Gymnasium adapter truncates at 50
-    steps), compiles the MJCF once, and ends an episode with a warning, not an exception,
-    if the physics diverges.
+    steps) and ends an episode with a warning, not an exception, if the physics diverges
+    (the step gets the task's reward). It is a `fast_path.FastEnvironment` where the
+    installed dm_control allows, else Composer's stock stepping (`GoalEnvironment`), with
+    the same trajectories; `FRANKA_COMPOSER_FAST_PATH=0` forces the stock path.
     """
     if seed is not None and not isinstance(seed, np.random.RandomState):
         seed = seeding.random_state(seed)
     task = build_task(task_config(name, reward_type=reward_type, **task_kwargs),
                       renderable=renderable)
-    return Environment(
+    return make_environment(
         task,
         random_state=seed,
         time_limit=float("inf"),

@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import franka_composer  # noqa: E402
+from franka_composer import fast_path  # noqa: E402
 
 
 @pytest.fixture(params=franka_composer.ALL_TASKS)
@@ -24,16 +25,25 @@ def task_name(request) -> str:
     return request.param
 
 
+@pytest.fixture(params=["fast", "stock"])
+def composer_path(request, monkeypatch) -> str:
+    """Runs a test on the fast path and on Composer's stock stepping (modules that use it:
+    `pytestmark = pytest.mark.usefixtures("composer_path")`)."""
+    monkeypatch.setenv(fast_path.ENV_VARIABLE, "1" if request.param == "fast" else "0")
+    return request.param
+
+
 def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):
     """Drives the tool centre point to `target` with proportional actions; returns the last
     timestep. Used by physical tests that need the hand somewhere first."""
     size = env.action_spec().shape[0]
+    control = env.task.config.control
     for _ in range(max_steps):
-        error = np.asarray(target) - timestep.observation["panda/tcp_pos"]
-        if np.linalg.norm(error) < tolerance:
+        tcp = timestep.observation["panda/tcp_position"]
+        if np.linalg.norm(np.asarray(target) - tcp) < tolerance:
             break
         action = np.zeros(size, np.float32)
-        action[:3] = np.clip(error / 0.05, -1, 1)
+        action[:3] = np.clip(control.tcp_action(tcp, target, max_speed=np.inf), -1, 1)
         if gripper is not None:
             action[3] = gripper
         timestep = env.step(action)

@@ -11,6 +11,9 @@ import pytest
 import franka_composer
 from conftest import move_tcp_to
 
+# Physics holds on the fast path and on Composer's stock stepping alike.
+pytestmark = pytest.mark.usefixtures("composer_path")
+
 #: A full downward command for this many steps is the press of the contact-physics issue.
 PRESS_STEPS = 80
 
@@ -65,7 +68,7 @@ def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(task_name, see
     resting = env.task.prop.resting_height
     lowest, fastest = np.inf, 0.0
     for _ in range(PRESS_STEPS):
-        xy = np.clip((timestep.observation[key][:2] - timestep.observation["panda/tcp_pos"][:2])
+        xy = np.clip((timestep.observation[key][:2] - timestep.observation["panda/tcp_position"][:2])
                      / 0.05, -1, 1)
         timestep = env.step(np.array([*xy, -1.0, *_gripper(env, -1.0)], np.float32))
         lowest = min(lowest, timestep.observation[key][2])
@@ -157,7 +160,7 @@ def test_the_hand_moves_freely_where_nothing_is_beneath_it():
     controller's plain law (target = TCP - 5 cm)."""
     env = franka_composer.load("push", seed=0, terminate_on_success=False)
     timestep = env.reset()
-    tcp = timestep.observation["panda/tcp_pos"].copy()
+    tcp = timestep.observation["panda/tcp_position"].copy()
     env.step(np.array([0, 0, -1], np.float32))
     target = env.physics.bind(env.task.controller.target).mocap_pos
     np.testing.assert_array_equal(target, tcp + 0.05 * np.array([0, 0, -1.0]))

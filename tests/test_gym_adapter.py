@@ -181,6 +181,7 @@ def test_step_before_reset_raises_gymnasiums_error():
         env.unwrapped.step(np.zeros(3, np.float32))
 
 
+@pytest.mark.slow
 def test_async_vector_env_with_two_workers_steps():
     envs = gym.vector.AsyncVectorEnv([lambda: gym.make("FrankaPushSparse-v0")] * 2)
     try:
@@ -194,6 +195,7 @@ def test_async_vector_env_with_two_workers_steps():
         envs.close()
 
 
+@pytest.mark.slow
 def test_sb3_subproc_vec_env_with_two_workers_steps():
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import SubprocVecEnv
@@ -218,12 +220,13 @@ def test_shimmy_wraps_the_dm_env_suite_for_raw_dict_observations():
 
     env = DmControlCompatibilityV0(franka_composer.load("push", seed=0))
     obs, _ = env.reset(seed=0)
-    assert set(obs) >= {"panda/tcp_pos", "block/position", "goal"}
+    assert set(obs) >= {"panda/tcp_position", "block/position", "goal"}
     obs, reward, terminated, truncated, _ = env.step(np.zeros(3, np.float32))
     assert obs["block/position"].shape == (3,) and reward in (0.0, -1.0)
     env.close()
 
 
+@pytest.mark.slow
 def test_short_sac_her_run_learns_without_error(task_name):
     from stable_baselines3 import SAC, HerReplayBuffer
 
@@ -249,7 +252,7 @@ def test_an_env_that_never_renders_simulates_what_a_rendering_env_does(task_name
     lean_model = lean.unwrapped.composer_env.physics.model
     full_model = full.unwrapped.composer_env.physics.model
     assert (lean_model.geom_group == 2).sum() == 0 < (full_model.geom_group == 2).sum()
-    expert = make_expert(task_name)
+    expert = make_expert(lean)
     rng = np.random.default_rng(0)
     for episode in range(2):
         expert.reset()

@@ -14,7 +14,7 @@ from absl import logging
 
 from franka_composer import model_cache
 from franka_composer.model_cache import compile_physics
-from franka_composer.physics import Physics
+from dm_control import mjcf
 from franka_composer.tasks import build_task, task_config
 
 
@@ -77,7 +77,7 @@ def test_a_readable_cached_model_that_cannot_be_touched_is_used(cache, root, mon
         raise PermissionError("read-only file system")
 
     monkeypatch.setattr(os, "utime", refuse)
-    monkeypatch.setattr(Physics, "from_mjcf_model",
+    monkeypatch.setattr(mjcf.Physics, "from_mjcf_model",
                         classmethod(lambda cls, model: pytest.fail("compiled again")))
     for _ in range(3):
         assert compile_physics(root).model.opt.timestep == 0.002

@@ -8,6 +8,9 @@ import pytest
 import franka_composer
 from conftest import move_tcp_to
 
+# Physics holds on the fast path and on Composer's stock stepping alike.
+pytestmark = pytest.mark.usefixtures("composer_path")
+
 
 def _hand_tilt_degrees(env) -> float:
     """Angle between the hand's approach axis and straight down."""
@@ -18,10 +21,10 @@ def _hand_tilt_degrees(env) -> float:
 @pytest.mark.parametrize("direction", [(1, 0, 0), (0, -1, 0), (0, 0, -1)])
 def test_one_full_action_moves_the_tcp_by_most_of_five_centimetres(task_name, direction):
     env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
-    start = env.reset().observation["panda/tcp_pos"].copy()
+    start = env.reset().observation["panda/tcp_position"].copy()
     action = np.zeros(env.action_spec().shape, np.float32)
     action[:3] = direction
-    end = env.step(action).observation["panda/tcp_pos"]
+    end = env.step(action).observation["panda/tcp_position"]
     moved = (end - start) @ np.asarray(direction, float)
     assert 0.8 * 0.05 <= moved <= 1.1 * 0.05
     sideways = np.linalg.norm((end - start) - moved * np.asarray(direction, float))
@@ -32,11 +35,11 @@ def test_one_full_action_moves_the_tcp_by_most_of_five_centimetres(task_name, di
 def test_zero_action_holds_the_tcp_still(task_name):
     env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
     timestep = env.reset()
-    timestep = move_tcp_to(env, timestep, timestep.observation["panda/tcp_pos"] + [0, 0.05, 0.05])
-    start = timestep.observation["panda/tcp_pos"].copy()
+    timestep = move_tcp_to(env, timestep, timestep.observation["panda/tcp_position"] + [0, 0.05, 0.05])
+    start = timestep.observation["panda/tcp_position"].copy()
     for _ in range(10):
         timestep = env.step(np.zeros(env.action_spec().shape, np.float32))
-    assert np.linalg.norm(timestep.observation["panda/tcp_pos"] - start) < 0.002
+    assert np.linalg.norm(timestep.observation["panda/tcp_position"] - start) < 0.002
     assert _hand_tilt_degrees(env) < 5.0
 
 
@@ -58,13 +61,13 @@ def test_grasped_block_stays_in_hand_while_lifting_and_carrying():
     start_height = timestep.observation["block/position"][2]
     for _ in range(10):  # Lift 0.15 m over 10 steps.
         timestep = env.step(np.array([0, 0, 0.3, -1], np.float32))
-        gap = timestep.observation["panda/tcp_pos"] - timestep.observation["block/position"]
+        gap = timestep.observation["panda/tcp_position"] - timestep.observation["block/position"]
         assert np.linalg.norm(gap) < 0.02
     assert timestep.observation["block/position"][2] - start_height > 0.13
     start_y = timestep.observation["block/position"][1]
     for _ in range(10):  # Carry 0.1 m sideways.
         timestep = env.step(np.array([0, 0.2, 0, -1], np.float32))
-        gap = timestep.observation["panda/tcp_pos"] - timestep.observation["block/position"]
+        gap = timestep.observation["panda/tcp_position"] - timestep.observation["block/position"]
         assert np.linalg.norm(gap) < 0.02
     assert timestep.observation["block/position"][1] - start_y > 0.09
 

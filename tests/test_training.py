@@ -8,6 +8,8 @@ import os
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow  # Trains networks (and JAX), a few seconds each.
+
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
 
@@ -263,12 +265,19 @@ def test_config_without_backend_resumes_as_sb3(tmp_path):
 def test_the_early_stopping_rule_ends_a_run_and_resume_keeps_it_ended(tmp_path, monkeypatch):
     """5 consecutive evaluations at >= 95 % (here 3 at 100 %) end the run before its budget;
     outcome.json records it, and --resume does not train it further."""
-    from franka_composer.training import callbacks
-    from franka_composer.training.evaluation import EvalResult
+    from stable_baselines3.common import callbacks as sb3_callbacks
 
-    rates = iter([0.5, 1.0, 0.9, 1.0, 1.0, 1.0] + [0.0] * 50)
-    monkeypatch.setattr(callbacks, "evaluate_policy",
-                        lambda *args, **kwargs: EvalResult(2, next(rates), -10.0))
+    rates = iter([0.5, 1.0, 0.5, 1.0, 1.0, 1.0] + [0.0] * 50)
+
+    def evaluate(model, env, n_eval_episodes, callback=None, **kwargs):
+        """SB3's evaluate_policy as EvalCallback calls it: episode rewards and lengths, and
+        each episode's last step reported to `callback`."""
+        successes = int(next(rates) * n_eval_episodes)
+        for episode in range(n_eval_episodes):
+            callback({"done": True, "info": {"is_success": episode < successes}}, {})
+        return [-10.0] * n_eval_episodes, [50] * n_eval_episodes
+
+    monkeypatch.setattr(sb3_callbacks, "evaluate_policy", evaluate)
     out = tmp_path / "early"
     assert _train(out, "ddpg", 2000, "--stop-at-success", "0.95", "--stop-after", "3") == 0
     rows = read_eval_rows(RunDir(out).eval_csv)

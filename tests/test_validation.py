@@ -32,8 +32,10 @@ NAN, INF = float("nan"), float("inf")
     ("object_friction", -0.5, "object_friction must be >= 0, got -0.5"),
     ("floor_friction", -1, "floor_friction must be >= 0, got -1"),
     ("object_mass", 0, "object_mass must be > 0, got 0"),
-    ("object_size", (), r"object_size must have 1 number\(s\), got 0"),
-    ("object_size", (0.02, 0.02), r"object_size must have 1 number\(s\), got 2"),
+    ("block_half_size", 0.0, "block_half_size must be > 0, got 0.0"),
+    ("block_half_size", (0.02,), "block_half_size must be a finite number > 0, got"),
+    ("puck_radius", 0.03, "puck_radius does not apply: this task's object is a block "
+                          r"\(its options: object_mass, object_friction, block_half_size\)"),
     ("object_range", (-0.1, 0.3), r"object_range\[0\] must be >= 0, got -0.1"),
     ("goal_max_height", -0.2, "goal_max_height must be >= 0"),
     ("goal_in_air_probability", 1.5, "goal_in_air_probability must be >= 0 and <= 1, got 1.5"),

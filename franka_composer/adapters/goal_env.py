@@ -1,8 +1,8 @@
 """A thin Gymnasium `GoalEnv`-style adapter over the Composer suite, for HER learners.
 
-It only reshapes what the task exposes: the flat `observation` is the task's
-`observation_fields` concatenated in order (velocities times the control period), the goals
-are the task's achieved/desired goal observables, the reward is the timestep's (the task's
+It only reshapes what the task exposes: the flat `observation` is built by the task's
+`observation_layout` (velocities times the control period), the goals are the task's
+achieved/desired goal observables, the reward is the timestep's (the task's
 reward function on those goals: the same function `compute_reward`, which HER calls to
 relabel, runs) and `is_success` is the task's.
 """
@@ -21,11 +21,12 @@ from gymnasium.utils import EzPickle
 
 from franka_composer import seeding, suite
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
+from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_choice
 from franka_composer.tasks.rewards import goal_distance
 
-#: dtype of every observation array and of rewards.
-OBS_DTYPE = np.float64
+#: dtype of rewards (observations: `layout.OBSERVATION_DTYPE`, the same).
+REWARD_DTYPE = np.float64
 
 
 class FrankaGoalEnv(gym.Env, EzPickle):
@@ -71,16 +72,11 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._timestep = None
         self._closed = False
 
-        self._fields = self._task.observation_fields
-        self._keys = tuple(field.key for field in self._fields)
-        # Per element: the control period for per-step velocities, else 1 (exact: x * 1.0 == x).
-        self._scale = np.concatenate([
-            np.full(f.size, self._env.control_timestep() if f.per_control_step else 1.0)
-            for f in self._fields])
-        size = sum(f.size for f in self._fields)
-        goal_box = spaces.Box(-np.inf, np.inf, shape=(3,), dtype=OBS_DTYPE)
+        self._layout = self._task.observation_layout
+        goal_box = spaces.Box(-np.inf, np.inf, shape=(3,), dtype=OBSERVATION_DTYPE)
         self.observation_space = spaces.Dict({
-            "observation": spaces.Box(-np.inf, np.inf, shape=(size,), dtype=OBS_DTYPE),
+            "observation": spaces.Box(-np.inf, np.inf, shape=(self._layout.size,),
+                                      dtype=OBSERVATION_DTYPE),
             "achieved_goal": goal_box,
             "desired_goal": goal_box,
         })
@@ -99,6 +95,11 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     def task(self):
         """The Composer task (goals, reward settings, observation layout)."""
         return self._task
+
+    @property
+    def observation_layout(self):
+        """What each element of `obs["observation"]` is (`ObservationLayout`)."""
+        return self._layout
 
     @property
     def composer_env(self):
@@ -133,7 +134,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._timestep = self._env.step(action)
         obs = self._observation(self._timestep.observation)
         info = {"is_success": self._task.success}
-        reward = OBS_DTYPE(self._timestep.reward)
+        reward = REWARD_DTYPE(self._timestep.reward)
         terminated = bool(self._timestep.last())
         if terminated:
             self._timestep = None  # Composer would reset on the next step: make it explicit.
@@ -198,14 +199,12 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     # ----- Reshaping ------------------------------------------------------------------------
 
     def _observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
-        # One concatenation and one multiply: this runs every step.
-        vector = np.concatenate([composer_obs[key].ravel() for key in self._keys],
-                                dtype=OBS_DTYPE)
-        vector *= self._scale
         return {
-            "observation": vector,
-            "achieved_goal": np.array(composer_obs[self._task.achieved_goal_key], dtype=OBS_DTYPE),
-            "desired_goal": np.array(composer_obs[self._task.desired_goal_key], dtype=OBS_DTYPE),
+            "observation": self._layout.flatten(composer_obs),
+            "achieved_goal": np.array(composer_obs[self._task.achieved_goal_key],
+                                      dtype=OBSERVATION_DTYPE),
+            "desired_goal": np.array(composer_obs[self._task.desired_goal_key],
+                                     dtype=OBSERVATION_DTYPE),
         }
 
 

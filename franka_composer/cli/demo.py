@@ -76,7 +76,7 @@ def _run_task(task: str, args: argparse.Namespace, on_episode_end) -> tuple:
         if episode < args.video_episodes:
             frames.append(environment.render())
 
-    trajectories = rollout(env, make_expert(task), args.episodes, seed=args.seed,
+    trajectories = rollout(env, make_expert(env), args.episodes, seed=args.seed,
                            on_step=None if args.no_video else record,
                            on_episode_end=on_episode_end)
     fps = env.metadata["render_fps"]

@@ -31,7 +31,7 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training.evaluation import evaluate_policy
+    from franka_composer.training.evaluation import measure_success
     from franka_composer.training.models import load_model, make_env
     from franka_composer.training.report import RunResult, markdown_table, seeds_note
     from franka_composer.training.runs import RunDir
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device,
                                backend=config.backend)
-            outcome = evaluate_policy(model, env, args.episodes, seed=args.seed)
+            outcome = measure_success(model, env, args.episodes, seed=args.seed)
         finally:
             env.close()
         result = RunResult(str(root), config.task, config.algo, config.seed,

@@ -39,7 +39,7 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     env = gym.make(env_id(args.task, args.reward_type))
-    trajectories = rollout(env, make_expert(args.task), args.episodes, seed=args.seed)
+    trajectories = rollout(env, make_expert(env), args.episodes, seed=args.seed)
     env.close()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     trajectories.save(args.out)

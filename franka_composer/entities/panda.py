@@ -197,11 +197,11 @@ class PandaObservables(composer.Observables):
     """What a policy may see of the Panda; velocities are per second (world frame)."""
 
     @define.observable
-    def tcp_pos(self):
+    def tcp_position(self):
         return ArrayFeature("xpos", self._entity.tcp_site)
 
     @define.observable
-    def tcp_velp(self):
+    def tcp_linear_velocity(self):
         return ArrayFeature("sensordata", self._entity.tcp_velocity)
 
     @define.observable

@@ -1,7 +1,7 @@
 """Scripted expert policies, one per task, acting only on the public observation dict.
 
 They prove the tasks are solvable through the action interface and generate
-demonstrations: `rollout(env, make_expert("push"), episodes=100).save("push.npz")`.
+demonstrations: `rollout(env, make_expert(env), episodes=100).save("push.npz")`.
 """
 
 from __future__ import annotations
@@ -21,9 +21,16 @@ EXPERTS: dict[str, type[Expert]] = {
 }
 
 
-def make_expert(task: str) -> Expert:
-    """A fresh expert for `task`; unknown names are a ValueError listing the valid ones."""
-    return EXPERTS[check_choice("task", task, tuple(EXPERTS))]()
+def make_expert(env) -> Expert:
+    """A fresh scripted expert for `env`: a Gymnasium env of this package (wrapped or not) or
+    a dm_env from `franka_composer.load`. It reads the env's observation layout and task
+    configuration; a task without an expert is a ValueError naming those with one."""
+    if isinstance(env, str):
+        raise TypeError("make_expert takes the environment, whose layout and options the "
+                        f"expert reads, not a task name: make_expert(gym.make(...)), got {env!r}")
+    task = getattr(env, "unwrapped", env).task
+    expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
+    return expert(task.observation_layout, task.config)
 
 
 __all__ = ["EXPERTS", "Expert", "Trajectories", "make_expert", "rollout"]

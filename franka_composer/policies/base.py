@@ -1,9 +1,9 @@
 """What every scripted expert shares: reading the public observation, steering the hand.
 
-Experts see only what a learner sees: the Gymnasium observation dict. Its `observation`
-vector is, in order (see `task.observation_fields`): tool-centre-point (TCP) position (m,
-world frame), TCP velocity (m per control step), the finger width (m) when the gripper is
-actuated, then the object's position, orientation, linear and angular velocity.
+Experts see only what a learner sees, the Gymnasium observation dict, and read its
+`observation` vector by field name through the env's `ObservationLayout`; they know the
+task's configuration (object sizes, the action scale) as its author would, and turn
+targets into actions with the controller's own inverse (`ControlSettings.tcp_action`).
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import dataclasses
 
 import numpy as np
 
-#: Metres the TCP target moves per control step for an action component of 1.
-MAX_TCP_STEP = 0.05
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.layout import ObservationLayout
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,26 +28,16 @@ class Scene:
     finger_width: float | None  # None when the fingers are locked closed
 
     @classmethod
-    def read(cls, obs: dict, with_finger_width: bool) -> "Scene":
+    def read(cls, obs: dict, layout: ObservationLayout) -> "Scene":
         vector = np.asarray(obs["observation"], dtype=np.float64)
-        start = 7 if with_finger_width else 6
         return cls(
-            tcp=vector[0:3],
-            object_position=vector[start:start + 3],
-            object_velocity=vector[start + 6:start + 9],
+            tcp=layout.read(vector, "tcp_position"),
+            object_position=layout.read(vector, "object_position"),
+            object_velocity=layout.read(vector, "object_linear_velocity"),
             goal=np.asarray(obs["desired_goal"], dtype=np.float64),
-            finger_width=float(vector[6]) if with_finger_width else None,
+            finger_width=(float(layout.read(vector, "finger_width")[0])
+                          if "finger_width" in layout else None),
         )
-
-
-def move_towards(tcp: np.ndarray, target: np.ndarray, max_speed: float = 1.0) -> np.ndarray:
-    """The TCP part of an action that reaches `target` in one step when it is close enough,
-    else moves straight towards it at `max_speed` (a fraction of the full step)."""
-    step = (np.asarray(target) - tcp) / MAX_TCP_STEP
-    norm = np.linalg.norm(step)
-    if norm > max_speed:
-        step *= max_speed / norm
-    return step
 
 
 def unit(vector: np.ndarray) -> np.ndarray:
@@ -57,13 +47,24 @@ def unit(vector: np.ndarray) -> np.ndarray:
 
 
 class Expert(abc.ABC):
-    """A scripted policy: `reset()` at each episode start, then `expert(obs) -> action`."""
+    """A scripted policy for one task's env: `reset()` at each episode start, then
+    `expert(obs) -> action`. Built by `make_expert(env)`."""
 
-    #: Length of the action vector: dx, dy, dz (and the gripper for pick and place).
-    action_size = 3
+    def __init__(self, layout: ObservationLayout, config: TaskConfig) -> None:
+        self.layout, self.config = layout, config
+        #: Length of the action vector: dx, dy, dz (and the gripper where it is actuated).
+        self.action_size = config.control.action_size
+        self.reset()
 
     def reset(self) -> None:
         """Forgets the previous episode's plan."""
+
+    def scene(self, obs: dict) -> Scene:
+        return Scene.read(obs, self.layout)
+
+    def move_towards(self, tcp: np.ndarray, target, max_speed: float = 1.0) -> np.ndarray:
+        """The position part of an action towards `target` (`ControlSettings.tcp_action`)."""
+        return self.config.control.tcp_action(tcp, target, max_speed)
 
     def __call__(self, obs: dict) -> np.ndarray:
         action = np.zeros(self.action_size)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.base import Expert, Scene, move_towards
+from franka_composer.policies.base import Expert
 
 #: Height (m) above the block's centre at which the open hand lines up before descending.
 HOVER_HEIGHT = 0.08
@@ -29,16 +29,11 @@ class PickAndPlaceExpert(Expert):
     """A small state machine driven by what it observes each step, so a dropped block is
     simply picked up again."""
 
-    action_size = 4
-
-    def __init__(self) -> None:
-        self._closing_steps = 0
-
     def reset(self) -> None:
         self._closing_steps = 0
 
     def act(self, obs: dict) -> np.ndarray:
-        scene = Scene.read(obs, with_finger_width=True)
+        scene = self.scene(obs)
         block, tcp, goal, width = (scene.object_position, scene.tcp, scene.goal,
                                    scene.finger_width)
         block_in_hand = np.linalg.norm(block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE
@@ -53,15 +48,14 @@ class PickAndPlaceExpert(Expert):
         if np.linalg.norm(tcp[:2] - block[:2]) > 0.01:
             # Rise before moving sideways if the hand is low, so it does not hit the block.
             target = hover if tcp[2] > block[2] + 0.03 else [*tcp[:2], hover[2]]
-            return np.array([*move_towards(tcp, target), 1.0])
+            return np.array([*self.move_towards(tcp, target), 1.0])
         if width < OPEN_WIDTH:
-            return np.array([*move_towards(tcp, [*block[:2], max(tcp[2], hover[2])]), 1.0])
+            return np.array([*self.move_towards(tcp, [*block[:2], max(tcp[2], hover[2])]), 1.0])
         if tcp[2] - grasp[2] > 0.005:
-            return np.array([*move_towards(tcp, grasp), 1.0])
-        return np.array([*move_towards(tcp, grasp), -1.0])
+            return np.array([*self.move_towards(tcp, grasp), 1.0])
+        return np.array([*self.move_towards(tcp, grasp), -1.0])
 
-    @staticmethod
-    def _carry(tcp: np.ndarray, block: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    def _carry(self, tcp: np.ndarray, block: np.ndarray, goal: np.ndarray) -> np.ndarray:
         """Moves the block (not the TCP: the block may sit off-centre in the hand) up off the
         floor, then over to the goal at a pace the grip holds, then down onto it."""
         target = goal.copy()
@@ -69,4 +63,4 @@ class PickAndPlaceExpert(Expert):
             target[2] = max(goal[2], CARRY_HEIGHT)
             if block[2] < target[2] - 0.01:
                 target[:2] = block[:2]  # Lift straight up first: dragging tilts the block.
-        return move_towards(tcp, tcp + target - block, max_speed=CARRY_SPEED)
+        return self.move_towards(tcp, tcp + target - block, max_speed=CARRY_SPEED)

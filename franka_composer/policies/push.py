@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.base import Expert, Scene, move_towards, unit
+from franka_composer.policies.base import Expert, unit
 
 #: Height (m) of the TCP while pushing: the closed fingertips (6 mm below the TCP) skim the
 #: floor and meet the block's lower half, which keeps it from tipping over.
@@ -26,14 +26,11 @@ class PushExpert(Expert):
     """Approaches over the top, descends behind the block, then pushes it along the line to
     the goal, steering sideways to stay behind its centre; re-approaches when it gets away."""
 
-    def __init__(self) -> None:
-        self._pushing = False
-
     def reset(self) -> None:
         self._pushing = False
 
     def act(self, obs: dict) -> np.ndarray:
-        scene = Scene.read(obs, with_finger_width=False)
+        scene = self.scene(obs)
         block, tcp = scene.object_position, scene.tcp
         to_goal = scene.goal[:2] - block[:2]
         direction = unit(to_goal)
@@ -51,7 +48,7 @@ class PushExpert(Expert):
         start = np.array([*(block[:2] - direction * APPROACH_OFFSET), PUSH_HEIGHT])
         if np.linalg.norm(tcp[:2] - start[:2]) < 0.01:
             self._pushing = tcp[2] < PUSH_HEIGHT + 0.005
-            return move_towards(tcp, start)
+            return self.move_towards(tcp, start)
         if tcp[2] < TRAVEL_HEIGHT - 0.02 and np.linalg.norm(offset) < APPROACH_OFFSET + 0.03:
-            return move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])  # Lift clear of the block.
-        return move_towards(tcp, [*start[:2], TRAVEL_HEIGHT])
+            return self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])  # Lift clear of the block.
+        return self.move_towards(tcp, [*start[:2], TRAVEL_HEIGHT])

@@ -19,10 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.base import Expert, Scene, move_towards
+from franka_composer.policies.base import Expert
 
-#: Puck radius (m).
-PUCK_RADIUS = 0.03
 #: Half-size (m) of the closed fingers seen from above (x, y), from where they first touch
 #: the puck approached from each direction.
 FINGER_HALF_SIZE = np.array([0.0094, 0.0256])
@@ -52,33 +50,31 @@ class SlideExpert(Expert):
     """Lines a finger corner up behind the puck, kicks once, steps back and waits; strikes
     again if the puck comes to rest short of the goal."""
 
-    def __init__(self) -> None:
-        self.reset()
-
     def reset(self) -> None:
         self._waiting = False
 
     def act(self, obs: dict) -> np.ndarray:
-        scene = Scene.read(obs, with_finger_width=False)
+        scene = self.scene(obs)
         puck, tcp = scene.object_position, scene.tcp
         if self._waiting:
             self._waiting = np.linalg.norm(scene.object_velocity[:2]) > 1e-4
-            return move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])
+            return self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])
         to_goal = scene.goal[:2] - puck[:2]
         strike_angle = _strike_angle(np.degrees(np.arctan2(to_goal[1], to_goal[0])))
         direction = np.array([np.cos(np.radians(strike_angle)), np.sin(np.radians(strike_angle))])
         corner = FINGER_HALF_SIZE * np.sign(direction)
-        start = np.array([*(puck[:2] - direction * (PUCK_RADIUS + GAP) - corner), STRIKE_HEIGHT])
+        radius = self.config.object.radius
+        start = np.array([*(puck[:2] - direction * (radius + GAP) - corner), STRIKE_HEIGHT])
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._waiting = True
             distance = np.linalg.norm(to_goal) + OVERSHOOT
             glide = GLIDE_GAIN * np.sqrt(np.interp(strike_angle, STRIKE_ANGLES, GLIDE_FACTORS))
             return np.array([*direction * (DEAD_KICK + np.sqrt(distance) / glide), 0.0])
         if np.linalg.norm(tcp[:2] - start[:2]) < POSITION_TOLERANCE:
-            return move_towards(tcp, start)
+            return self.move_towards(tcp, start)
         if tcp[2] < TRAVEL_HEIGHT - 0.02 and np.linalg.norm(tcp[:2] - puck[:2]) < 0.1:
-            return move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])  # Lift clear of the puck.
-        return move_towards(tcp, [*start[:2], TRAVEL_HEIGHT])
+            return self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])  # Lift clear of the puck.
+        return self.move_towards(tcp, [*start[:2], TRAVEL_HEIGHT])
 
 
 def _strike_angle(path_angle: float) -> float:

@@ -1,29 +1,118 @@
-"""Every number a task is made of, as data: one frozen record per task, overridable by name.
+"""Every number a task is made of, as data: frozen records, each default defined once.
 
-`load("push", distance_threshold=0.03)` is `build_task(PUSH.replace(distance_threshold=0.03))`.
+A `TaskConfig` is composed of the records the builder hands to the entities and the task
+as they are: the object (`BlockSpec` or `PuckSpec`, which builds its prop), the `Workspace`
+(where objects start and goals lie), the controller's `ControlSettings` and MuJoCo's
+`PhysicsSettings`. The task modules state only what differs from the defaults here.
+
+Users change a task through flat option names, `load("push", distance_threshold=0.03)` or
+`gym.make(id, goal_range=(0.2, 0.2))`: `OPTIONS` maps each name to the field it sets and
+the check its value must pass, so a bad value is a ValueError naming the option and what it
+accepts, raised before anything is built.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any, Callable, Union
 
+import numpy as np
+
+from franka_composer.controllers import ControlSettings
+from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.tasks.rewards import REWARD_TYPES
 from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
                                         check_vector)
 
-PROP_KINDS = ("block", "puck")
-#: How many numbers `object_size` holds per prop kind: a cube's half-size; a cylinder's
-#: radius and half-height.
-_OBJECT_SIZE_LENGTH = {"block": 1, "puck": 2}
+def _set(record, name: str, value) -> None:
+    """Stores a checked, normalised value on a frozen record (from `__post_init__`)."""
+    object.__setattr__(record, name, value)
+
+
 #: MuJoCo's integrators and friction cones, by their MJCF names.
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 CONES = ("pyramidal", "elliptic")
 
 
 @dataclasses.dataclass(frozen=True)
+class Box2D:
+    """An axis-aligned rectangle on the surface: `centre` (x, y) and full `size` (m)."""
+
+    centre: tuple[float, float] = (0.6, 0.0)
+    size: tuple[float, float] = (0.3, 0.3)
+
+    @property
+    def low(self) -> np.ndarray:
+        return np.asarray(self.centre) - np.asarray(self.size) / 2
+
+    @property
+    def high(self) -> np.ndarray:
+        return np.asarray(self.centre) + np.asarray(self.size) / 2
+
+    def contains(self, xy, tolerance: float = 1e-9) -> bool:
+        xy = np.asarray(xy)[:2]
+        return bool(np.all(xy >= self.low - tolerance) and np.all(xy <= self.high + tolerance))
+
+
+@dataclasses.dataclass(frozen=True)
+class Workspace:
+    """Where the object starts and where goals lie (world frame, m): the paper's 0.3 x 0.3 m
+    square centred at (0.6, 0) in front of the robot, for both by default.
+
+    Attributes:
+      object_box: where the object's centre starts, on the surface.
+      goal_box: where the goal's (x, y) is drawn.
+      goal_max_height: the highest a goal is lifted above the object's resting height;
+        0 keeps every goal on the surface.
+      goal_in_air_probability: chance that a goal is lifted, uniformly in
+        [0, goal_max_height], rather than left on the surface.
+    """
+
+    object_box: Box2D = Box2D()
+    goal_box: Box2D = Box2D()
+    goal_max_height: float = 0.0
+    goal_in_air_probability: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class BlockSpec:
+    """A cube: `half_size` (m), `mass` (kg), sliding `friction`."""
+
+    half_size: float = 0.02
+    mass: float = 1.0
+    friction: float = 1.0
+
+    #: The entity's name: its observables are "block/position" and so on.
+    entity_name = "block"
+
+    def make(self) -> Prop:
+        return Block(half_size=self.half_size, mass=self.mass, friction=self.friction,
+                     name=self.entity_name)
+
+
+@dataclasses.dataclass(frozen=True)
+class PuckSpec:
+    """A flat cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction`."""
+
+    radius: float = 0.03
+    half_height: float = 0.03
+    mass: float = 1.0
+    friction: float = 0.04
+
+    entity_name = "puck"
+
+    def make(self) -> Prop:
+        return Puck(radius=self.radius, half_height=self.half_height, mass=self.mass,
+                    friction=self.friction, name=self.entity_name)
+
+
+ObjectSpec = Union[BlockSpec, PuckSpec]
+
+
+@dataclasses.dataclass(frozen=True)
 class PhysicsSettings:
-    """MuJoCo options for a task (see each task module for why its values were chosen).
+    """MuJoCo options for a task (each task module says why its values were chosen).
     Every field is checked when the record is made."""
 
     timestep: float = 0.002
@@ -50,85 +139,149 @@ class TaskConfig:
     """A task's parameters (SI units, world frame, robot base at the origin).
 
     Attributes:
-      prop_kind: "block" (a cube of half-size `object_size[0]`) or "puck" (a cylinder of
-        radius `object_size[0]` and half-height `object_size[1]`).
-      object_mass: kg. object_friction: sliding friction of the object.
+      name: the task's name (`franka_composer.load(name)`), by which its expert is found.
+      description: what the task asks, for its documentation page.
+      object: the object the robot moves (`BlockSpec` or `PuckSpec`).
       floor_friction: sliding friction of the floor.
-      actuated_gripper: a 4th action component opens and closes the hand; otherwise the
-        fingers are locked closed.
-      object_centre, object_range: centre and size (m) of the square the object starts in.
-      goal_centre, goal_range: the same for the goal's (x, y).
-      goal_max_height: highest lift (m) of a goal above the object's resting height.
-      goal_in_air_probability: chance a goal is lifted (else it lies on the surface).
+      workspace: where the object starts and goals lie.
+      control: how actions move the hand (and whether the gripper is actuated).
+      physics: MuJoCo's solver options.
       reward_type: "sparse" (0 / -1) or "dense" (-distance).
       distance_threshold: success radius (m).
       terminate_on_success: end the episode when the goal is reached (the paper); False
         gives Fetch semantics, for which HER relabelling is exact.
-      control_timestep: seconds per control step (a multiple of the physics timestep).
-      max_tcp_step: metres the end effector is commanded per step at full action.
-      max_finger_step: metres the finger width changes per step at full gripper action.
+      control_timestep: seconds per control step (a whole multiple of the physics step).
       neutral_arm_qpos: arm joint angles (rad) at reset.
-      physics: MuJoCo solver options.
     """
 
-    prop_kind: str
-    object_size: tuple[float, ...]
-    object_mass: float
-    object_friction: float
-    floor_friction: float
-    actuated_gripper: bool
-    goal_centre: tuple[float, float]
-    physics: PhysicsSettings
-    object_centre: tuple[float, float] = (0.6, 0.0)
-    object_range: tuple[float, float] = (0.3, 0.3)
-    goal_range: tuple[float, float] = (0.3, 0.3)
-    goal_max_height: float = 0.0
-    goal_in_air_probability: float = 0.0
+    name: str = "push"
+    description: str = ""
+    object: ObjectSpec = BlockSpec()
+    floor_friction: float = 1.0
+    workspace: Workspace = Workspace()
+    control: ControlSettings = ControlSettings()
+    physics: PhysicsSettings = PhysicsSettings()
     reward_type: str = "sparse"
     distance_threshold: float = 0.05
     terminate_on_success: bool = True
     control_timestep: float = 0.05
-    max_tcp_step: float = 0.05
-    max_finger_step: float = 0.2
     neutral_arm_qpos: tuple[float, ...] = NEUTRAL_ARM_QPOS
 
-    def __post_init__(self) -> None:
-        """Checks every option's type, shape and range, naming the option and what it
-        accepts; numbers and sequences are stored as floats and tuples."""
-        check_choice("prop_kind", self.prop_kind, PROP_KINDS)
-        _set(self, "object_size", check_vector(
-            "object_size", self.object_size, _OBJECT_SIZE_LENGTH[self.prop_kind], above=0.0))
-        for name in ("object_mass", "distance_threshold", "control_timestep", "max_tcp_step",
-                     "max_finger_step"):
-            _set(self, name, check_number(name, getattr(self, name), above=0.0))
-        for name in ("object_friction", "floor_friction", "goal_max_height"):
-            _set(self, name, check_number(name, getattr(self, name), minimum=0.0))
-        _set(self, "goal_in_air_probability", check_number(
-            "goal_in_air_probability", self.goal_in_air_probability, minimum=0.0, maximum=1.0))
-        for name in ("object_centre", "goal_centre"):
-            _set(self, name, check_vector(name, getattr(self, name), 2))
-        for name in ("object_range", "goal_range"):
-            _set(self, name, check_vector(name, getattr(self, name), 2, minimum=0.0))
-        _set(self, "neutral_arm_qpos", check_vector("neutral_arm_qpos",
-                                                    self.neutral_arm_qpos, 7))
-        for name in ("actuated_gripper", "terminate_on_success"):
-            check_bool(name, getattr(self, name))
-        check_choice("reward_type", self.reward_type, REWARD_TYPES)
-        if not isinstance(self.physics, PhysicsSettings):
-            raise ValueError(f"physics must be a PhysicsSettings record, got {self.physics!r}")
+    def replace(self, **options) -> "TaskConfig":
+        """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
+        listing the valid ones, a bad value one naming the option and what it accepts."""
+        check_names("task option", options, OPTIONS)
+        config = self
+        for name, value in options.items():
+            option = OPTIONS[name]
+            config = option.set(config, option.check(name, value, config))
+        config.check()
+        return config
+
+    def check(self) -> None:
+        """Checks what no single option can: the timestep ratio."""
         substeps = self.control_timestep / self.physics.timestep
         if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6 * substeps:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
                              f"timestep ({self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
 
-    def replace(self, **overrides) -> "TaskConfig":
-        """A copy with `overrides`; an unknown name is a ValueError listing the valid ones,
-        a bad value one naming the option and what it accepts."""
-        check_names("task option", overrides, (f.name for f in dataclasses.fields(self)))
-        return dataclasses.replace(self, **overrides)
+    @property
+    def options(self) -> dict[str, Any]:
+        """Every option's current value, by name (those of the object's kind)."""
+        return {name: option.get(self) for name, option in OPTIONS.items()
+                if option.applies_to(self)}
 
 
-def _set(record, name: str, value) -> None:
-    """Stores a checked, normalised value on a frozen record (from `__post_init__`)."""
-    object.__setattr__(record, name, value)
+@dataclasses.dataclass(frozen=True)
+class Option:
+    """One user-facing option: the field it sets (a path through the records) and the check
+    its value must pass (`check(name, value) -> normalised value`)."""
+
+    path: tuple[str, ...]
+    check_value: Callable[[str, Any], Any]
+
+    def applies_to(self, config: TaskConfig) -> bool:
+        record = config
+        for field in self.path[:-1]:
+            record = getattr(record, field)
+        return hasattr(record, self.path[-1])
+
+    def check(self, name: str, value, config: TaskConfig):
+        if not self.applies_to(config):
+            kind = type(config.object).__name__.replace("Spec", "").lower()
+            valid = [n for n, o in OPTIONS.items() if o.path[0] == "object" and o.applies_to(config)]
+            raise ValueError(f"{name} does not apply: this task's object is a {kind} "
+                             f"(its options: {', '.join(valid)})")
+        return self.check_value(name, value)
+
+    def get(self, config: TaskConfig):
+        value = config
+        for field in self.path:
+            value = getattr(value, field)
+        return value
+
+    def set(self, config: TaskConfig, value) -> TaskConfig:
+        return _replace_path(config, self.path, value)
+
+
+def _replace_path(record, path: tuple[str, ...], value):
+    if len(path) == 1:
+        return dataclasses.replace(record, **{path[0]: value})
+    inner = _replace_path(getattr(record, path[0]), path[1:], value)
+    return dataclasses.replace(record, **{path[0]: inner})
+
+
+def _positive(name, value):
+    return check_number(name, value, above=0.0)
+
+
+def _non_negative(name, value):
+    return check_number(name, value, minimum=0.0)
+
+
+def _probability(name, value):
+    return check_number(name, value, minimum=0.0, maximum=1.0)
+
+
+def _point(name, value):
+    return check_vector(name, value, 2)
+
+
+def _extent(name, value):
+    return check_vector(name, value, 2, minimum=0.0)
+
+
+def _physics(name, value):
+    if not isinstance(value, PhysicsSettings):
+        raise ValueError(f"{name} must be a PhysicsSettings record, got {value!r}")
+    return value
+
+
+#: The options users pass, by name: where each goes and what it accepts.
+OPTIONS: dict[str, Option] = {
+    "object_mass": Option(("object", "mass"), _positive),
+    "object_friction": Option(("object", "friction"), _non_negative),
+    "block_half_size": Option(("object", "half_size"), _positive),
+    "puck_radius": Option(("object", "radius"), _positive),
+    "puck_half_height": Option(("object", "half_height"), _positive),
+    "floor_friction": Option(("floor_friction",), _non_negative),
+    "object_centre": Option(("workspace", "object_box", "centre"), _point),
+    "object_range": Option(("workspace", "object_box", "size"), _extent),
+    "goal_centre": Option(("workspace", "goal_box", "centre"), _point),
+    "goal_range": Option(("workspace", "goal_box", "size"), _extent),
+    "goal_max_height": Option(("workspace", "goal_max_height"), _non_negative),
+    "goal_in_air_probability": Option(("workspace", "goal_in_air_probability"), _probability),
+    "actuated_gripper": Option(("control", "actuated_gripper"), check_bool),
+    "max_tcp_step": Option(("control", "max_tcp_step"), _positive),
+    "max_finger_step": Option(("control", "max_finger_step"), _positive),
+    "physics": Option(("physics",), _physics),
+    "reward_type": Option(("reward_type",),
+                          lambda name, value: check_choice(name, value, REWARD_TYPES)),
+    "distance_threshold": Option(("distance_threshold",), _positive),
+    "terminate_on_success": Option(("terminate_on_success",), check_bool),
+    "control_timestep": Option(("control_timestep",), _positive),
+    "neutral_arm_qpos": Option(("neutral_arm_qpos",),
+                               lambda name, value: check_vector(name, value, 7)),
+}
+

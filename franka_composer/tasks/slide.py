@@ -1,18 +1,15 @@
 """Slide: strike a puck across a slippery floor to a goal that is often out of reach."""
 
-from franka_composer.tasks.config import PhysicsSettings, TaskConfig
+from franka_composer.tasks.config import Box2D, PuckSpec, TaskConfig, Workspace
 
 # Low friction on both the floor and the puck (MuJoCo takes the larger of the two): a struck
-# puck glides. Noslip would fight the intended sliding, so it stays off.
-PHYSICS = PhysicsSettings(noslip_iterations=0, impratio=1.0)
-
+# puck glides. Noslip would fight the intended sliding, so it stays off (the default).
 SLIDE = TaskConfig(
-    prop_kind="puck",
-    object_size=(0.03, 0.03),
-    object_mass=1.0,
-    object_friction=0.04,
+    name="slide",
+    description="Strike a puck across a slippery floor (friction 0.04) to a goal 0.25-0.55 m "
+                "beyond the object square, often out of the arm's reach: the puck must glide "
+                "there. The fingers are locked closed.",
+    object=PuckSpec(),
     floor_friction=0.04,
-    actuated_gripper=False,
-    goal_centre=(1.0, 0.0),
-    physics=PHYSICS,
+    workspace=Workspace(goal_box=Box2D(centre=(1.0, 0.0))),
 )

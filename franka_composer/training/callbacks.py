@@ -1,16 +1,23 @@
-"""What happens around SB3's `learn` loop: evaluations to CSV, a progress bar, checkpoints."""
+"""What happens around SB3's `learn` loop, on SB3's own callbacks.
+
+- `Evaluation` is SB3's `EvalCallback`, kept on the run's step grid across resumes and run
+  at the first and last step as well; `RecordEvaluation`, its `callback_after_eval`,
+  appends each evaluation to eval.csv (the whole run's record, across resumes) and stops
+  training by the run's early-stopping rule.
+- `LatestCheckpoint` is SB3's `CheckpointCallback` (model and replay buffer), keeping only
+  the latest under fixed names, with a state file written last, from which `--resume`
+  continues.
+- The progress bar is SB3's (`learn(progress_bar=True)`).
+"""
 
 from __future__ import annotations
 
 import json
-import sys
 import time
 
-import gymnasium as gym
-from stable_baselines3.common.callbacks import BaseCallback
-from tqdm import tqdm
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
-from franka_composer.training.evaluation import evaluate_policy
 from franka_composer.training.runs import RunDir, append_eval_row, read_eval_rows
 
 
@@ -25,123 +32,110 @@ class WallClock:
         return self._before + time.perf_counter() - self._start
 
 
-def save_checkpoint(model, run: RunDir, clock: WallClock) -> None:
-    """Model, replay buffer and step count; the state file is written last, so a checkpoint
-    whose state exists is complete."""
-    run.checkpoint.mkdir(parents=True, exist_ok=True)
-    run.checkpoint_state.unlink(missing_ok=True)
-    model.save(run.checkpoint_model)
-    model.save_replay_buffer(run.checkpoint_buffer)
-    run.checkpoint_state.write_text(json.dumps(
-        {"steps": int(model.num_timesteps), "wall_time_s": clock()}) + "\n")
+class RecordEvaluation(BaseCallback):
+    """After each of its parent `Evaluation`'s evaluations: a row of eval.csv, and the
+    early-stopping rule (stop once `stop_after` consecutive evaluations, those already in
+    eval.csv when resuming included, all reach `stop_success_rate`)."""
 
-
-class EvaluationCallback(BaseCallback):
-    """Every `every` steps, `episodes` deterministic episodes on a separate env -> a row of
-    eval.csv (and TensorBoard's eval/success_rate when a TensorBoard logger is set).
-
-    With `stop_success_rate`, training stops once `stop_after` consecutive evaluations (those
-    already in eval.csv when resuming included) all reach it; `stopped_early` says so."""
-
-    def __init__(self, env: gym.Env, run: RunDir, clock: WallClock, *, every: int,
-                 episodes: int, seed: int, stop_success_rate: float | None = None,
-                 stop_after: int = 5) -> None:
+    def __init__(self, run: RunDir, clock: WallClock, *, stop_success_rate: float | None,
+                 stop_after: int) -> None:
         super().__init__()
-        self._env, self._run, self._clock = env, run, clock
-        self._every, self._episodes, self._seed = every, episodes, seed
+        self._run, self._clock = run, clock
         self._stop_success_rate, self._stop_after = stop_success_rate, stop_after
-        self._next = 0
-        self._last_evaluated = -1
         self._streak = 0
         self.stopped_early = False
+        self.last_steps = -1
         self.last_success_rate: float | None = None
 
-    def _on_training_start(self) -> None:
-        # A fresh run evaluates the untrained policy at step 0; a resumed one continues.
+    def restore(self) -> None:
+        """The streak so far, from eval.csv (a resumed run)."""
         for row in read_eval_rows(self._run.eval_csv):
             self._count(row["success_rate"])
-        if self.num_timesteps == 0:
-            self.evaluate()
-        self._next = (self.num_timesteps // self._every + 1) * self._every
+            self.last_steps = row["steps"]
 
     def _on_step(self) -> bool:
-        if self.num_timesteps >= self._next:
-            self.evaluate()
-            self._next += self._every
+        evaluation = self.parent  # SB3's EvalCallback, with log_path set, keeps its results.
+        success_rate = float(np.mean(evaluation.evaluations_successes[-1]))
+        mean_reward = float(np.mean(evaluation.evaluations_results[-1]))
+        append_eval_row(self._run.eval_csv, {
+            "steps": self.num_timesteps, "wall_time_s": round(self._clock(), 2),
+            "success_rate": success_rate, "mean_reward": mean_reward})
+        self.last_steps, self.last_success_rate = self.num_timesteps, success_rate
+        self._count(success_rate)
         return not self.stopped_early
 
     def _count(self, success_rate: float) -> None:
-        """Extends or breaks the streak of evaluations at or above the stopping rate."""
         if self._stop_success_rate is None:
             return
         self._streak = self._streak + 1 if success_rate >= self._stop_success_rate else 0
         self.stopped_early = self._streak >= self._stop_after
 
+
+class Evaluation(EvalCallback):
+    """SB3's EvalCallback: `episodes` deterministic episodes every `every` steps, on the
+    run's grid of steps (also after a resume from any step) and at its first and last step.
+    Its per-episode log of this session is RUN_DIR/checkpoint/evaluations.npz."""
+
+    def __init__(self, eval_env, run: RunDir, clock: WallClock, *, every: int, episodes: int,
+                 stop_success_rate: float | None = None, stop_after: int = 5) -> None:
+        self.record = RecordEvaluation(run, clock, stop_success_rate=stop_success_rate,
+                                       stop_after=stop_after)
+        super().__init__(eval_env, callback_after_eval=self.record, n_eval_episodes=episodes,
+                         eval_freq=every, log_path=str(run.checkpoint / "evaluations"),
+                         deterministic=True, warn=False, verbose=0)
+
+    def _on_training_start(self) -> None:
+        # SB3 evaluates when its call count is a multiple of eval_freq: count from the
+        # run's step, not from this session's start.
+        self.n_calls = self.num_timesteps
+        self.record.restore()
+        if self.num_timesteps == 0:
+            self._evaluate_now()  # The untrained policy.
+
     def _on_training_end(self) -> None:
-        # The curve ends where training ended, even off the evaluation grid.
-        if self._last_evaluated != self.num_timesteps:
-            self.evaluate()
+        # The curve ends where training ended, even off the grid.
+        if self.record.last_steps != self.num_timesteps and not self.record.stopped_early:
+            self._evaluate_now()
 
-    def evaluate(self) -> None:
-        self._last_evaluated = self.num_timesteps
-        seed = self._seed if self.last_success_rate is None else None
-        result = evaluate_policy(self.model, self._env, self._episodes, seed=seed)
-        self.last_success_rate = result.success_rate
-        self._count(result.success_rate)
-        append_eval_row(self._run.eval_csv, {
-            "steps": self.num_timesteps, "wall_time_s": round(self._clock(), 2),
-            "success_rate": result.success_rate, "mean_reward": result.mean_reward})
-        self.logger.record("eval/success_rate", result.success_rate)
-        self.logger.record("eval/mean_reward", result.mean_reward)
-        self.logger.dump(self.num_timesteps)
+    def _evaluate_now(self) -> None:
+        calls, self.n_calls = self.n_calls, 0  # 0 is on every grid.
+        self._on_step()
+        self.n_calls = calls
+
+    @property
+    def stopped_early(self) -> bool:
+        return self.record.stopped_early
 
 
-class CheckpointCallback(BaseCallback):
-    """A checkpoint every `every` steps (the latest only: replay buffers are large)."""
+class LatestCheckpoint(CheckpointCallback):
+    """SB3's CheckpointCallback of model and replay buffer every `every` steps (on the run's
+    grid), keeping only the latest: checkpoint/model.zip, replay_buffer.pkl, and
+    state.json written last, so a checkpoint whose state exists is complete."""
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int) -> None:
-        super().__init__()
-        self._run, self._clock, self._every = run, clock, every
-        self._next = 0
+        super().__init__(every, str(run.checkpoint), name_prefix="model",
+                         save_replay_buffer=True)
+        self._run, self._clock = run, clock
+
+    def _checkpoint_path(self, checkpoint_type: str = "", extension: str = "") -> str:
+        return str(self._run.checkpoint / f"{checkpoint_type.rstrip('_') or 'model'}.{extension}")
 
     def _on_training_start(self) -> None:
-        self._next = (self.num_timesteps // self._every + 1) * self._every
+        self.n_calls = self.num_timesteps  # The run's grid, after a resume too.
 
     def _on_step(self) -> bool:
-        if self.num_timesteps >= self._next:
-            save_checkpoint(self.model, self._run, self._clock)
-            self._next += self._every
+        if self.n_calls % self.save_freq == 0:
+            self.save()
         return True
 
-
-class ProgressCallback(BaseCallback):
-    """A tqdm bar over the run's total steps, with the last success rate and steps/s."""
-
-    def __init__(self, total_steps: int, evaluation: EvaluationCallback,
-                 enabled: bool = True) -> None:
-        super().__init__()
-        self._total, self._evaluation, self._enabled = total_steps, evaluation, enabled
-        self._bar: tqdm | None = None
-        self._window_start = (0, 0.0)
-
-    def _on_training_start(self) -> None:
-        interactive = sys.stderr.isatty()
-        self._bar = tqdm(total=self._total, initial=self.num_timesteps, unit="step",
-                         disable=not self._enabled, mininterval=0.5 if interactive else 30,
-                         dynamic_ncols=True)
-        self._window_start = (self.num_timesteps, time.perf_counter())
-
-    def _on_step(self) -> bool:
-        self._bar.update(self.num_timesteps - self._bar.n)
-        steps, start = self._window_start
-        now = time.perf_counter()
-        if now - start >= 5.0:
-            rate = (self.num_timesteps - steps) / (now - start)
-            success = self._evaluation.last_success_rate
-            self._bar.set_postfix({"success": "-" if success is None else f"{success:.2f}",
-                                   "steps/s": f"{rate:.1f}"}, refresh=False)
-            self._window_start = (self.num_timesteps, now)
-        return True
-
-    def _on_training_end(self) -> None:
-        self._bar.close()
+    def save(self) -> None:
+        """Writes the checkpoint now (also on an interrupt and at the end): SB3 saves the
+        model and the replay buffer, then the state file marks the checkpoint complete."""
+        run = self._run
+        run.checkpoint.mkdir(parents=True, exist_ok=True)
+        run.checkpoint_state.unlink(missing_ok=True)
+        calls, self.n_calls = self.n_calls, 0  # 0 is on every grid.
+        super()._on_step()
+        self.n_calls = calls
+        run.checkpoint_state.write_text(json.dumps(
+            {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock()}) + "\n")

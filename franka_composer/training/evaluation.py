@@ -1,4 +1,4 @@
-"""Success rate of a policy: the paper's metric, used during training and for the final test.
+"""Success rate of a policy over seeded episodes: the paper's final test (`evaluate`).
 
 An episode succeeds when the last step reports `is_success`: with the paper's
 terminate-on-success ids that is "the object reached the goal within 50 steps"; without
@@ -22,7 +22,7 @@ class EvalResult:
     mean_reward: float  # mean undiscounted episode return
 
 
-def evaluate_policy(model, env: gym.Env, episodes: int, *, seed: int | None = None,
+def measure_success(model, env: gym.Env, episodes: int, *, seed: int | None = None,
                     deterministic: bool = True) -> EvalResult:
     """Runs `episodes` episodes of `model` on `env`; `seed` seeds the first reset only, so
     repeated calls on one env see fresh episodes."""

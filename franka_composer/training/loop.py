@@ -13,9 +13,9 @@ import pathlib
 import signal
 
 from stable_baselines3.common.callbacks import CallbackList
+from stable_baselines3.common.vec_env import DummyVecEnv
 
-from franka_composer.training.callbacks import (CheckpointCallback, EvaluationCallback,
-                                                ProgressCallback, WallClock, save_checkpoint)
+from franka_composer.training.callbacks import Evaluation, LatestCheckpoint, WallClock
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows, write_eval_rows
 
@@ -57,7 +57,9 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         run.write_config(config)
     hp = config.hyperparameters
     env = make_env(config.task, terminate_on_success=config.terminate_on_success)
-    eval_env = make_env(config.task, terminate_on_success=config.terminate_on_success)
+    eval_env = DummyVecEnv([lambda: make_env(config.task,
+                                             terminate_on_success=config.terminate_on_success)])
+    eval_env.seed(config.seed + EVAL_SEED_OFFSET)
     tensorboard = str(run.tensorboard) if importlib.util.find_spec("tensorboard") else None
 
     state = run.read_state()
@@ -81,16 +83,11 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     if tensorboard:
         model.tensorboard_log = tensorboard
 
-    evaluation = EvaluationCallback(eval_env, run, clock, every=hp.eval_every,
-                                    episodes=hp.eval_episodes,
-                                    seed=config.seed + EVAL_SEED_OFFSET,
-                                    stop_success_rate=hp.stop_success_rate,
-                                    stop_after=hp.stop_after_evaluations)
-    callbacks = CallbackList([
-        evaluation,
-        CheckpointCallback(run, clock, every=checkpoint_every),
-        ProgressCallback(hp.total_steps, evaluation, enabled=progress),
-    ])
+    evaluation = Evaluation(eval_env, run, clock, every=hp.eval_every,
+                            episodes=hp.eval_episodes, stop_success_rate=hp.stop_success_rate,
+                            stop_after=hp.stop_after_evaluations)
+    checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every)
+    callbacks = CallbackList([evaluation, checkpoint])
     remaining = hp.total_steps - model.num_timesteps
     if run.read_outcome().get("stopped_early"):
         remaining = 0  # It met the stopping rule: more steps would not be the same run.
@@ -98,14 +95,18 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         with _sigterm_as_interrupt():
             if remaining > 0:
                 model.learn(total_timesteps=remaining, callback=callbacks,
-                            reset_num_timesteps=not resume, tb_log_name="run")
+                            reset_num_timesteps=not resume, tb_log_name="run",
+                            progress_bar=progress)
     except KeyboardInterrupt:
-        save_checkpoint(model, run, clock)
+        if getattr(checkpoint, "model", None) is not None:  # Interrupted inside learn.
+            checkpoint.save()
         raise
     finally:
         env.close()
         eval_env.close()
-    save_checkpoint(model, run, clock)
+    if getattr(checkpoint, "model", None) is None:  # Nothing trained (a finished run resumed).
+        checkpoint.init_callback(model)
+    checkpoint.save()
     model.save(run.final_model)
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
     run.write_outcome(int(model.num_timesteps), stopped_early, clock())

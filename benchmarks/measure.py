@@ -1,11 +1,11 @@
-"""Measures one task's speed through `gym.make`, beside the bare-MuJoCo floor of its model.
+"""Measures one task's speed through `gym.make`, beside the bare-MuJoCo baseline of its model.
 
 Users compare suites by env steps per second (see `BENCHMARKS.md`), so everything here goes
 through `gym.make(id)` with its default wrappers. The floor is the same compiled model,
 started from the same states and driven by the same actions through the same control law in
 a plain `mujoco.mj_step(model, data, nstep)` loop: the ratio of the two is what Composer and
-the adapter cost on top of the physics. `franka-composer bench` runs `measure_task` once per
-task in a fresh process (`python -m franka_composer.benchmark`), so peak RSS is per task.
+the adapter cost on top of the physics. `benchmarks/bench.py` runs `measure_task` once per
+task in a fresh process (`python benchmarks/measure.py`), so peak RSS is per task.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ class Episode:
     actions: list = field(default_factory=list)
 
 
-class Floor:
+class BareMujocoBaseline:
     """The env's compiled model (a copy) in a bare MuJoCo loop, driven by the env
     controller's own action law (`MocapLaw.on` this copy). Each control step makes the
     env's own MuJoCo calls (`mj_step2`, `mj_step(n - 1)`, `mj_step1`: the work of
@@ -86,7 +86,7 @@ class Run:
     successes: int = 0
     finished: int = 0
 
-    def add_floor(self, floor: Floor, episode: Episode) -> None:
+    def add_floor(self, floor: BareMujocoBaseline, episode: Episode) -> None:
         seconds, contacts = floor.replay(episode)
         self.floor_seconds += seconds
         self.floor_contacts += contacts
@@ -112,7 +112,8 @@ def _snapshot(model, data) -> np.ndarray:
     return state
 
 
-def run_env(env: gym.Env, floor: Floor, steps: int, choose_action, on_reset=None) -> Run:
+def run_env(env: gym.Env, floor: BareMujocoBaseline, steps: int, choose_action,
+            on_reset=None) -> Run:
     """Steps `env` `steps` times, resetting when an episode ends, and replays each episode
     on `floor` as soon as it ends: interleaving keeps the ratio fair on a shared machine.
     Only `env.step` and `env.reset` are inside the env's timed regions."""
@@ -149,7 +150,7 @@ def run_env(env: gym.Env, floor: Floor, steps: int, choose_action, on_reset=None
 
 def _measure_run(env: gym.Env, steps: int, choose_action, on_reset=None) -> dict:
     env.reset(seed=0)  # The controller's law is bound at the first reset.
-    floor = Floor(env)
+    floor = BareMujocoBaseline(env)
     run_env(env, floor, min(steps, 200), choose_action, on_reset)  # Warm-up.
     return run_env(env, floor, steps, choose_action, on_reset).summary()
 
@@ -172,7 +173,7 @@ def measure_expert(env: gym.Env, task: str, steps: int) -> dict:
     make_expert, reason = load_expert_factory()
     if make_expert is None:
         return {"skipped": reason}
-    expert = make_expert(task)
+    expert = make_expert(env)
     policy = {"seconds": 0.0, "calls": 0}
 
     def choose_action(obs):

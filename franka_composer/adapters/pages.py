@@ -1,0 +1,89 @@
+"""Each task's documentation page, generated from its configuration (one place per fact).
+
+It is the docstring of the task's Gymnasium class (`help(FrankaPushEnv)`, or
+`gym.spec("FrankaPushSparse-v0")` then the class), laid out as Gymnasium-Robotics documents
+`FetchPush`: description, action and observation spaces, rewards, starting state, episode
+end, arguments, version history.
+"""
+
+from __future__ import annotations
+
+import textwrap
+
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.layout import layout_for
+
+#: Line width of the page.
+WIDTH = 88
+#: What each version changed, newest last (the ids keep -v0 until a release: see README).
+VERSION_HISTORY = (
+    "v0: this implementation of the paper's tasks on the Menagerie Panda, with contacts "
+    "that hold when the hand presses (objects cannot be pressed into the floor or "
+    "launched) and seeds of any size through np.random.SeedSequence.",
+)
+
+
+def page(config: TaskConfig, ids: tuple[str, ...], max_episode_steps: int) -> str:
+    """The documentation page of the task `config` describes, registered as `ids`."""
+    layout = layout_for(config)
+    control, workspace = config.control, config.workspace
+    gripper = (f"The 4th changes the finger opening by up to {control.max_finger_step:g} m "
+               "(-1 closes, +1 opens the hand in one step)." if control.actuated_gripper
+               else "The fingers are locked closed.")
+    goal_height = (f"lifted uniformly in [0, {workspace.goal_max_height:g}] m above the "
+                   f"object's resting height with probability "
+                   f"{workspace.goal_in_air_probability:g}, else on the floor"
+                   if workspace.goal_max_height > 0 else "on the floor")
+    options = [f"{name} = {value!r}" for name, value in config.options.items()
+               if name != "reward_type"]  # The id fixes it.
+    sections = [
+        ("Action space", [
+            f"Box(-1, 1, ({control.action_size},), float32). The first three components move "
+            f"the tool centre point's target by up to {control.max_tcp_step:g} m per step "
+            "along x, y, z: a mocap weld drags the hand there, held top-down, and the target "
+            "never runs into the surface beneath the hand beyond a press the arm's joint "
+            f"torques allow. {gripper}"]),
+        ("Observation space", [
+            f"Dict(observation=Box({layout.size},), achieved_goal=Box(3,), "
+            "desired_goal=Box(3,)), float64. achieved_goal is the object's position, "
+            "desired_goal the goal (m, world frame). `observation`, velocities per control "
+            f"step of {config.control_timestep:g} s:", layout.markdown_table()]),
+        ("Rewards", [
+            f"sparse: 0 if the object is within {config.distance_threshold:g} m of the goal, "
+            "else -1. dense: minus that distance (m). env.unwrapped.compute_reward(achieved, "
+            "desired, info) gives the same reward for any batch of goals (HER); "
+            'info["is_success"] is the success.']),
+        ("Starting state", [
+            f"The arm at its neutral pose {tuple(config.neutral_arm_qpos)}; the object at "
+            f"rest at a uniform point of the {_square(workspace.object_box)}; the goal's "
+            f"(x, y) uniform in the {_square(workspace.goal_box)}, {goal_height}. "
+            "reset(seed=s) takes any non-negative int."]),
+        ("Episode end", [
+            f"Truncated after {max_episode_steps} steps. Terminated on success when "
+            "terminate_on_success is True (the paper's default; False gives Fetch "
+            "semantics, for which HER relabelling is exact), or if the physics diverges "
+            "(with a warning)."]),
+        ("Arguments", [
+            'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
+            'camera="workspace" | "top", **options); the options, with this task\'s values:',
+            "\n".join(options)]),
+        ("Version history", list(VERSION_HISTORY)),
+    ]
+    lines = [textwrap.fill(config.description, WIDTH), "",
+             textwrap.fill(f"Ids: {', '.join(ids)} (sparse and dense reward), "
+                           f"max_episode_steps={max_episode_steps}; "
+                           f'franka_composer.load("{config.name}") for dm_env.', WIDTH)]
+    for title, paragraphs in sections:
+        lines += ["", title]
+        for paragraph in paragraphs:
+            if "\n" in paragraph or paragraph.startswith("|"):  # Tables and lists as they are.
+                lines += ["", textwrap.indent(paragraph, "    ")]
+            else:
+                lines += [textwrap.fill(paragraph, WIDTH, initial_indent="    ",
+                                        subsequent_indent="    ")]
+    return "\n".join(lines) + "\n"
+
+
+def _square(box) -> str:
+    return (f"{box.size[0]:g} x {box.size[1]:g} m square centred at "
+            f"({box.centre[0]:g}, {box.centre[1]:g})")

@@ -1,0 +1,121 @@
+"""The flat `observation` vector's layout, in one object, from the task's configuration.
+
+`layout_for(config)` says what the vector holds (the paper's order); the task enables
+exactly those observables, the Gymnasium adapter flattens observations with it, the
+scripted experts read their fields from it by name, and the README's tables and each id's
+documentation page are generated from it (`markdown_table`, checked by `tests/test_docs.py`).
+No offset into the vector is written anywhere else.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping, NamedTuple
+
+import numpy as np
+
+#: dtype of the observation vectors.
+OBSERVATION_DTYPE = np.float64
+
+
+class ObservationField(NamedTuple):
+    """One slice of the flat `observation` vector."""
+
+    name: str  # What it is, by which experts and users read it: "object_position".
+    key: str  # The Composer observable it comes from, "<entity>/<observable>": "block/position".
+    size: int
+    meaning: str
+    unit: str
+    per_control_step: bool  # Multiplied by the control period: a displacement per step.
+    frame: str = "world"  # "world", or "–" for a quantity without one (a finger width).
+
+
+class ObservationLayout:
+    """The fields of the flat observation vector, in order; velocities are multiplied by
+    the control period (displacements per step, as in Fetch)."""
+
+    def __init__(self, fields, control_timestep: float) -> None:
+        self.fields: tuple[ObservationField, ...] = tuple(fields)
+        self.control_timestep = float(control_timestep)
+        self.keys = tuple(field.key for field in self.fields)
+        starts = np.cumsum([0] + [field.size for field in self.fields])
+        self._slices = {field.name: slice(int(start), int(start) + field.size)
+                        for field, start in zip(self.fields, starts)}
+        # Per element: the control period for per-step fields, else 1 (x * 1.0 == x exactly).
+        self.scale = np.concatenate([
+            np.full(f.size, self.control_timestep if f.per_control_step else 1.0)
+            for f in self.fields])
+
+    @property
+    def size(self) -> int:
+        return int(sum(field.size for field in self.fields))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self._slices)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self._slices
+
+    def slice(self, name: str) -> slice:
+        """Where field `name` lies in the vector; a KeyError naming the fields otherwise."""
+        try:
+            return self._slices[name]
+        except KeyError:
+            raise KeyError(f"no field {name!r} in this observation; fields: "
+                           f"{', '.join(self._slices)}") from None
+
+    def read(self, vector, name: str) -> np.ndarray:
+        """Field `name` of `vector` (any leading batch shape)."""
+        return np.asarray(vector)[..., self.slice(name)]
+
+    def flatten(self, observables: Mapping[str, np.ndarray]) -> np.ndarray:
+        """The vector from Composer observables (SI units): concatenated, velocities scaled
+        to per step. One concatenation and one multiply: this runs every step."""
+        vector = np.concatenate([observables[key].ravel() for key in self.keys],
+                                dtype=OBSERVATION_DTYPE)
+        vector *= self.scale
+        return vector
+
+    def markdown_table(self) -> str:
+        """The README's table: index, field name, meaning, unit, frame, Composer observable."""
+        lines = ["| index | field | meaning | unit | frame | Composer observable |",
+                 "|---|---|---|---|---|---|"]
+        for field in self.fields:
+            where = self._slices[field.name]
+            index = (str(where.start) if field.size == 1
+                     else f"{where.start}–{where.stop - 1}")
+            lines.append(f"| {index} | `{field.name}` | {field.meaning} | {field.unit} | "
+                         f"{field.frame} | "
+                         f"`{field.key}` |")
+        return "\n".join(lines)
+
+
+#: The paper's fields, in order: (name, entity, observable, size, meaning, unit, per step).
+#: "object" stands for the object's entity name ("block", "puck"); the finger width is in
+#: the vector only where the gripper is actuated.
+_FIELDS = (
+    ("tcp_position", "panda", "tcp_position", 3, "end-effector (tool centre point) position",
+     "m", False),
+    ("tcp_velocity", "panda", "tcp_linear_velocity", 3, "end-effector linear velocity",
+     "m/step", True),
+    ("finger_width", "panda", "finger_width", 1, "finger width", "m", False),
+    ("object_position", "object", "position", 3, "object position", "m", False),
+    ("object_orientation", "object", "orientation_euler", 3,
+     "object orientation (roll, pitch, yaw; x-y-z extrinsic)", "rad", False),
+    ("object_linear_velocity", "object", "linear_velocity", 3, "object linear velocity",
+     "m/step", True),
+    ("object_angular_velocity", "object", "angular_velocity", 3, "object angular velocity",
+     "rad/step", True),
+)
+
+
+def layout_for(config) -> ObservationLayout:
+    """The observation layout of the task `config` (a `TaskConfig`) describes."""
+    fields = []
+    for name, entity, observable, size, meaning, unit, per_step in _FIELDS:
+        if name == "finger_width" and not config.control.actuated_gripper:
+            continue
+        entity = config.object.entity_name if entity == "object" else entity
+        fields.append(ObservationField(name, f"{entity}/{observable}", size, meaning, unit,
+                                       per_step, "–" if name == "finger_width" else "world"))
+    return ObservationLayout(fields, config.control_timestep)
