@@ -29,6 +29,10 @@ import numpy as np
 #: along the way start at the points' own height: MuJoCo's rays ignore a geom they start
 #: inside, so an object the hand will meet side-on (a push) is not taken for a floor.
 RAY_START_ABOVE = 0.03
+#: A hit counts as a surface beneath the hand only this far (m) above its lowest points, at
+#: most: a press sinks the fingertips ~0.1 mm. Higher hits are of objects held between the
+#: fingers or beside them (a finger's footprint overlaps the block it holds), not beneath.
+BENEATH_TOLERANCE = 0.002
 #: Fractions of the step's sideways motion at which the footprint is probed as well.
 PATH_FRACTIONS = (0.5, 1.0)
 #: Sideways motion (m) below which only the footprint under the hand is probed.
@@ -124,13 +128,14 @@ class BoundSurfaceGuard:
         return lowest
 
     def _lowest_hit(self, points: np.ndarray, start_above: float) -> float:
+        """The smallest clearance below `points` of a surface at or under them."""
         model, data, geom = self._model, self._data, self._geom
         lowest = np.inf
         for point in points:
             start = point.copy()
             start[2] += start_above
             distance = mujoco.mj_ray(model, data, start, _DOWN, VISIBLE_GROUPS, 1, -1, geom)
-            if distance >= 0.0:
+            if distance >= 0.0 and distance - start_above >= -BENEATH_TOLERANCE:
                 lowest = min(lowest, distance - start_above)
         return lowest
 

@@ -48,3 +48,14 @@ def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.0
             action[3] = gripper
         timestep = env.step(action)
     return timestep
+
+
+def grasp_block(env):
+    """Resets `env` (pick and place) and grasps its block; returns the last timestep."""
+    timestep = env.reset()
+    block = timestep.observation["block/position"].copy()
+    timestep = move_tcp_to(env, timestep, block + [0, 0, 0.08], gripper=1)
+    timestep = move_tcp_to(env, timestep, block, gripper=1)
+    for _ in range(4):
+        timestep = env.step(np.array([0, 0, 0, -1], np.float32))
+    return timestep

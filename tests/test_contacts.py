@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import franka_composer
-from conftest import move_tcp_to
+from conftest import grasp_block, move_tcp_to
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
 pytestmark = pytest.mark.usefixtures("composer_path")
@@ -49,7 +49,7 @@ def _hover_over_object(env, height):
     """Puts the closed hand's fingertips `height` (m) above the object's top, centred on
     it to 1 mm; returns the timestep."""
     timestep = env.reset()
-    key = env.task.achieved_goal_key
+    key = env.task.achieved_goal_keys[0]
     start = timestep.observation[key].copy()
     top = start[2] + env.task.prop.resting_height
     fingertips = env.task.controller.law.guard.reach_below_tcp()
@@ -62,7 +62,7 @@ def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(task_name, see
     """Issue 11's press: full -z with x, y following the object for 80 steps."""
     env = franka_composer.load(task_name, seed=seed, terminate_on_success=False)
     timestep = _hover_over_object(env, height=0.03)
-    key = env.task.achieved_goal_key
+    key = env.task.achieved_goal_keys[0]
     velocity_key = f"{key.split('/')[0]}/linear_velocity"
     start = timestep.observation[key].copy()
     resting = env.task.prop.resting_height
@@ -85,7 +85,7 @@ def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_i
     bounds the target (without it: 25 kN at landing, the puck shoved 2 cm)."""
     env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
     timestep = env.reset()
-    key = env.task.achieved_goal_key
+    key = env.task.achieved_goal_keys[0]
     start = timestep.observation[key].copy()
     top = start[2] + env.task.prop.resting_height
     fingertips = env.task.controller.law.guard.reach_below_tcp()
@@ -164,3 +164,18 @@ def test_the_hand_moves_freely_where_nothing_is_beneath_it():
     env.step(np.array([0, 0, -1], np.float32))
     target = env.physics.bind(env.task.controller.target).mocap_pos
     np.testing.assert_array_equal(target, tcp + 0.05 * np.array([0, 0, -1.0]))
+
+
+def test_a_hand_holding_a_block_goes_down_when_commanded_down():
+    """A finger's footprint overlaps the block it holds: that block is not a surface beneath
+    the hand (counted as one, the target was raised and the hand climbed while commanded
+    down)."""
+    env = franka_composer.load("pick_and_place", seed=1, terminate_on_success=False)
+    grasp_block(env)
+    for _ in range(4):  # Lift 0.12 m.
+        timestep = env.step(np.array([0, 0, 0.6, -1], np.float32))
+    start = timestep.observation["panda/tcp_position"][2]
+    for _ in range(2):
+        timestep = env.step(np.array([0, 0, -1, -1], np.float32))
+    assert start - timestep.observation["panda/tcp_position"][2] > 0.08  # ~2 x 5 cm down.
+    assert timestep.observation["panda/finger_width"][0] == pytest.approx(0.04, abs=0.003)

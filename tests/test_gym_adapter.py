@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import franka_composer
-from franka_composer.adapters.registration import MAX_EPISODE_STEPS, env_id
+from franka_composer.adapters.registration import env_id
+from franka_composer.tasks import TASK_CONFIGS
 
 ALL_IDS = tuple(franka_composer.ENV_IDS)
 
@@ -37,7 +38,7 @@ def test_paper_ids_are_registered_with_fifty_step_episodes():
     assert set(ALL_IDS) == {f"Franka{t}{r}-v0" for t in ("Push", "Slide", "PickAndPlace")
                             for r in ("Sparse", "Dense")}
     for id_ in ALL_IDS:
-        assert gym.spec(id_).max_episode_steps == MAX_EPISODE_STEPS
+        assert gym.spec(id_).max_episode_steps == 50
     assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import franka_composer
-from conftest import move_tcp_to
+from conftest import grasp_block, move_tcp_to
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
 pytestmark = pytest.mark.usefixtures("composer_path")
@@ -43,19 +43,9 @@ def test_zero_action_holds_the_tcp_still(task_name):
     assert _hand_tilt_degrees(env) < 5.0
 
 
-def _grasp_block(env):
-    timestep = env.reset()
-    block = timestep.observation["block/position"].copy()
-    timestep = move_tcp_to(env, timestep, block + [0, 0, 0.08], gripper=1)
-    timestep = move_tcp_to(env, timestep, block, gripper=1)
-    for _ in range(4):
-        timestep = env.step(np.array([0, 0, 0, -1], np.float32))
-    return timestep
-
-
 def test_grasped_block_stays_in_hand_while_lifting_and_carrying():
     env = franka_composer.load("pick_and_place", seed=1, terminate_on_success=False)
-    timestep = _grasp_block(env)
+    timestep = grasp_block(env)
     width = timestep.observation["panda/finger_width"][0]
     assert width == pytest.approx(0.04, abs=0.003)  # Closed on the 4 cm block.
     start_height = timestep.observation["block/position"][2]
@@ -74,7 +64,7 @@ def test_grasped_block_stays_in_hand_while_lifting_and_carrying():
 
 def test_opening_the_gripper_releases_the_block():
     env = franka_composer.load("pick_and_place", seed=1, terminate_on_success=False)
-    _grasp_block(env)
+    grasp_block(env)
     for _ in range(5):
         env.step(np.array([0, 0, 0.6, -1], np.float32))
     for _ in range(10):

@@ -72,7 +72,7 @@ def test_reset_puts_arm_at_neutral_and_object_and_goal_in_their_ranges(task_name
         physics = env.physics
         arm_qpos = physics.bind(task.panda.joints).qpos
         np.testing.assert_allclose(arm_qpos, NEUTRAL_ARM_QPOS, atol=1e-3)
-        position = timestep.observation[task.achieved_goal_key]
+        position = timestep.observation[task.achieved_goal_keys[0]]
         goal = timestep.observation["goal"]
         assert task.workspace.object_box.contains(position)
         assert task.workspace.goal_box.contains(goal)
@@ -85,7 +85,7 @@ def test_object_rests_and_nothing_jerks_on_the_first_zero_action(task_name):
     env = franka_composer.load(task_name, seed=3, terminate_on_success=False)
     first = env.reset()
     after = env.step(np.zeros(env.action_spec().shape, np.float32))
-    key = env.task.achieved_goal_key
+    key = env.task.achieved_goal_keys[0]
     assert np.linalg.norm(after.observation["panda/tcp_position"]
                           - first.observation["panda/tcp_position"]) < 1e-3
     assert np.linalg.norm(after.observation[key] - first.observation[key]) < 1e-3

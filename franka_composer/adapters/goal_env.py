@@ -23,7 +23,6 @@ from franka_composer import seeding, suite
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_choice
-from franka_composer.tasks.rewards import goal_distance
 
 #: dtype of rewards (observations: `layout.OBSERVATION_DTYPE`, the same).
 REWARD_DTYPE = np.float64
@@ -73,7 +72,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._closed = False
 
         self._layout = self._task.observation_layout
-        goal_box = spaces.Box(-np.inf, np.inf, shape=(3,), dtype=OBSERVATION_DTYPE)
+        goal_box = spaces.Box(-np.inf, np.inf, shape=(self._task.goal_size,),
+                              dtype=OBSERVATION_DTYPE)
         self.observation_space = spaces.Dict({
             "observation": spaces.Box(-np.inf, np.inf, shape=(self._layout.size,),
                                       dtype=OBSERVATION_DTYPE),
@@ -154,7 +154,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
 
     def compute_truncated(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
         """Never: truncation comes from the TimeLimit wrapper."""
-        return np.zeros(np.shape(goal_distance(achieved_goal, desired_goal)), dtype=bool)
+        return np.zeros(np.shape(self._task.is_success(achieved_goal, desired_goal)),
+                        dtype=bool)
 
     def render(self):
         self._check_open()
@@ -201,8 +202,9 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     def _observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
         return {
             "observation": self._layout.flatten(composer_obs),
-            "achieved_goal": np.array(composer_obs[self._task.achieved_goal_key],
-                                      dtype=OBSERVATION_DTYPE),
+            "achieved_goal": np.concatenate([composer_obs[key]
+                                             for key in self._task.achieved_goal_keys],
+                                            dtype=OBSERVATION_DTYPE),
             "desired_goal": np.array(composer_obs[self._task.desired_goal_key],
                                      dtype=OBSERVATION_DTYPE),
         }

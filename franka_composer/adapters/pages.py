@@ -23,17 +23,15 @@ VERSION_HISTORY = (
 )
 
 
-def page(config: TaskConfig, ids: tuple[str, ...], max_episode_steps: int) -> str:
+def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     """The documentation page of the task `config` describes, registered as `ids`."""
     layout = layout_for(config)
     control, workspace = config.control, config.workspace
+    max_episode_steps = config.max_episode_steps
     gripper = (f"The 4th changes the finger opening by up to {control.max_finger_step:g} m "
                "(-1 closes, +1 opens the hand in one step)." if control.actuated_gripper
                else "The fingers are locked closed.")
-    goal_height = (f"lifted uniformly in [0, {workspace.goal_max_height:g}] m above the "
-                   f"object's resting height with probability "
-                   f"{workspace.goal_in_air_probability:g}, else on the floor"
-                   if workspace.goal_max_height > 0 else "on the floor")
+    goals, start, unit = _goal_words(config)
     options = [f"{name} = {value!r}" for name, value in config.options.items()
                if name != "reward_type"]  # The id fixes it.
     sections = [
@@ -44,19 +42,18 @@ def page(config: TaskConfig, ids: tuple[str, ...], max_episode_steps: int) -> st
             "never runs into the surface beneath the hand beyond a press the arm's joint "
             f"torques allow. {gripper}"]),
         ("Observation space", [
-            f"Dict(observation=Box({layout.size},), achieved_goal=Box(3,), "
-            "desired_goal=Box(3,)), float64. achieved_goal is the object's position, "
-            "desired_goal the goal (m, world frame). `observation`, velocities per control "
-            f"step of {config.control_timestep:g} s:", layout.markdown_table()]),
+            f"Dict(observation=Box({layout.size},), achieved_goal=Box({_goal_size(config)},), "
+            f"desired_goal=Box({_goal_size(config)},)), float64. {goals} `observation`, "
+            f"velocities per control step of {config.control_timestep:g} s:",
+            layout.markdown_table()]),
         ("Rewards", [
-            f"sparse: 0 if the object is within {config.distance_threshold:g} m of the goal, "
-            "else -1. dense: minus that distance (m). env.unwrapped.compute_reward(achieved, "
+            f"sparse: 0 if the achieved goal is within {config.distance_threshold:g} {unit} of "
+            f"the desired goal, else -1. dense: minus that distance ({unit}). "
+            "env.unwrapped.compute_reward(achieved, "
             "desired, info) gives the same reward for any batch of goals (HER); "
             'info["is_success"] is the success.']),
         ("Starting state", [
-            f"The arm at its neutral pose {tuple(config.neutral_arm_qpos)}; the object at "
-            f"rest at a uniform point of the {_square(workspace.object_box)}; the goal's "
-            f"(x, y) uniform in the {_square(workspace.goal_box)}, {goal_height}. "
+            f"The arm at its neutral pose {tuple(config.neutral_arm_qpos)}; {start} "
             "reset(seed=s) takes any non-negative int."]),
         ("Episode end", [
             f"Truncated after {max_episode_steps} steps. Terminated on success when "
@@ -82,6 +79,42 @@ def page(config: TaskConfig, ids: tuple[str, ...], max_episode_steps: int) -> st
                 lines += [textwrap.fill(paragraph, WIDTH, initial_indent="    ",
                                         subsequent_indent="    ")]
     return "\n".join(lines) + "\n"
+
+
+def _goal_size(config: TaskConfig) -> int:
+    return {"stacked": 6, "orientation": 4}.get(config.goal, 3)
+
+
+def _goal_words(config: TaskConfig) -> tuple[str, str, str]:
+    """What the goals are, how an episode starts, and the distance's unit, for the task's
+    kind of goal (`goals.GOALS`)."""
+    workspace = config.workspace
+    objects = (f"the object at rest, upright, at a uniform point of the "
+               f"{_square(workspace.object_box)}" if len(config.objects) == 1 else
+               f"the {len(config.objects)} objects at rest, upright, at uniform points of the "
+               f"{_square(workspace.object_box)}, apart from each other")
+    lifted = (f"lifted uniformly in [0, {workspace.goal_max_height:g}] m with probability "
+              f"{workspace.goal_in_air_probability:g}, else on the floor"
+              if workspace.goal_max_height > 0 else "on the floor")
+    if config.goal == "tcp_position":
+        return ("achieved_goal is the tool centre point's position, desired_goal the goal "
+                "(m, world frame).",
+                f"no object; the goal's (x, y) uniform in the {_square(workspace.goal_box)}, "
+                f"its height above the floor {lifted}.", "m")
+    if config.goal == "stacked":
+        return ("achieved_goal is both blocks' positions (block 1, then block 2), "
+                "desired_goal block 1 resting on the floor at the goal and block 2 on top of "
+                "it (m, world frame).",
+                f"{objects}; the goal's (x, y) uniform in the {_square(workspace.goal_box)}.",
+                "m")
+    if config.goal == "orientation":
+        return ("achieved_goal is the cube's orientation, desired_goal the goal orientation "
+                "(unit quaternions w, x, y, z; q and -q are the same orientation, and the "
+                "distance is the rotation angle between them).",
+                f"{objects}; the goal orientation uniformly random.", "rad")
+    return ("achieved_goal is the object's position, desired_goal the goal (m, world frame).",
+            f"{objects}; the goal's (x, y) uniform in the {_square(workspace.goal_box)}, "
+            f"{lifted}.", "m")
 
 
 def _square(box) -> str:

@@ -15,7 +15,6 @@ from franka_composer.adapters.pages import page
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.rewards import REWARD_TYPES
 
-MAX_EPISODE_STEPS = 50
 ENTRY_POINT = "franka_composer.adapters.registration:make_registered"
 
 
@@ -45,7 +44,7 @@ def _task_class(task: str) -> type:
     name = f"Franka{_camel(task)}Env"
     return type(name, (FrankaGoalEnv,), {
         "__init__": __init__, "__module__": __name__, "__qualname__": name,
-        "__doc__": page(TASK_CONFIGS[task], ids, MAX_EPISODE_STEPS)})
+        "__doc__": page(TASK_CONFIGS[task], ids)})
 
 
 #: Each task's env class, by task name (also attributes of this module, so they pickle).
@@ -74,4 +73,4 @@ def register_envs() -> None:
             gym.register(id=id_, entry_point=ENTRY_POINT,
                          kwargs={"registered_id": id_, "task": task,
                                  "reward_type": reward_type},
-                         max_episode_steps=MAX_EPISODE_STEPS)
+                         max_episode_steps=TASK_CONFIGS[task].max_episode_steps)

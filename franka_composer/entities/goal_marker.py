@@ -1,22 +1,41 @@
-"""A visible, non-colliding marker that shows the goal in rendered images."""
+"""Visible, non-colliding markers that show the goal in rendered images."""
 
 from __future__ import annotations
 
 import numpy as np
 from dm_control import composer, mjcf
 
+from franka_composer.entities.faces import add_coloured_faces
+
 
 class GoalMarker(composer.Entity):
-    """A translucent sphere site; the task moves it with `set_position` each episode.
+    """Translucent sites the task moves each episode: one sphere (a position goal), one box
+    per block (stacked goals), or a box with coloured faces in a body the task turns (an
+    orientation goal). Sites, not geoms: they never collide and cost nothing in the step.
 
-    It is a site, not a geom, so it never collides and costs nothing in the physics step.
+    Args:
+      shape: "sphere" or "box".
+      size: the sphere's radius or the box's half-size (m).
+      rgbas: one colour per marker site.
+      face_colours: a single box in a body, with its faces coloured like the flip cube's.
     """
 
-    def _build(self, radius: float = 0.02, rgba=(0.9, 0.1, 0.1, 0.6), name: str = "goal") -> None:
+    def _build(self, shape: str = "sphere", size: float = 0.02,
+               rgbas=((0.9, 0.1, 0.1, 0.6),), face_colours: bool = False,
+               name: str = "goal") -> None:
         self._mjcf_root = mjcf.RootElement(model=name)
-        self._site = self._mjcf_root.worldbody.add(
-            "site", name="marker", type="sphere", size=(radius,), rgba=rgba, group=0
-        )
+        self._body = None
+        parent = self._mjcf_root.worldbody
+        if face_colours:
+            self._body = parent.add("body", name="marker_body")
+            parent = self._body
+        sizes = (size,) if shape == "sphere" else (size,) * 3
+        self._sites = [
+            parent.add("site", name="marker" if len(rgbas) == 1 else f"marker{index + 1}",
+                       type=shape, size=sizes, rgba=tuple(rgba), group=0)
+            for index, rgba in enumerate(rgbas)]
+        if face_colours:
+            add_coloured_faces(self._body, size, alpha=0.5)
 
     @property
     def mjcf_model(self) -> mjcf.RootElement:
@@ -24,9 +43,26 @@ class GoalMarker(composer.Entity):
 
     @property
     def site(self):
-        return self._site
+        """The (first) marker site."""
+        return self._sites[0]
+
+    @property
+    def sites(self) -> list:
+        return list(self._sites)
 
     def set_position(self, physics, position: np.ndarray) -> None:
         """Moves the marker to `position` (m, world frame; the marker sits at the origin of
         its attachment frame, so the site offset is the world position)."""
-        physics.bind(self._site).pos = position
+        physics.bind(self._sites[0]).pos = position
+
+    def set_positions(self, physics, positions) -> None:
+        """Moves each marker site to its position (m, world frame)."""
+        for site, position in zip(self._sites, positions):
+            physics.bind(site).pos = position
+
+    def set_pose(self, physics, position, quaternion) -> None:
+        """Puts the marker body (with its faces) at `position`, turned by `quaternion`
+        (w, x, y, z); takes effect at the next forward kinematics."""
+        body = physics.bind(self._body)
+        body.pos = position
+        body.quat = quaternion

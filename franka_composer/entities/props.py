@@ -14,13 +14,16 @@ from dm_control.composer import define
 from dm_control.entities.props import primitive
 
 from franka_composer.contacts import make_stiff
+from franka_composer.entities.faces import add_coloured_faces
 from franka_composer.entities.features import ArrayFeature
 
 
 class Prop(primitive.Primitive):
-    """A single-geom free prop; `resting_height` is its centre's height on a surface."""
+    """A single-geom free prop; `resting_height` is its centre's height on a surface, `rgba`
+    its colour."""
 
     resting_height: float
+    rgba: tuple[float, ...]
 
     def _build_observables(self) -> "PropObservables":
         return PropObservables(self)
@@ -30,14 +33,19 @@ class Block(Prop):
     """A cube."""
 
     def _build(self, half_size: float = 0.02, mass: float = 1.0, friction: float = 1.0,
-               name: str = "block", rgba=(0.1, 0.45, 0.9, 1.0)) -> None:
+               name: str = "block", rgba=(0.1, 0.45, 0.9, 1.0),
+               coloured_faces: bool = False) -> None:
+        """`coloured_faces`: six distinctly coloured faces (`faces.py`), so the cube's
+        orientation shows in images."""
         # condim 4 adds torsional friction, so a pushed block turns about z like a real one
         # rather than spinning freely on its contact patch, and a held block cannot pivot
         # between the finger pads.
         super()._build(geom_type="box", size=(half_size,) * 3, name=name, mass=mass,
                        friction=(friction, 0.005, 0.0001), condim=4, rgba=rgba)
         make_stiff(self.geom)
-        self.resting_height = half_size
+        if coloured_faces:
+            add_coloured_faces(self.mjcf_model.worldbody, half_size)
+        self.resting_height, self.rgba = half_size, tuple(rgba)
 
 
 class Puck(Prop):
@@ -51,7 +59,7 @@ class Puck(Prop):
         super()._build(geom_type="cylinder", size=(radius, half_height), name=name, mass=mass,
                        friction=(friction, 0.0, 0.0), condim=3, rgba=rgba)
         make_stiff(self.geom)
-        self.resting_height = half_height
+        self.resting_height, self.rgba = half_height, tuple(rgba)
 
 
 class PropObservables(primitive.PrimitiveObservables):

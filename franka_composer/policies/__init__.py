@@ -9,8 +9,10 @@ from __future__ import annotations
 from franka_composer.policies.base import Expert
 from franka_composer.policies.pick_and_place import PickAndPlaceExpert
 from franka_composer.policies.push import PushExpert
+from franka_composer.policies.reach import ReachExpert
 from franka_composer.policies.rollout import Trajectories, rollout
 from franka_composer.policies.slide import SlideExpert
+from franka_composer.policies.stack import StackExpert
 from franka_composer.validation import check_choice
 
 #: The expert class for each task name in `franka_composer.ALL_TASKS`.
@@ -18,6 +20,8 @@ EXPERTS: dict[str, type[Expert]] = {
     "push": PushExpert,
     "slide": SlideExpert,
     "pick_and_place": PickAndPlaceExpert,
+    "reach": ReachExpert,
+    "stack": StackExpert,
 }
 
 

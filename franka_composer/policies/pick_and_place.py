@@ -34,12 +34,16 @@ class PickAndPlaceExpert(Expert):
 
     def act(self, obs: dict) -> np.ndarray:
         scene = self.scene(obs)
-        block, tcp, goal, width = (scene.object_position, scene.tcp, scene.goal,
-                                   scene.finger_width)
+        return self.fetch(scene.tcp, scene.finger_width, scene.object_position, scene.goal)
+
+    def fetch(self, tcp: np.ndarray, width: float, block: np.ndarray, goal: np.ndarray,
+              carry_height: float = CARRY_HEIGHT) -> np.ndarray:
+        """The action that grasps `block` (or carries it, once held) to `goal`, its centre
+        no lower than `carry_height` on the way (m, world frame)."""
         block_in_hand = np.linalg.norm(block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE
         if block_in_hand and HOLDING_WIDTHS[0] < width < HOLDING_WIDTHS[1]:
             if self._closing_steps >= CLOSING_STEPS:
-                return np.array([*self._carry(tcp, block, goal), -1.0])
+                return np.array([*self._carry(tcp, block, goal, carry_height), -1.0])
             self._closing_steps += 1
             return np.array([0.0, 0.0, 0.0, -1.0])
         self._closing_steps = 0
@@ -55,12 +59,13 @@ class PickAndPlaceExpert(Expert):
             return np.array([*self.move_towards(tcp, grasp), 1.0])
         return np.array([*self.move_towards(tcp, grasp), -1.0])
 
-    def _carry(self, tcp: np.ndarray, block: np.ndarray, goal: np.ndarray) -> np.ndarray:
+    def _carry(self, tcp: np.ndarray, block: np.ndarray, goal: np.ndarray,
+               carry_height: float) -> np.ndarray:
         """Moves the block (not the TCP: the block may sit off-centre in the hand) up off the
         floor, then over to the goal at a pace the grip holds, then down onto it."""
         target = goal.copy()
         if np.linalg.norm(goal[:2] - block[:2]) > 0.02:
-            target[2] = max(goal[2], CARRY_HEIGHT)
+            target[2] = max(goal[2], carry_height)
             if block[2] < target[2] - 0.01:
                 target[:2] = block[:2]  # Lift straight up first: dragging tilts the block.
         return self.move_towards(tcp, tcp + target - block, max_speed=CARRY_SPEED)

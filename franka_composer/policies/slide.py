@@ -63,7 +63,7 @@ class SlideExpert(Expert):
         strike_angle = _strike_angle(np.degrees(np.arctan2(to_goal[1], to_goal[0])))
         direction = np.array([np.cos(np.radians(strike_angle)), np.sin(np.radians(strike_angle))])
         corner = FINGER_HALF_SIZE * np.sign(direction)
-        radius = self.config.object.radius
+        radius = self.config.objects[0].radius
         start = np.array([*(puck[:2] - direction * (radius + GAP) - corner), STRIKE_HEIGHT])
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._waiting = True

@@ -10,14 +10,17 @@ from franka_composer.tasks.builder import build_task
 from franka_composer.tasks.config import OPTIONS, PhysicsSettings, TaskConfig
 from franka_composer.tasks.goal_task import GoalTask
 from franka_composer.tasks.layout import ObservationField, ObservationLayout
+from franka_composer.tasks.flip import FLIP
 from franka_composer.tasks.pick_and_place import PICK_AND_PLACE
 from franka_composer.tasks.push import PUSH
+from franka_composer.tasks.reach import REACH
 from franka_composer.tasks.slide import SLIDE
+from franka_composer.tasks.stack import STACK
 from franka_composer.validation import check_choice
 
 #: Every task, by the name `franka_composer.load` takes.
-TASK_CONFIGS: dict[str, TaskConfig] = {config.name: config
-                                       for config in (PUSH, SLIDE, PICK_AND_PLACE)}
+TASK_CONFIGS: dict[str, TaskConfig] = {
+    config.name: config for config in (PUSH, SLIDE, PICK_AND_PLACE, REACH, STACK, FLIP)}
 
 ALL_TASKS: tuple[str, ...] = tuple(TASK_CONFIGS)
 

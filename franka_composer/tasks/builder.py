@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from franka_composer.arenas import FloorArena
-from franka_composer.entities import GoalMarker, Panda
+from franka_composer.entities import Panda
 from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.goal_task import GoalTask
 
@@ -13,5 +13,5 @@ def build_task(config: TaskConfig, *, renderable: bool = True) -> GoalTask:
     meshes (for envs that never render: ~50 MB less, the same simulation)."""
     panda = Panda(visual_meshes=renderable)
     panda.check_arm_qpos("neutral_arm_qpos", config.neutral_arm_qpos)
-    return GoalTask(FloorArena(friction=config.floor_friction), panda, config.object.make(),
-                    GoalMarker(), config)
+    return GoalTask(FloorArena(friction=config.floor_friction), panda,
+                    [spec.make() for spec in config.objects], config)

@@ -77,18 +77,20 @@ class Workspace:
 
 @dataclasses.dataclass(frozen=True)
 class BlockSpec:
-    """A cube: `half_size` (m), `mass` (kg), sliding `friction`."""
+    """A cube: `half_size` (m), `mass` (kg), sliding `friction`, colour; `coloured_faces`
+    tells its faces apart in images; `entity_name` names its observables ("block/position")."""
 
     half_size: float = 0.02
     mass: float = 1.0
     friction: float = 1.0
-
-    #: The entity's name: its observables are "block/position" and so on.
-    entity_name = "block"
+    rgba: tuple[float, ...] = (0.1, 0.45, 0.9, 1.0)
+    coloured_faces: bool = False
+    entity_name: str = "block"
 
     def make(self) -> Prop:
         return Block(half_size=self.half_size, mass=self.mass, friction=self.friction,
-                     name=self.entity_name)
+                     name=self.entity_name, rgba=self.rgba,
+                     coloured_faces=self.coloured_faces)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,8 +101,7 @@ class PuckSpec:
     half_height: float = 0.03
     mass: float = 1.0
     friction: float = 0.04
-
-    entity_name = "puck"
+    entity_name: str = "puck"
 
     def make(self) -> Prop:
         return Puck(radius=self.radius, half_height=self.half_height, mass=self.mass,
@@ -141,7 +142,10 @@ class TaskConfig:
     Attributes:
       name: the task's name (`franka_composer.load(name)`), by which its expert is found.
       description: what the task asks, for its documentation page.
-      object: the object the robot moves (`BlockSpec` or `PuckSpec`).
+      objects: the objects the robot moves (`BlockSpec`s or `PuckSpec`s; none for reach).
+      goal: what the task asks for, a kind of `goals.GOALS`.
+      object_orientation: how the observation gives each object's orientation: "euler"
+        (roll, pitch, yaw; the paper's) or "quaternion" (w, x, y, z).
       floor_friction: sliding friction of the floor.
       workspace: where the object starts and goals lie.
       control: how actions move the hand (and whether the gripper is actuated).
@@ -152,11 +156,14 @@ class TaskConfig:
         gives Fetch semantics, for which HER relabelling is exact.
       control_timestep: seconds per control step (a whole multiple of the physics step).
       neutral_arm_qpos: arm joint angles (rad) at reset.
+      max_episode_steps: control steps before Gymnasium truncates an episode.
     """
 
     name: str = "push"
     description: str = ""
-    object: ObjectSpec = BlockSpec()
+    objects: tuple[ObjectSpec, ...] = (BlockSpec(),)
+    goal: str = "object_position"
+    object_orientation: str = "euler"
     floor_friction: float = 1.0
     workspace: Workspace = Workspace()
     control: ControlSettings = ControlSettings()
@@ -166,6 +173,7 @@ class TaskConfig:
     terminate_on_success: bool = True
     control_timestep: float = 0.05
     neutral_arm_qpos: tuple[float, ...] = NEUTRAL_ARM_QPOS
+    max_episode_steps: int = 50
 
     def replace(self, **options) -> "TaskConfig":
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
@@ -188,20 +196,24 @@ class TaskConfig:
 
     @property
     def options(self) -> dict[str, Any]:
-        """Every option's current value, by name (those of the object's kind)."""
+        """Every option's current value, by name (those that apply to this task)."""
         return {name: option.get(self) for name, option in OPTIONS.items()
                 if option.applies_to(self)}
 
 
 @dataclasses.dataclass(frozen=True)
 class Option:
-    """One user-facing option: the field it sets (a path through the records) and the check
-    its value must pass (`check(name, value) -> normalised value`)."""
+    """One user-facing option: the field it sets (a path through the records; a path that
+    starts with "objects" sets that field of every object) and the check its value must
+    pass (`check(name, value) -> normalised value`)."""
 
     path: tuple[str, ...]
     check_value: Callable[[str, Any], Any]
 
     def applies_to(self, config: TaskConfig) -> bool:
+        if self.path[0] == "objects":
+            return bool(config.objects) and all(hasattr(o, self.path[1])
+                                                for o in config.objects)
         record = config
         for field in self.path[:-1]:
             record = getattr(record, field)
@@ -209,19 +221,27 @@ class Option:
 
     def check(self, name: str, value, config: TaskConfig):
         if not self.applies_to(config):
-            kind = type(config.object).__name__.replace("Spec", "").lower()
-            valid = [n for n, o in OPTIONS.items() if o.path[0] == "object" and o.applies_to(config)]
-            raise ValueError(f"{name} does not apply: this task's object is a {kind} "
-                             f"(its options: {', '.join(valid)})")
+            valid = [n for n, o in OPTIONS.items()
+                     if o.path[0] == "objects" and o.applies_to(config)]
+            kinds = sorted({type(o).__name__.replace("Spec", "").lower()
+                            for o in config.objects})
+            what = f"its objects are {' and '.join(kinds)}s" if kinds else "it has no object"
+            raise ValueError(f"{name} does not apply to {config.name}: {what} "
+                             f"(its object options: {', '.join(valid) or 'none'})")
         return self.check_value(name, value)
 
     def get(self, config: TaskConfig):
+        if self.path[0] == "objects":
+            return getattr(config.objects[0], self.path[1])
         value = config
         for field in self.path:
             value = getattr(value, field)
         return value
 
     def set(self, config: TaskConfig, value) -> TaskConfig:
+        if self.path[0] == "objects":
+            return dataclasses.replace(config, objects=tuple(
+                dataclasses.replace(o, **{self.path[1]: value}) for o in config.objects))
         return _replace_path(config, self.path, value)
 
 
@@ -260,11 +280,11 @@ def _physics(name, value):
 
 #: The options users pass, by name: where each goes and what it accepts.
 OPTIONS: dict[str, Option] = {
-    "object_mass": Option(("object", "mass"), _positive),
-    "object_friction": Option(("object", "friction"), _non_negative),
-    "block_half_size": Option(("object", "half_size"), _positive),
-    "puck_radius": Option(("object", "radius"), _positive),
-    "puck_half_height": Option(("object", "half_height"), _positive),
+    "object_mass": Option(("objects", "mass"), _positive),
+    "object_friction": Option(("objects", "friction"), _non_negative),
+    "block_half_size": Option(("objects", "half_size"), _positive),
+    "puck_radius": Option(("objects", "radius"), _positive),
+    "puck_half_height": Option(("objects", "half_height"), _positive),
     "floor_friction": Option(("floor_friction",), _non_negative),
     "object_centre": Option(("workspace", "object_box", "centre"), _point),
     "object_range": Option(("workspace", "object_box", "size"), _extent),

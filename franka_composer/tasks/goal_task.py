@@ -1,7 +1,7 @@
-"""The goal-conditioned task all three tasks share: placing, goals, reward, success.
+"""The goal-conditioned task every task shares: placing, goals, reward, success.
 
-A `GoalTask` is wired from ready-made entities (arena, Panda, prop, goal marker) and data
-(workspace, control, physics and reward settings); the task modules only choose them.
+A `GoalTask` is wired from ready-made entities (arena, Panda, the objects) and the task's
+`TaskConfig`; what it asks for is a `goals.Goal` chosen by the config's `goal`.
 """
 
 from __future__ import annotations
@@ -14,64 +14,73 @@ from dm_control.composer.variation import distributions
 
 from franka_composer.arenas import FloorArena
 from franka_composer.controllers import MocapController
-from franka_composer.entities import GoalMarker, Panda, Prop
+from franka_composer.entities import Panda, Prop
 from franka_composer.entities.panda import MAX_FINGER_WIDTH
 from franka_composer.tasks import rewards
 from franka_composer.tasks.config import PhysicsSettings, TaskConfig, Workspace
+from franka_composer.tasks.goals import GOALS, Goal
 from franka_composer.tasks.layout import ObservationLayout, layout_for
+
+#: Room (m) kept between the footprints of objects placed at an episode's start.
+PLACEMENT_MARGIN = 0.01
 
 
 class GoalTask(composer.Task):
-    """Move a prop to a goal position with the Panda's tool centre point under mocap control.
+    """Bring the objects (or the hand) to a goal with the Panda's tool centre point under
+    mocap control.
 
     Wired from ready-made entities and the task's `TaskConfig` (`builder.build_task`).
-    Reward and success are functions of (achieved goal = prop position, desired goal) only,
-    through `rewards.compute_reward`, so HER relabelling is exact.
+    Reward and success are functions of (achieved goal, desired goal) only, through
+    `rewards.compute_reward`, so HER relabelling is exact.
     """
 
-    def __init__(self, arena: FloorArena, panda: Panda, prop: Prop, goal_marker: GoalMarker,
+    def __init__(self, arena: FloorArena, panda: Panda, props: list[Prop],
                  config: TaskConfig) -> None:
-        self._arena, self._panda, self._prop, self._goal_marker = arena, panda, prop, goal_marker
+        self._arena, self._panda, self._props = arena, panda, list(props)
         self._config = config
         self._neutral_arm_qpos = np.asarray(config.neutral_arm_qpos, dtype=np.float64)
         # The hand starts open when it can grasp, closed when it is locked.
         self._initial_finger_width = (MAX_FINGER_WIDTH if config.control.actuated_gripper
                                       else 0.0)
-        self._goal = np.zeros(3)
-        # Goal distance (m) at the end of the last step or reset: computed once per step
+        # Goal distance at the end of the last step or reset: computed once per step
         # (`after_step`) for the reward, the discount, termination and the adapter's success.
         self._distance = np.float64(np.inf)
         self._success = False
-        self._achieved_view = None  # The prop position's slice of MjData, per episode.
 
         arena.attach(panda)
-        arena.add_free_entity(prop)
-        arena.attach(goal_marker)
+        for prop in self._props:
+            arena.add_free_entity(prop)
+        self._goal_spec: Goal = GOALS[config.goal](config, arena, panda, self._props)
+        self._goal = np.zeros(self._goal_spec.size)
+        arena.attach(self._goal_spec.marker)
         self._controller = MocapController(arena, panda, config.control)
         self._apply_physics_settings(config.physics)
         self.set_timesteps(control_timestep=config.control_timestep,
                            physics_timestep=config.physics.timestep)
-
-        workspace = config.workspace
-        low, high = workspace.object_box.low, workspace.object_box.high
-        self._prop_placer = initializers.PropPlacer(
-            props=[prop],
-            position=distributions.Uniform(
-                low=(low[0], low[1], prop.resting_height + arena.surface_height),
-                high=(high[0], high[1], prop.resting_height + arena.surface_height)),
-            ignore_collisions=True,  # One prop, and the arm starts high above it.
-            settle_physics=False,  # It is placed resting on the surface: nothing to settle.
-        )
-        goal_low, goal_high = workspace.goal_box.low, workspace.goal_box.high
-        self._goal_xy = distributions.Uniform(low=goal_low, high=goal_high)
-        self._goal_in_air = distributions.Bernoulli(prob=workspace.goal_in_air_probability)
-        self._goal_lift = distributions.Uniform(low=0.0, high=workspace.goal_max_height)
+        self._placers = self._make_placers(config.workspace)
 
         self._observation_layout = layout_for(config)
         self._enable_observables()
         goal = observable.Generic(lambda physics: self._goal.copy())
         goal.enabled = True
         self._task_observables = {"goal": goal}
+
+    def _make_placers(self, workspace: Workspace) -> list:
+        """How the objects are placed each episode: resting, upright, in the object box."""
+        if not self._props:
+            return []
+        low, high = workspace.object_box.low, workspace.object_box.high
+        if len(self._props) == 1:
+            prop, surface = self._props[0], self._arena.surface_height
+            return [initializers.PropPlacer(
+                props=[prop],
+                position=distributions.Uniform(
+                    low=(low[0], low[1], prop.resting_height + surface),
+                    high=(high[0], high[1], prop.resting_height + surface)),
+                ignore_collisions=True,  # One prop, and the arm starts high above it.
+                settle_physics=False,  # It rests on the surface: nothing to settle.
+            )]
+        return [ApartPlacer(self._props, low, high, self._arena.surface_height)]
 
     def _apply_physics_settings(self, settings: PhysicsSettings) -> None:
         option = self._arena.mjcf_model.option
@@ -82,8 +91,7 @@ class GoalTask(composer.Task):
     def _enable_observables(self) -> None:
         """Enables exactly the observables the observation vector is built from (others stay
         available to enable)."""
-        entities = {self._panda.mjcf_model.model: self._panda,
-                    self._prop.mjcf_model.model: self._prop}
+        entities = {entity.mjcf_model.model: entity for entity in [self._panda, *self._props]}
         for field in self._observation_layout.fields:
             entity_name, observable_name = field.key.split("/")
             entities[entity_name].observables.get_observable(observable_name).enabled = True
@@ -104,7 +112,26 @@ class GoalTask(composer.Task):
 
     @property
     def prop(self) -> Prop:
-        return self._prop
+        """The (first) object."""
+        return self._props[0]
+
+    @property
+    def props(self) -> list[Prop]:
+        """The objects, in the config's order (none for reach)."""
+        return list(self._props)
+
+    @property
+    def goal_marker(self):
+        return self._goal_spec.marker
+
+    @property
+    def goal_size(self) -> int:
+        """How many numbers a goal holds: 3 (a position), 6 (two), 4 (a quaternion)."""
+        return self._goal_spec.size
+
+    @property
+    def goal_metric(self) -> str:
+        return self._goal_spec.metric
 
     @property
     def controller(self) -> MocapController:
@@ -137,8 +164,9 @@ class GoalTask(composer.Task):
         return self._observation_layout
 
     @property
-    def achieved_goal_key(self) -> str:
-        return f"{self._prop.mjcf_model.model}/position"
+    def achieved_goal_keys(self) -> tuple[str, ...]:
+        """The observables whose concatenation is the achieved goal."""
+        return self._goal_spec.achieved_keys
 
     @property
     def desired_goal_key(self) -> str:
@@ -146,48 +174,44 @@ class GoalTask(composer.Task):
 
     def compute_reward(self, achieved_goal, desired_goal) -> np.ndarray:
         return rewards.compute_reward(achieved_goal, desired_goal, self.reward_type,
-                                      self.distance_threshold)
+                                      self.distance_threshold, self.goal_metric,
+                                      self.goal_size)
 
     def is_success(self, achieved_goal, desired_goal) -> np.ndarray:
-        return rewards.is_success(achieved_goal, desired_goal, self.distance_threshold)
+        return rewards.is_success(achieved_goal, desired_goal, self.distance_threshold,
+                                  self.goal_metric, self.goal_size)
 
     @property
     def success(self) -> bool:
-        """Whether the object ended the last control step (or reset) within
-        `distance_threshold` of the goal."""
+        """Whether the last control step (or reset) ended within `distance_threshold` of
+        the goal."""
         return self._success
 
     @property
     def goal(self) -> np.ndarray:
-        """Desired goal position (m, world frame) of this episode."""
+        """This episode's desired goal (positions m, world frame; or a quaternion)."""
         return self._goal.copy()
 
     # ----- Composer hooks -------------------------------------------------------------------
 
     def initialize_episode(self, physics, random_state: np.random.RandomState) -> None:
         self._panda.configure_joints(physics, self._neutral_arm_qpos, self._initial_finger_width)
-        self._prop_placer(physics, random_state)
-        self._goal = self._sample_goal(random_state)
-        self._goal_marker.set_position(physics, self._goal)
+        for placer in self._placers:
+            placer(physics, random_state)
+        self._goal = self._goal_spec.sample(random_state)
+        self._goal_spec.show(physics, self._goal)
         physics.forward()
         self._controller.initialize_episode(physics)
-        # A view, not a binding: this is read every step (valid while this physics lives;
-        # Composer makes a new one only when recompiling, and initialises again then).
-        self._achieved_view = physics.bind(self._prop.position).sensordata.view(np.ndarray)
+        # Views, not bindings: read every step (valid while this physics lives; Composer
+        # makes a new one only when recompiling, and initialises again then).
+        self._goal_spec.bind(physics)
         self._update_distance()
 
     def _update_distance(self) -> None:
-        self._distance = rewards.goal_distance(self._achieved_view, self._goal)
+        spec = self._goal_spec
+        self._distance = rewards.distance(spec.achieved(), self._goal, spec.metric, spec.size)
         self._success = bool(rewards.success_from_distance(self._distance,
                                                            self._config.distance_threshold))
-
-    def _sample_goal(self, random_state: np.random.RandomState) -> np.ndarray:
-        height = self._prop.resting_height + self._arena.surface_height
-        xy = self._goal_xy(random_state=random_state)
-        workspace = self._config.workspace
-        if workspace.goal_max_height > 0 and self._goal_in_air(random_state=random_state):
-            height += self._goal_lift(random_state=random_state)
-        return np.array([xy[0], xy[1], height])
 
     def action_spec(self, physics):
         return self._controller.action_spec()
@@ -211,3 +235,40 @@ class GoalTask(composer.Task):
 
     def should_terminate_episode(self, physics) -> bool:
         return self._config.terminate_on_success and self._success
+
+
+class ApartPlacer(composer.Initializer):
+    """Places several objects resting, upright, at uniform points of a box, each footprint
+    at least `PLACEMENT_MARGIN` from the others (rejection sampling; Composer retries the
+    episode if it fails). `PropPlacer` would count the floor the objects rest on as a
+    collision."""
+
+    def __init__(self, props: list[Prop], low, high, surface_height: float,
+                 max_attempts: int = 100) -> None:
+        self._props, self._surface, self._max_attempts = props, surface_height, max_attempts
+        self._xy = distributions.Uniform(low=low, high=high)
+
+    def __call__(self, physics, random_state: np.random.RandomState) -> None:
+        placed: list[tuple[np.ndarray, float]] = []
+        for prop in self._props:
+            radius = _footprint_radius(prop)
+            for _ in range(self._max_attempts):
+                xy = np.asarray(self._xy(random_state=random_state))
+                if all(np.linalg.norm(xy - other) >= radius + other_radius + PLACEMENT_MARGIN
+                       for other, other_radius in placed):
+                    break
+            else:
+                raise composer.EpisodeInitializationError(
+                    f"no room for {prop.mjcf_model.model} after {self._max_attempts} tries")
+            placed.append((xy, radius))
+            prop.set_pose(physics, position=[xy[0], xy[1], prop.resting_height + self._surface],
+                          quaternion=[1.0, 0.0, 0.0, 0.0])
+            prop.set_velocity(physics, velocity=np.zeros(3), angular_velocity=np.zeros(3))
+
+
+def _footprint_radius(prop: Prop) -> float:
+    """The radius (m) of the circle an upright object's footprint fits in."""
+    size = prop.geom.size
+    if prop.geom.type == "cylinder":
+        return float(size[0])
+    return float(np.hypot(size[0], size[1]))

@@ -90,32 +90,44 @@ class ObservationLayout:
         return "\n".join(lines)
 
 
-#: The paper's fields, in order: (name, entity, observable, size, meaning, unit, per step).
-#: "object" stands for the object's entity name ("block", "puck"); the finger width is in
-#: the vector only where the gripper is actuated.
-_FIELDS = (
-    ("tcp_position", "panda", "tcp_position", 3, "end-effector (tool centre point) position",
-     "m", False),
-    ("tcp_velocity", "panda", "tcp_linear_velocity", 3, "end-effector linear velocity",
-     "m/step", True),
-    ("finger_width", "panda", "finger_width", 1, "finger width", "m", False),
-    ("object_position", "object", "position", 3, "object position", "m", False),
-    ("object_orientation", "object", "orientation_euler", 3,
-     "object orientation (roll, pitch, yaw; x-y-z extrinsic)", "rad", False),
-    ("object_linear_velocity", "object", "linear_velocity", 3, "object linear velocity",
-     "m/step", True),
-    ("object_angular_velocity", "object", "angular_velocity", 3, "object angular velocity",
-     "rad/step", True),
+#: The robot's fields, first: (name, observable, size, meaning, unit, per step). The finger
+#: width is in the vector only where the gripper is actuated.
+_ROBOT_FIELDS = (
+    ("tcp_position", "tcp_position", 3, "end-effector (tool centre point) position", "m",
+     False),
+    ("tcp_velocity", "tcp_linear_velocity", 3, "end-effector linear velocity", "m/step",
+     True),
+    ("finger_width", "finger_width", 1, "finger width", "m", False),
 )
+#: Each object's orientation, as the task observes it: (observable, size, meaning, unit).
+_ORIENTATIONS = {
+    "euler": ("orientation_euler", 3, "orientation (roll, pitch, yaw; x-y-z extrinsic)", "rad"),
+    "quaternion": ("orientation", 4, "orientation (unit quaternion w, x, y, z)", "–"),
+}
 
 
 def layout_for(config) -> ObservationLayout:
-    """The observation layout of the task `config` (a `TaskConfig`) describes."""
-    fields = []
-    for name, entity, observable, size, meaning, unit, per_step in _FIELDS:
-        if name == "finger_width" and not config.control.actuated_gripper:
-            continue
-        entity = config.object.entity_name if entity == "object" else entity
-        fields.append(ObservationField(name, f"{entity}/{observable}", size, meaning, unit,
-                                       per_step, "–" if name == "finger_width" else "world"))
+    """The observation layout of the task `config` (a `TaskConfig`) describes: the robot's
+    fields, then per object its position, orientation, linear and angular velocity (the
+    paper's order; fields "object_position"..., or "object1_position"... for several)."""
+    fields = [ObservationField(name, f"panda/{observable}", size, meaning, unit, per_step,
+                               "–" if name == "finger_width" else "world")
+              for name, observable, size, meaning, unit, per_step in _ROBOT_FIELDS
+              if name != "finger_width" or config.control.actuated_gripper]
+    several = len(config.objects) > 1
+    orientation, size, meaning, unit = _ORIENTATIONS[config.object_orientation]
+    for index, spec in enumerate(config.objects):
+        prefix = f"object{index + 1}" if several else "object"
+        label = f"object {index + 1}" if several else "object"
+        entity = spec.entity_name
+        fields += [
+            ObservationField(f"{prefix}_position", f"{entity}/position", 3,
+                             f"{label} position", "m", False),
+            ObservationField(f"{prefix}_orientation", f"{entity}/{orientation}", size,
+                             f"{label} {meaning}", unit, False),
+            ObservationField(f"{prefix}_linear_velocity", f"{entity}/linear_velocity", 3,
+                             f"{label} linear velocity", "m/step", True),
+            ObservationField(f"{prefix}_angular_velocity", f"{entity}/angular_velocity", 3,
+                             f"{label} angular velocity", "rad/step", True),
+        ]
     return ObservationLayout(fields, config.control_timestep)

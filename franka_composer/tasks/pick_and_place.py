@@ -12,7 +12,7 @@ PICK_AND_PLACE = TaskConfig(
     description="Grasp a 4 cm, 0.1 kg block and carry it to a goal that is in the air (up to "
                 "0.2 m above the floor) 70 % of the time, else on the floor. The fourth action "
                 "opens and closes the hand.",
-    object=BlockSpec(mass=0.1),
+    objects=(BlockSpec(mass=0.1),),
     control=ControlSettings(actuated_gripper=True),
     workspace=Workspace(goal_max_height=0.2, goal_in_air_probability=0.7),
 )

@@ -2,9 +2,13 @@
 
 Pure NumPy on goal arrays with any leading batch shape, so HER can relabel thousands of
 transitions in one call and the step reward equals `compute_reward` bit for bit: a step
-computes `goal_distance` once and derives its reward and success from that distance with
+computes the goal distance once and derives its reward and success from that distance with
 the same `reward_from_distance` and `success_from_distance` that `compute_reward` and
 `is_success` use.
+
+A task measures its goal with one of `METRICS`: "euclidean" (metres, over the whole goal
+vector: one position, or two stacked blocks' six coordinates) or "rotation_angle" (radians
+between two orientations given as unit quaternions w, x, y, z, where q and -q are the same).
 """
 
 from __future__ import annotations
@@ -14,24 +18,51 @@ import numpy as np
 from franka_composer.validation import check_choice
 
 REWARD_TYPES = ("sparse", "dense")
+METRICS = ("euclidean", "rotation_angle")
 
 
-def goal_distance(achieved_goal, desired_goal) -> np.ndarray:
-    """Euclidean distance (m) over the last axis; shape is the leading batch shape.
+def _goals(achieved_goal, desired_goal, size: int | None, what: str):
+    achieved_goal = np.asarray(achieved_goal, dtype=np.float64)
+    desired_goal = np.asarray(desired_goal, dtype=np.float64)
+    if achieved_goal.shape[-1:] != desired_goal.shape[-1:] or (
+            size is not None and achieved_goal.shape[-1:] != (size,)):
+        expected = f"an axis of {size} ({what})" if size else "the same last axis"
+        raise ValueError(f"goals must end in {expected}, got shapes {achieved_goal.shape} "
+                         f"and {desired_goal.shape}")
+    return achieved_goal, desired_goal
+
+
+def euclidean_distance(achieved_goal, desired_goal, size: int | None = 3) -> np.ndarray:
+    """Euclidean distance over the last axis (of `size`: 3 for a position); shape is the
+    leading batch shape.
 
     `sqrt(add.reduce(d * d, axis=-1))` is exactly what `np.linalg.norm(d, axis=-1)` computes
     for real arrays (the same operations in the same order, so the same bits) without its
     dispatch overhead, which is most of the time for one pair.
     """
-    achieved_goal = np.asarray(achieved_goal, dtype=np.float64)
-    desired_goal = np.asarray(desired_goal, dtype=np.float64)
-    if achieved_goal.shape[-1:] != (3,) or desired_goal.shape[-1:] != (3,):
-        raise ValueError(
-            "goals must end in an axis of 3 (x, y, z), got shapes "
-            f"{achieved_goal.shape} and {desired_goal.shape}"
-        )
+    achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, size, "x, y, z")
     difference = achieved_goal - desired_goal
     return np.sqrt(np.add.reduce(difference * difference, axis=-1))
+
+
+def goal_distance(achieved_goal, desired_goal) -> np.ndarray:
+    """The Euclidean distance (m) between two positions (x, y, z)."""
+    return euclidean_distance(achieved_goal, desired_goal, 3)
+
+
+def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
+    """The angle (rad, in [0, pi]) of the rotation between two orientations given as unit
+    quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation."""
+    achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, 4, "w, x, y, z")
+    cosine = np.abs(np.add.reduce(achieved_goal * desired_goal, axis=-1))
+    return 2.0 * np.arccos(np.minimum(cosine, 1.0))
+
+
+def distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
+    """The goal distance by `metric` (one of `METRICS`) for goals of `size` numbers."""
+    if metric == "rotation_angle":
+        return rotation_angle(achieved_goal, desired_goal)
+    return euclidean_distance(achieved_goal, desired_goal, size)
 
 
 def check_reward_type(reward_type: str) -> str:
@@ -48,20 +79,22 @@ def reward_from_distance(distance, reward_type: str, distance_threshold: float) 
 
 
 def success_from_distance(distance, distance_threshold: float) -> np.ndarray:
-    """Whether the object is within `distance_threshold` (m) of the goal (False for NaN)."""
+    """Whether the goal is reached: the distance is below `distance_threshold` (not NaN)."""
     return np.asarray(distance) < distance_threshold
 
 
-def compute_reward(achieved_goal, desired_goal, reward_type: str,
-                   distance_threshold: float) -> np.ndarray:
+def compute_reward(achieved_goal, desired_goal, reward_type: str, distance_threshold: float,
+                   metric: str = "euclidean", size: int = 3) -> np.ndarray:
     """Sparse: 0 within `distance_threshold` of the goal, else -1. Dense: -distance.
 
     Returns float64 with the leading batch shape of the goals (a 0-d array for one pair).
     """
-    return reward_from_distance(goal_distance(achieved_goal, desired_goal), reward_type,
-                                distance_threshold)
+    return reward_from_distance(distance(achieved_goal, desired_goal, metric, size),
+                                reward_type, distance_threshold)
 
 
-def is_success(achieved_goal, desired_goal, distance_threshold: float) -> np.ndarray:
-    """Whether the object is within `distance_threshold` (m) of the goal."""
-    return success_from_distance(goal_distance(achieved_goal, desired_goal), distance_threshold)
+def is_success(achieved_goal, desired_goal, distance_threshold: float,
+               metric: str = "euclidean", size: int = 3) -> np.ndarray:
+    """Whether each goal pair is within `distance_threshold` by `metric`."""
+    return success_from_distance(distance(achieved_goal, desired_goal, metric, size),
+                                 distance_threshold)

@@ -9,7 +9,7 @@ SLIDE = TaskConfig(
     description="Strike a puck across a slippery floor (friction 0.04) to a goal 0.25-0.55 m "
                 "beyond the object square, often out of the arm's reach: the puck must glide "
                 "there. The fingers are locked closed.",
-    object=PuckSpec(),
+    objects=(PuckSpec(),),
     floor_friction=0.04,
     workspace=Workspace(goal_box=Box2D(centre=(1.0, 0.0))),
 )
