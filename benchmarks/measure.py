@@ -200,8 +200,9 @@ def median_reset_ms(env: gym.Env, samples: int) -> float:
 def compute_reward_us(env: gym.Env, batch: int = REWARD_BATCH) -> float:
     """Median microseconds of `compute_reward` on `batch` (achieved, desired) pairs."""
     rng = np.random.default_rng(0)
-    achieved = rng.uniform(0.3, 0.9, size=(batch, 3))
-    desired = rng.uniform(0.3, 0.9, size=(batch, 3))
+    size = env.observation_space["achieved_goal"].shape[0]  # 3, 6 (stack) or 4 (flip).
+    achieved = rng.uniform(0.3, 0.9, size=(batch, size))
+    desired = rng.uniform(0.3, 0.9, size=(batch, size))
     info = [{}] * batch
     reward = env.unwrapped.compute_reward(achieved, desired, info)
     if np.shape(reward) != (batch,):
@@ -224,7 +225,8 @@ def render_ms(env_name: str, frames: int) -> dict:
         raise RuntimeError(f"rgb_array frame has shape {frame.shape}, expected (480, 480, 3)")
     times = []
     for _ in range(frames):
-        env.step(env.action_space.sample())
+        if any(env.step(env.action_space.sample())[2:4]):  # Terminated or truncated.
+            env.reset()
         start = time.perf_counter()
         env.render()
         times.append(time.perf_counter() - start)

@@ -16,13 +16,63 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import franka_composer  # noqa: E402
+import franka_composer.tasks  # noqa: E402
 from franka_composer import fast_path  # noqa: E402
+
+
+#: SPEC.md's numbers per task: observation, action and goal sizes, episode length, how
+#: goals are compared and the success threshold.
+SPEC = {
+    "push": dict(observation=18, action=3, goal=3, steps=50, metric="euclidean", threshold=0.05),
+    "slide": dict(observation=18, action=3, goal=3, steps=50, metric="euclidean",
+                  threshold=0.05),
+    "pick_and_place": dict(observation=19, action=4, goal=3, steps=50, metric="euclidean",
+                           threshold=0.05),
+    "reach": dict(observation=6, action=3, goal=3, steps=50, metric="euclidean",
+                  threshold=0.05),
+    "stack": dict(observation=31, action=4, goal=6, steps=100, metric="euclidean",
+                  threshold=0.1),
+    "flip": dict(observation=20, action=4, goal=4, steps=50, metric="rotation_angle",
+                 threshold=0.2),
+}
+#: The tasks with objects (all but reach).
+OBJECT_TASKS = tuple(t for t in franka_composer.ALL_TASKS
+                     if franka_composer.tasks.TASK_CONFIGS[t].objects)
 
 
 @pytest.fixture(params=franka_composer.ALL_TASKS)
 def task_name(request) -> str:
     """Every registered task: a new task is tested the day it is added."""
     return request.param
+
+
+@pytest.fixture(params=OBJECT_TASKS)
+def object_task_name(request) -> str:
+    """Every task with an object to move."""
+    return request.param
+
+
+def spec_distance(task: str, achieved, desired) -> np.ndarray:
+    """SPEC's goal distance, written out here independently of the package."""
+    achieved, desired = np.asarray(achieved), np.asarray(desired)
+    if SPEC[task]["metric"] == "rotation_angle":
+        return 2 * np.arccos(np.minimum(np.abs(np.sum(achieved * desired, axis=-1)), 1.0))
+    return np.linalg.norm(achieved - desired, axis=-1)
+
+
+def near_goal_pairs(task: str, rng, count: int):
+    """(achieved, desired) goal pairs, some within the task's threshold and some not."""
+    size = SPEC[task]["goal"]
+    if SPEC[task]["metric"] == "rotation_angle":
+        achieved = rng.normal(size=(count, 4))
+        achieved /= np.linalg.norm(achieved, axis=1, keepdims=True)
+        desired = achieved + rng.normal(0, 0.08, (count, 4))
+        desired /= np.linalg.norm(desired, axis=1, keepdims=True)
+        desired[::3] *= -1  # q and -q: the same orientation.
+        return achieved, desired
+    achieved = rng.uniform(0.4, 0.8, (count, size))
+    return achieved, achieved + rng.normal(0, 0.04 * np.sqrt(3 / size) * SPEC[task]["threshold"]
+                                           / 0.05, (count, size))
 
 
 @pytest.fixture(params=["fast", "stock"])

@@ -49,8 +49,7 @@ def _hover_over_object(env, height):
     """Puts the closed hand's fingertips `height` (m) above the object's top, centred on
     it to 1 mm; returns the timestep."""
     timestep = env.reset()
-    key = env.task.achieved_goal_keys[0]
-    start = timestep.observation[key].copy()
+    start = timestep.observation[f"{env.task.prop.mjcf_model.model}/position"].copy()
     top = start[2] + env.task.prop.resting_height
     fingertips = env.task.controller.law.guard.reach_below_tcp()
     return move_tcp_to(env, timestep, [start[0], start[1], top + fingertips + height],
@@ -58,12 +57,12 @@ def _hover_over_object(env, height):
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(task_name, seed):
+def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(object_task_name, seed):
     """Issue 11's press: full -z with x, y following the object for 80 steps."""
-    env = franka_composer.load(task_name, seed=seed, terminate_on_success=False)
+    env = franka_composer.load(object_task_name, seed=seed, terminate_on_success=False)
     timestep = _hover_over_object(env, height=0.03)
-    key = env.task.achieved_goal_keys[0]
-    velocity_key = f"{key.split('/')[0]}/linear_velocity"
+    name = env.task.prop.mjcf_model.model
+    key, velocity_key = f"{name}/position", f"{name}/linear_velocity"
     start = timestep.observation[key].copy()
     resting = env.task.prop.resting_height
     lowest, fastest = np.inf, 0.0
@@ -79,13 +78,14 @@ def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(task_name, see
     assert np.linalg.norm(timestep.observation[key][:2] - start[:2]) < 0.01
 
 
-def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_it(task_name):
+def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_it(
+        object_task_name):
     """The hand starts beside the object and a full diagonal command carries it over the
     object's top within one step: the surface under the path, not only under the hand,
     bounds the target (without it: 25 kN at landing, the puck shoved 2 cm)."""
-    env = franka_composer.load(task_name, seed=0, terminate_on_success=False)
+    env = franka_composer.load(object_task_name, seed=0, terminate_on_success=False)
     timestep = env.reset()
-    key = env.task.achieved_goal_keys[0]
+    key = f"{env.task.prop.mjcf_model.model}/position"
     start = timestep.observation[key].copy()
     top = start[2] + env.task.prop.resting_height
     fingertips = env.task.controller.law.guard.reach_below_tcp()

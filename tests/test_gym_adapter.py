@@ -11,7 +11,7 @@ import pytest
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.tasks import TASK_CONFIGS
+from conftest import SPEC, near_goal_pairs, spec_distance
 
 ALL_IDS = tuple(franka_composer.ENV_IDS)
 
@@ -34,22 +34,23 @@ def _random_rollout(env, seed: int, steps: int):
     return obs, records
 
 
-def test_paper_ids_are_registered_with_fifty_step_episodes():
-    assert set(ALL_IDS) == {f"Franka{t}{r}-v0" for t in ("Push", "Slide", "PickAndPlace")
+def test_every_task_is_registered_with_its_episode_length():
+    assert set(ALL_IDS) == {f"Franka{t}{r}-v0" for t in ("Push", "Slide", "PickAndPlace",
+                                                          "Reach", "Stack", "Flip")
                             for r in ("Sparse", "Dense")}
-    for id_ in ALL_IDS:
-        assert gym.spec(id_).max_episode_steps == 50
+    for id_, (task, _) in franka_composer.ENV_IDS.items():
+        assert gym.spec(id_).max_episode_steps == SPEC[task]["steps"]
     assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
 
 
 def test_spaces_match_the_spec(env_name):
     env = gym.make(env_name)
-    pick = "PickAndPlace" in env_name
-    assert env.observation_space["observation"].shape == ((19,) if pick else (18,))
-    assert env.observation_space["achieved_goal"].shape == (3,)
-    assert env.observation_space["desired_goal"].shape == (3,)
+    spec = SPEC[franka_composer.ENV_IDS[env_name][0]]
+    assert env.observation_space["observation"].shape == (spec["observation"],)
+    assert env.observation_space["achieved_goal"].shape == (spec["goal"],)
+    assert env.observation_space["desired_goal"].shape == (spec["goal"],)
     assert {s.dtype for s in env.observation_space.spaces.values()} == {np.dtype(np.float64)}
-    assert env.action_space == gym.spaces.Box(-1, 1, ((4,) if pick else (3,)), np.float32)
+    assert env.action_space == gym.spaces.Box(-1, 1, (spec["action"],), np.float32)
     obs, info = env.reset(seed=0)
     assert env.observation_space.contains(obs)
     assert isinstance(info["is_success"], bool)
@@ -65,38 +66,42 @@ def test_gymnasium_and_sb3_env_checkers_pass(env_name):
 
 
 def test_step_reward_equals_compute_reward_and_success_matches_distance(env_name):
+    task = franka_composer.ENV_IDS[env_name][0]
     env = gym.make(env_name, terminate_on_success=False)
     unwrapped = env.unwrapped
-    _, records = _random_rollout(env, seed=1, steps=60)
+    _, records = _random_rollout(env, seed=1, steps=SPEC[task]["steps"] + 10)
     for obs, reward, terminated, truncated, info in records:
         expected = unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
         assert reward == expected and type(reward) is type(expected[()])
-        distance = np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"])
-        assert info["is_success"] == (distance < 0.05)
+        distance = spec_distance(task, obs["achieved_goal"], obs["desired_goal"])
+        assert info["is_success"] == (distance < SPEC[task]["threshold"])
         if "Sparse" in env_name:
             assert reward in (0.0, -1.0) and (reward == 0.0) == info["is_success"]
         else:
             assert reward == pytest.approx(-distance, abs=1e-12)
         assert not terminated
-    assert records[49][3] and not records[48][3]  # TimeLimit truncates at step 50.
+    last = SPEC[task]["steps"] - 1
+    assert records[last][3] and not records[last - 1][3]  # TimeLimit truncates on time.
 
 
 def test_batched_compute_reward_equals_per_pair_values(env_name):
+    task = franka_composer.ENV_IDS[env_name][0]
     env = gym.make(env_name).unwrapped
-    rng = np.random.default_rng(0)
-    achieved = rng.uniform(0.4, 0.8, (1000, 3))
-    desired = achieved + rng.normal(0, 0.04, (1000, 3))
+    achieved, desired = near_goal_pairs(task, np.random.default_rng(0), 1000)
+    size = SPEC[task]["goal"]
     batched = env.compute_reward(achieved, desired, [{}] * 1000)
     assert batched.shape == (1000,)
     singles = np.array([env.compute_reward(a, d, {}) for a, d in zip(achieved, desired)])
     np.testing.assert_array_equal(batched, singles)
     np.testing.assert_array_equal(env.compute_reward(achieved, desired, None), batched)
     np.testing.assert_array_equal(
-        env.compute_reward(achieved.reshape(10, 100, 3), desired.reshape(10, 100, 3),
+        env.compute_reward(achieved.reshape(10, 100, size), desired.reshape(10, 100, size),
                            np.array([{}] * 1000).reshape(10, 100)),
         batched.reshape(10, 100))
     if "Sparse" in env_name:
         assert 0 < np.mean(batched == 0) < 1  # Both outcomes occur in the batch.
+        np.testing.assert_array_equal(
+            batched == 0, spec_distance(task, achieved, desired) < SPEC[task]["threshold"])
 
 
 def test_task_options_pass_through_gym_make():
@@ -150,8 +155,12 @@ def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name):
     frame = env.render()
     assert frame.shape == (240, 320, 3) and frame.dtype == np.uint8
     assert frame.std() > 10  # Not blank.
-    red = (frame[..., 0] > 150) & (frame[..., 1] < 90) & (frame[..., 2] < 90)
-    assert red.sum() > 20  # The goal marker is visible.
+    physics = env.unwrapped.composer_env.physics
+    for site in env.unwrapped.task.goal_marker.mjcf_model.find_all("site"):
+        physics.bind(site).rgba = (0, 0, 0, 0)  # Hide the goal marker.
+    hidden = env.render()
+    changed = np.any(frame != hidden, axis=-1)
+    assert changed.sum() > 20  # The goal marker is visible.
     env.close()
     env.close()  # Closing twice is harmless.
 
@@ -288,3 +297,26 @@ def _render_error(env) -> str:
     except RuntimeError as error:
         return str(error)
     return "no error"
+
+
+def test_her_relabelled_rewards_are_exact(task_name):
+    """SB3's HerReplayBuffer relabels with `compute_reward` (a quaternion goal for flip, six
+    coordinates for stack): every sampled reward is the task's reward for its goals, and
+    the relabelling does produce goals that the original episodes missed."""
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    env = gym.make(env_id(task_name, "sparse"), terminate_on_success=False)
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer,
+                replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
+                learning_starts=10_000, buffer_size=1000, seed=0,
+                policy_kwargs=dict(net_arch=[8]), device="cpu")
+    model.learn(total_timesteps=4 * SPEC[task_name]["steps"])  # Random actions only.
+    samples = model.replay_buffer.sample(512)
+    achieved = samples.next_observations["achieved_goal"].numpy()
+    desired = samples.observations["desired_goal"].numpy()
+    rewards = samples.rewards.numpy().squeeze(-1)
+    np.testing.assert_array_equal(
+        rewards, env.unwrapped.compute_reward(achieved, desired, None).astype(np.float32))
+    successes = spec_distance(task_name, achieved, desired) < SPEC[task_name]["threshold"]
+    np.testing.assert_array_equal(rewards == 0, successes)
+    assert successes.mean() > 0.1  # Relabelled goals are reached (measured: 18-80 %).

@@ -12,17 +12,19 @@ def _binding_reads(env) -> dict:
     `mj_forward` (what plain `MJCFFeature` observables would return on a clean physics)."""
     physics, task = env.physics, env.task
     physics.forward()
-    panda, prop = task.panda, task.prop
-    prop_name = prop.mjcf_model.model
+    panda = task.panda
     reads = {
         "panda/tcp_position": physics.bind(panda.tcp_site).xpos,
         "panda/tcp_linear_velocity": physics.bind(panda.tcp_velocity).sensordata,
         "panda/finger_width": [np.sum(physics.bind(panda.finger_joints).qpos)],
-        f"{prop_name}/position": physics.bind(prop.position).sensordata,
-        f"{prop_name}/linear_velocity": physics.bind(prop.linear_velocity).sensordata,
-        f"{prop_name}/angular_velocity": physics.bind(prop.angular_velocity).sensordata,
         "goal": task.goal,
     }
+    for prop in task.props:
+        name = prop.mjcf_model.model
+        reads[f"{name}/position"] = physics.bind(prop.position).sensordata
+        reads[f"{name}/orientation"] = physics.bind(prop.orientation).sensordata
+        reads[f"{name}/linear_velocity"] = physics.bind(prop.linear_velocity).sensordata
+        reads[f"{name}/angular_velocity"] = physics.bind(prop.angular_velocity).sensordata
     return {key: np.array(value) for key, value in reads.items()}
 
 
@@ -34,11 +36,14 @@ def test_observables_read_through_views_equal_fresh_binding_reads(task_name):
         observation = {k: np.array(v) for k, v in timestep.observation.items()}
         reads = _binding_reads(env)
         compared = [key for key in reads if key in observation]
-        assert len(compared) == (7 if task_name == "pick_and_place" else 6), compared
+        # Every field of the vector but the Euler angles (a transform), and the goal.
+        expected = [f.key for f in env.task.observation_layout.fields
+                    if not f.key.endswith("orientation_euler")] + ["goal"]
+        assert sorted(compared) == sorted(expected)
         for key in compared:
             np.testing.assert_array_equal(observation[key], reads[key], err_msg=f"{key} @ {step}")
         # Readings are copies: stepping must not change an observation already returned.
-        held = timestep.observation[f"{env.task.prop.mjcf_model.model}/position"]
+        held = timestep.observation["panda/tcp_position"]
         before = held.copy()
         timestep = env.step(rng.uniform(-1, 1, env.action_spec().shape).astype(np.float32))
         np.testing.assert_array_equal(held, before)

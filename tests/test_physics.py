@@ -129,3 +129,50 @@ def test_pushed_block_slides_along_the_floor_without_tipping_over():
         if abs(roll) < 0.2 and abs(pitch) < 0.2 and height < 0.025:
             upright += 1
     assert upright >= 4
+
+
+def test_a_block_stacked_on_another_stays_there():
+    env = franka_composer.load("stack", seed=0, terminate_on_success=False)
+    env.reset()
+    block1, block2 = env.task.props
+    block1.set_pose(env.physics, position=[0.6, 0.0, 0.02], quaternion=[1, 0, 0, 0])
+    block2.set_pose(env.physics, position=[0.6, 0.0, 0.06], quaternion=[1, 0, 0, 0])
+    env.physics.forward()
+    for _ in range(40):  # 2 s, the hand far above.
+        timestep = env.step(np.zeros(4, np.float32))
+    np.testing.assert_allclose(timestep.observation["block2/position"], [0.6, 0.0, 0.06],
+                               atol=0.001)
+    np.testing.assert_allclose(timestep.observation["block2/orientation_euler"], 0.0,
+                               atol=0.01)
+    np.testing.assert_allclose(timestep.observation["block1/position"], [0.6, 0.0, 0.02],
+                               atol=0.001)
+
+
+def test_the_flip_cube_tips_over_when_pushed_at_its_top_edge():
+    """Pushed in +x 4 mm below its top edge, slowly, the cube turns 90 deg about y: its face
+    that looked at the hand (-x) ends up on top, and it rests on the floor again."""
+    env = franka_composer.load("flip", seed=0, terminate_on_success=False, object_range=(0, 0),
+                               object_centre=(0.6, 0.0))
+    timestep = env.reset()
+    cube = timestep.observation["cube/position"].copy()
+    fingertips = env.task.controller.law.guard.reach_below_tcp()
+    height = cube[2] + 0.02 - 0.004 + fingertips
+    timestep = move_tcp_to(env, timestep, [cube[0] - 0.05, cube[1], height + 0.05], gripper=-1)
+    timestep = move_tcp_to(env, timestep, [cube[0] - 0.05, cube[1], height], gripper=-1)
+    for _ in range(12):
+        timestep = env.step(np.array([0.2, 0, 0, -1], np.float32))
+    for _ in range(10):
+        timestep = env.step(np.array([-0.5, 0, 0.5, -1], np.float32))
+    quaternion = timestep.observation["cube/orientation"]
+    minus_x = -quaternion_matrix(quaternion)[:, 0]
+    assert minus_x[2] > 0.99  # The face that looked at the hand is on top.
+    assert timestep.observation["cube/position"][2] == pytest.approx(0.02, abs=0.001)
+    assert 0.02 < timestep.observation["cube/position"][0] - cube[0] < 0.08
+
+
+def quaternion_matrix(quaternion) -> np.ndarray:
+    import mujoco
+
+    matrix = np.zeros(9)
+    mujoco.mju_quat2Mat(matrix, np.asarray(quaternion, dtype=np.float64))
+    return matrix.reshape(3, 3)

@@ -12,6 +12,7 @@ from dm_env import test_utils
 
 import franka_composer
 from franka_composer import fast_path
+from conftest import SPEC
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 
 
@@ -48,48 +49,79 @@ for _name in franka_composer.ALL_TASKS:
         globals()[f"TestDmEnvConformance_{_name}_{_path}"] = _make_conformance_case(_name, _path)
 
 
-def test_all_tasks_lists_the_papers_tasks():
-    assert set(franka_composer.ALL_TASKS) >= {"push", "slide", "pick_and_place"}
+def test_all_tasks_are_the_papers_and_panda_gyms():
+    assert set(franka_composer.ALL_TASKS) == set(SPEC)
 
 
 def test_observation_layout_sizes_match_the_spec(task_name):
     env = franka_composer.load(task_name)
     layout = env.task.observation_layout
-    expected = 19 if task_name == "pick_and_place" else 18
-    assert layout.size == expected
+    assert layout.size == SPEC[task_name]["observation"]
     observation = env.reset().observation
     for field in layout.fields:
         assert observation[field.key].shape == (field.size,)
         assert observation[field.key].dtype == np.float64
-    assert observation["goal"].shape == (3,)
+    assert observation["goal"].shape == (SPEC[task_name]["goal"],)
 
 
-def test_reset_puts_arm_at_neutral_and_object_and_goal_in_their_ranges(task_name):
+def test_reset_puts_arm_at_neutral_and_objects_and_goal_in_their_ranges(task_name):
     env = franka_composer.load(task_name, seed=7)
     task = env.task
+    workspace = task.workspace
     for _ in range(5):
         timestep = env.reset()
-        physics = env.physics
-        arm_qpos = physics.bind(task.panda.joints).qpos
+        arm_qpos = env.physics.bind(task.panda.joints).qpos
         np.testing.assert_allclose(arm_qpos, NEUTRAL_ARM_QPOS, atol=1e-3)
-        position = timestep.observation[task.achieved_goal_keys[0]]
+        positions = [timestep.observation[f"{prop.mjcf_model.model}/position"]
+                     for prop in task.props]
+        for prop, position in zip(task.props, positions):
+            assert workspace.object_box.contains(position)
+            assert position[2] == pytest.approx(prop.resting_height, abs=1e-6)
+            _, quaternion = prop.get_pose(env.physics)
+            np.testing.assert_allclose(np.abs(quaternion), [1, 0, 0, 0], atol=1e-9)  # Upright.
+        for i, a in enumerate(positions):  # Apart: no object inside another.
+            for b in positions[i + 1:]:
+                assert np.linalg.norm(a[:2] - b[:2]) > 2 * np.hypot(0.02, 0.02)
         goal = timestep.observation["goal"]
-        assert task.workspace.object_box.contains(position)
-        assert task.workspace.goal_box.contains(goal)
-        assert position[2] == pytest.approx(task.prop.resting_height, abs=1e-6)
-        assert task.prop.resting_height - 1e-9 <= goal[2] <= (
-            task.prop.resting_height + task.workspace.goal_max_height + 1e-9)
+        if task.config.goal == "orientation":
+            assert np.linalg.norm(goal) == pytest.approx(1.0, abs=1e-12)
+        elif task.config.goal == "stacked":
+            half = task.props[0].resting_height
+            assert workspace.goal_box.contains(goal[:3]) and goal[2] == pytest.approx(half)
+            np.testing.assert_allclose(goal[3:], goal[:3] + [0, 0, 2 * half], atol=1e-12)
+        else:
+            base = task.prop.resting_height if task.props else 0.0
+            assert workspace.goal_box.contains(goal)
+            assert base - 1e-9 <= goal[2] <= base + workspace.goal_max_height + 1e-9
 
 
-def test_object_rests_and_nothing_jerks_on_the_first_zero_action(task_name):
-    env = franka_composer.load(task_name, seed=3, terminate_on_success=False)
+def test_reach_goals_fill_the_box_above_the_object_square():
+    env = franka_composer.load("reach", seed=3)
+    goals = np.array([env.reset().observation["goal"] for _ in range(300)])
+    assert goals[:, 2].min() < 0.03 and goals[:, 2].max() > 0.27  # z uniform in [0, 0.3].
+    assert 0.12 < goals[:, 2].mean() < 0.18
+    assert np.ptp(goals[:, 0]) > 0.25 and np.ptp(goals[:, 1]) > 0.25
+
+
+def test_flip_goals_are_uniform_orientations():
+    """A uniform orientation's quaternion is uniform on the 3-sphere: each component's
+    square averages 1/4."""
+    env = franka_composer.load("flip", seed=4)
+    goals = np.array([env.reset().observation["goal"] for _ in range(400)])
+    np.testing.assert_allclose((goals ** 2).mean(axis=0), 0.25, atol=0.03)
+
+
+def test_objects_rest_and_nothing_jerks_on_the_first_zero_action(object_task_name):
+    env = franka_composer.load(object_task_name, seed=3, terminate_on_success=False)
     first = env.reset()
     after = env.step(np.zeros(env.action_spec().shape, np.float32))
-    key = env.task.achieved_goal_keys[0]
     assert np.linalg.norm(after.observation["panda/tcp_position"]
                           - first.observation["panda/tcp_position"]) < 1e-3
-    assert np.linalg.norm(after.observation[key] - first.observation[key]) < 1e-3
-    assert np.linalg.norm(after.observation[f"{key.split('/')[0]}/linear_velocity"]) < 0.02
+    for prop in env.task.props:
+        name = prop.mjcf_model.model
+        assert np.linalg.norm(after.observation[f"{name}/position"]
+                              - first.observation[f"{name}/position"]) < 1e-3
+        assert np.linalg.norm(after.observation[f"{name}/linear_velocity"]) < 0.02
 
 
 def test_pick_and_place_goals_are_in_the_air_about_seventy_percent_of_the_time():

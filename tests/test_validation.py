@@ -34,8 +34,9 @@ NAN, INF = float("nan"), float("inf")
     ("object_mass", 0, "object_mass must be > 0, got 0"),
     ("block_half_size", 0.0, "block_half_size must be > 0, got 0.0"),
     ("block_half_size", (0.02,), "block_half_size must be a finite number > 0, got"),
-    ("puck_radius", 0.03, "puck_radius does not apply: this task's object is a block "
-                          r"\(its options: object_mass, object_friction, block_half_size\)"),
+    ("puck_radius", 0.03, "puck_radius does not apply to push: its objects are blocks "
+                          r"\(its object options: object_mass, object_friction, "
+                          r"block_half_size\)"),
     ("object_range", (-0.1, 0.3), r"object_range\[0\] must be >= 0, got -0.1"),
     ("goal_max_height", -0.2, "goal_max_height must be >= 0"),
     ("goal_in_air_probability", 1.5, "goal_in_air_probability must be >= 0 and <= 1, got 1.5"),
@@ -157,3 +158,14 @@ def test_a_pickled_or_copied_env_is_a_fresh_env_with_the_same_options():
             clone.unwrapped.step(np.zeros(3, np.float32))  # No episode came along.
         np.testing.assert_array_equal(clone.reset(seed=4)[0]["observation"],
                                       env.reset(seed=4)[0]["observation"])
+
+
+def test_object_options_do_not_apply_to_reach():
+    with pytest.raises(ValueError, match="object_mass does not apply to reach: it has no "
+                                         r"object \(its object options: none\)"):
+        franka_composer.load("reach", object_mass=1.0)
+
+
+def test_an_object_option_sets_every_object():
+    config = franka_composer.load("stack", object_mass=0.2).task.config
+    assert [spec.mass for spec in config.objects] == [0.2, 0.2]

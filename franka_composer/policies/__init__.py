@@ -7,6 +7,7 @@ demonstrations: `rollout(env, make_expert(env), episodes=100).save("push.npz")`.
 from __future__ import annotations
 
 from franka_composer.policies.base import Expert
+from franka_composer.policies.flip import FlipExpert
 from franka_composer.policies.pick_and_place import PickAndPlaceExpert
 from franka_composer.policies.push import PushExpert
 from franka_composer.policies.reach import ReachExpert
@@ -22,6 +23,7 @@ EXPERTS: dict[str, type[Expert]] = {
     "pick_and_place": PickAndPlaceExpert,
     "reach": ReachExpert,
     "stack": StackExpert,
+    "flip": FlipExpert,
 }
 
 

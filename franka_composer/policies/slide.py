@@ -40,10 +40,22 @@ OVERSHOOT = 0.1
 GLIDE_GAIN = 1.69
 DEAD_KICK = 0.061
 #: Strike angle (deg, world x axis = 0) -> how far the puck glides relative to a strike
-#: along +x, and how many degrees the puck's path turns from the strike direction.
-STRIKE_ANGLES = (-70.0, -45.0, -28.0, -26.0, -10.0, 0.0, 20.0, 40.0, 50.0, 70.0)
+#: along +x.
+GLIDE_ANGLES = (-70.0, -45.0, -28.0, -26.0, -10.0, 0.0, 20.0, 40.0, 50.0, 70.0)
 GLIDE_FACTORS = (0.72, 0.75, 0.75, 0.9, 0.97, 1.0, 0.92, 0.84, 0.77, 0.72)
-PATH_TURNS = (-2.4, -6.0, -8.4, 2.0, 0.8, 0.2, 0.5, 0.5, 1.2, 1.4)
+#: Strike angle (deg) -> degrees the puck's path turns from the strike direction, in pieces
+#: (strike angles, turns) measured with 3 to 4 seeds each. The finger corner that meets the puck
+#: changes between pieces, and the turn with it: no strike sends the puck along paths between
+#: -32 and -23 degrees, or -3.6 and -0.6 (the nearest reachable path is used), and strikes at the
+#: changes themselves go either way, so the pieces stop short of them. A strike at exactly 0
+#: meets the flat front of the fingers.
+PATH_TURN_PIECES = (
+    ((-75.0, -55.0, -40.0, -28.5), (-3.5, -2.5, -3.2, -3.4)),
+    ((-26.5, -22.5, -20.0, -15.0, -10.0, -7.5, -5.0, -0.5),
+     (3.5, 3.0, 2.0, 0.9, 0.4, -0.6, -3.0, -3.1)),
+    ((0.0,), (-0.6,)),
+    ((0.5, 5.0, 20.0, 40.0, 55.0, 75.0), (0.8, 0.9, 0.7, 0.6, 0.9, 1.6)),
+)
 
 
 class SlideExpert(Expert):
@@ -68,7 +80,7 @@ class SlideExpert(Expert):
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._waiting = True
             distance = np.linalg.norm(to_goal) + OVERSHOOT
-            glide = GLIDE_GAIN * np.sqrt(np.interp(strike_angle, STRIKE_ANGLES, GLIDE_FACTORS))
+            glide = GLIDE_GAIN * np.sqrt(np.interp(strike_angle, GLIDE_ANGLES, GLIDE_FACTORS))
             return np.array([*direction * (DEAD_KICK + np.sqrt(distance) / glide), 0.0])
         if np.linalg.norm(tcp[:2] - start[:2]) < POSITION_TOLERANCE:
             return self.move_towards(tcp, start)
@@ -77,9 +89,19 @@ class SlideExpert(Expert):
         return self.move_towards(tcp, [*start[:2], TRAVEL_HEIGHT])
 
 
+def _reachable_strikes() -> tuple[np.ndarray, np.ndarray]:
+    """Strike angles sampled every 0.1 degree within each piece, and the paths they give."""
+    strikes, paths = [], []
+    for angles, turns in PATH_TURN_PIECES:
+        sampled = np.arange(angles[0], angles[-1] + 0.05, 0.1)
+        strikes.append(sampled)
+        paths.append(sampled + np.interp(sampled, angles, turns))
+    return np.concatenate(strikes), np.concatenate(paths)
+
+
+_STRIKES, _PATHS = _reachable_strikes()
+
+
 def _strike_angle(path_angle: float) -> float:
-    """The strike direction (deg) whose puck path points at `path_angle` (deg)."""
-    strike = path_angle
-    for _ in range(5):
-        strike = path_angle - np.interp(strike, STRIKE_ANGLES, PATH_TURNS)
-    return float(strike)
+    """The strike direction (deg) whose puck path comes closest to `path_angle` (deg)."""
+    return float(_STRIKES[np.argmin(np.abs(_PATHS - path_angle))])

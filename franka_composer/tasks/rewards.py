@@ -40,7 +40,8 @@ def euclidean_distance(achieved_goal, desired_goal, size: int | None = 3) -> np.
     for real arrays (the same operations in the same order, so the same bits) without its
     dispatch overhead, which is most of the time for one pair.
     """
-    achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, size, "x, y, z")
+    achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, size,
+                                         "x, y, z" if size == 3 else "coordinates")
     difference = achieved_goal - desired_goal
     return np.sqrt(np.add.reduce(difference * difference, axis=-1))
 

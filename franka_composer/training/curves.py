@@ -8,7 +8,7 @@ import pathlib
 import numpy as np
 
 from franka_composer.training.hyperparams import ALGOS
-from franka_composer.training.report import TABLE_II_TASKS, TASK_TITLES
+from franka_composer.training.report import TASK_ORDER, TASK_TITLES
 from franka_composer.training.runs import RunDir, read_eval_rows
 
 COLOURS = {"ddpg": "tab:green", "sac": "tab:blue", "tqc": "tab:red"}
@@ -43,7 +43,7 @@ def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path) -> list[tuple[s
     import matplotlib.pyplot as plt
 
     curves = seed_curves(run_dirs)
-    tasks = [t for t in TABLE_II_TASKS if any(t == task for task, _ in curves)]
+    tasks = [t for t in TASK_ORDER if any(t == task for task, _ in curves)]
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
     drawn = []
     for ax, task in zip(axes[0], tasks):

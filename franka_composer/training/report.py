@@ -7,11 +7,14 @@ import dataclasses
 
 import numpy as np
 
+from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
 
-#: Row order of the paper's Table II.
+#: Row order of the paper's Table II; the other tasks follow in the registry's order.
 TABLE_II_TASKS = ("push", "slide", "pick_and_place")
-TASK_TITLES = {"push": "Push", "slide": "Slide", "pick_and_place": "Pick & Place"}
+TASK_ORDER = TABLE_II_TASKS + tuple(t for t in ALL_TASKS if t not in TABLE_II_TASKS)
+TASK_TITLES = {task: task.replace("_and_", " & ").replace("_", " ").title()
+               for task in ALL_TASKS}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -38,7 +41,7 @@ def markdown_table(results: list[RunResult]) -> str:
     """Success rate % as mean ± std over seeds (population std, ddof=0) per task and
     algorithm; "–" where no run exists. Rows and columns in the paper's order."""
     cells = group_by_cell(results)
-    tasks = [t for t in TABLE_II_TASKS if any(t == task for task, _ in cells)]
+    tasks = [t for t in TASK_ORDER if any(t == task for task, _ in cells)]
     lines = ["| Tasks | " + " | ".join(a.upper() for a in ALGOS) + " |",
              "|---|" + "---|" * len(ALGOS)]
     for task in tasks:
