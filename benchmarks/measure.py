@@ -43,7 +43,7 @@ class Episode:
 
 class BareMujocoBaseline:
     """The env's compiled model (a copy) in a bare MuJoCo loop, driven by the env
-    controller's own action law (`MocapLaw.on` this copy). Each control step makes the
+    controller's own action law (`ActionLaw.on` this copy). Each control step makes the
     env's own MuJoCo calls (`mj_step2`, `mj_step(n - 1)`, `mj_step1`: the work of
     `mj_step(n)`, ending with positions and velocities current for the next action), so it
     simulates exactly what the env simulates."""
@@ -61,13 +61,20 @@ class BareMujocoBaseline:
         model, data, law, n_sub_steps = self.model, self.data, self._law, self._n_sub_steps
         mujoco.mj_setState(model, data, episode.state, _STATE)
         mujoco.mj_forward(model, data)
+        law.reset()  # As the env's controller does at the episode's start.
         contacts = 0
         start = time.perf_counter()
         for action in episode.actions:
             law(action)
-            mujoco.mj_step2(model, data)
-            mujoco.mj_step(model, data, nstep=n_sub_steps - 1)
-            mujoco.mj_step1(model, data)
+            if law.has_substep:  # A torque law runs before every physics step.
+                for _ in range(n_sub_steps):
+                    law.substep()
+                    mujoco.mj_step2(model, data)
+                    mujoco.mj_step1(model, data)
+            else:
+                mujoco.mj_step2(model, data)
+                mujoco.mj_step(model, data, nstep=n_sub_steps - 1)
+                mujoco.mj_step1(model, data)
             contacts += data.ncon
         return time.perf_counter() - start, contacts
 

@@ -14,6 +14,7 @@ APIs both before and after the fix have, so it measures either code on its own p
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import pathlib
 
@@ -27,7 +28,9 @@ def measure(run_root: pathlib.Path, episodes: int, seed: int) -> dict:
 
     run = RunDir(run_root)
     config = run.read_config()
-    env = make_env(config.task, terminate_on_success=config.terminate_on_success)
+    # Trees before the controllers (issue 14) have no `control`: their runs are mocap.
+    control = {"control": config.control} if hasattr(config, "control") else {}
+    env = make_env(config.task, terminate_on_success=config.terminate_on_success, **control)
     model = load_model(config.algo, run.best_model(), env=env, device="cpu",
                        backend=config.backend)
     unwrapped = env.unwrapped
@@ -40,7 +43,11 @@ def measure(run_root: pathlib.Path, episodes: int, seed: int) -> dict:
         model_ptr, data = physics.model.ptr, physics.data.ptr
         prop_body = model_ptr.geom_bodyid[physics.bind(task.prop.geom).element_id]
         robot = set(physics.bind(task.panda.mjcf_model.find_all("body")).element_id)
-        force = _hand_force_on(model_ptr, data, prop_body, robot)
+        # The step ends with mj_step1: new contacts, but no constraint solve for them yet
+        # (efc_force belongs to the previous rows). Solve on a copy, not to disturb the run.
+        solved = copy.copy(data)
+        mujoco.mj_forward(model_ptr, solved)
+        force = _hand_force_on(model_ptr, solved, prop_body, robot)
         speed = float(np.linalg.norm(_linear_velocity(model_ptr, data, prop_body)[:2]))
         seen["lowest"] = min(seen["lowest"], data.xpos[prop_body][2] - resting)
         seen["fastest"] = max(seen["fastest"], speed)

@@ -5,7 +5,9 @@ the observation updater each time. When no hook needs to run between substeps an
 observable is read once per control step with no delay, buffer or aggregator (the default),
 that loop only costs time: `FastEnvironment` then calls `physics.step(n_sub_steps)` once
 (which MuJoCo runs in C, and which honours `suppress_physics_errors()`) and reads the
-observables directly, and falls back to Composer's loop otherwise. It also:
+observables directly, and falls back to Composer's loop otherwise. A task's torque law (its
+`substep_control`, all its `before_substep` does) is called before each physics step in a
+plain loop instead. It also:
 - keeps the observation updater across resets while its make-up is unchanged (rebuilding it
   is a quarter of a reset);
 - compiles the MJCF once (Composer compiles again on the first reset, for
@@ -153,7 +155,11 @@ class FastEnvironment(GoalEnvironment):
     def _can_batch_substeps(self) -> bool:
         hooks = self._hooks
         for name in ("before_substep", "after_substep"):
-            if not composer_environment._callable_is_trivial(getattr(self._task, name)):
+            # A GoalTask's before_substep only runs its `substep_control`, which `step` calls.
+            task_runs_control_only = (name == "before_substep"
+                                      and hasattr(self._task, "substep_control"))
+            if not (task_runs_control_only or
+                    composer_environment._callable_is_trivial(getattr(self._task, name))):
                 return False
             hook = getattr(hooks, "_" + name)
             if hook.entity_hooks or hook.extra_hooks:
@@ -225,7 +231,14 @@ class FastEnvironment(GoalEnvironment):
         try:
             # Composer's loop does physics.step() n times; one call does the same MuJoCo
             # steps, raising (or, inside suppress_physics_errors(), logging) the same way.
-            physics.step(self._n_sub_steps)
+            # A torque law runs before each of them, as the task's before_substep would.
+            substep_control = getattr(self._task, "substep_control", None)
+            if substep_control is None:
+                physics.step(self._n_sub_steps)
+            else:
+                for _ in range(self._n_sub_steps):
+                    substep_control()
+                    physics.step()
             if physics.legacy_step:
                 # A binding write before the step marked the physics dirty, and the first
                 # binding read after it would run a whole mj_forward (~6 % of a step) to

@@ -1,22 +1,24 @@
 """How far down the hand may be sent: to the surface beneath it, plus a press a Panda can make.
 
-The mocap weld is a spring, so a target below a surface drives the hand into it with a force
-that grows with the depth: a full downward command puts the target 5 cm below the hand,
-which pressed objects into the floor with kilonewtons (measured before this guard: 3-135 kN).
-A real Panda cannot: its joint torque limits bound the force at the hand. So before each
-control step sets the target, rays cast straight down from the hand's lowest points (the
-bottom corners of each finger and of the palm) find the surface beneath, the floor or an
-object's top, under the hand and along the way to the target's (x, y) (halfway and at the
-end: a hand moving sideways while it descends can land on an object it is not above yet),
-and the target is kept no deeper than `press depth` below where the hand would touch it.
+The controllers that move the hand to a target do it with a spring: the mocap weld, or the
+operational-space law's Cartesian stiffness. A target below a surface drives the hand into
+it with a force that grows with the depth: a full downward command puts the target 5 cm
+below the hand, which pressed objects into the floor with kilonewtons under the weld
+(measured before this guard: 3-135 kN), and saturates every joint under torque control, so
+that nothing is left to hold the hand where it presses and it slides off. A real Panda
+presses with what its joint torques allow. So before each control step sets the target,
+rays cast straight down from the hand's lowest points (the bottom corners of each finger and
+of the palm) find the surface beneath, the floor or an object's top, under the hand and
+along the way to the target's (x, y) (halfway and at the end: a hand moving sideways while
+it descends can land on an object it is not above yet), and the target is kept no deeper
+than the press depth below where the hand would touch it.
 
-The press depth is what the weld's spring, held still by the surface, needs to push with the
-force the arm itself could push down with in its present configuration: the largest F for
-which the joint torques J_z^T F stay within the joints' limits, min_i tau_max_i / |J_z,i|
-(114-136 N over the object square, where joint 2's 87 N m is the limit). MuJoCo holds a
-weld row of regulariser R = 1 / D, impedance d and time constant tc, blocked at depth r,
-with the force r D / (d tc^2); the depth is therefore F d tc^2 / D, read from the weld's
-vertical row each step (about 1.3 mm).
+The press depth is what the controller's spring, held still by the surface, needs to push
+with the force the arm itself could push down with in its present configuration: the
+largest F for which the joint torques J_z^T F stay within the joints' limits, min_i
+tau_max_i / |J_z,i| (114-136 N over the object square, where joint 2's 87 N m is the limit),
+over the spring's vertical stiffness, which the controller supplies (`guard(tcp, target,
+stiffness)`: about 1.3 mm for the weld, 8 mm for the operational-space law).
 """
 
 from __future__ import annotations
@@ -32,9 +34,12 @@ RAY_START_ABOVE = 0.03
 #: A hit counts as a surface beneath the hand only this far (m) above its lowest points, at
 #: most: a press sinks the fingertips ~0.1 mm. Higher hits are of objects held between the
 #: fingers or beside them (a finger's footprint overlaps the block it holds), not beneath.
-BENEATH_TOLERANCE = 0.002
+BENEATH_TOLERANCE = 0.006
 #: Fractions of the step's sideways motion at which the footprint is probed as well.
 PATH_FRACTIONS = (0.5, 1.0)
+#: Objects whose top is more than this (m) below the palm are not checked against it: the
+#: hand moves at most 5 cm a step.
+PALM_REACH = 0.06
 #: Sideways motion (m) below which only the footprint under the hand is probed.
 MIN_SIDEWAYS = 0.002
 #: A body's footprint is the extent of its collision vertices within this height of its
@@ -45,7 +50,6 @@ FOOTPRINT_BAND = 0.002
 VISIBLE_GROUPS = np.array([1, 1, 0, 0, 1, 1], dtype=np.uint8)
 _ROBOT_GROUPS = (2, 3)
 _DOWN = np.array([0.0, 0.0, -1.0])
-_EQUALITY = mujoco.mjtConstraint.mjCNSTR_EQUALITY
 
 
 class SurfaceGuard:
@@ -55,10 +59,8 @@ class SurfaceGuard:
     runs each control step, reading the data it was bound to.
     """
 
-    def __init__(self, panda, weld, weld_timeconst: float, weld_impedance: float) -> None:
-        self._panda, self._weld = panda, weld
-        # s^2: press depth = force x this / the weld row's D (see the module docstring).
-        self._weld_compliance = weld_impedance * weld_timeconst ** 2
+    def __init__(self, panda) -> None:
+        self._panda = panda
         self._torque_limits = np.asarray(panda.arm_torque_limits, dtype=np.float64)
 
     def bind(self, physics) -> "BoundSurfaceGuard":
@@ -73,32 +75,37 @@ class SurfaceGuard:
         return BoundSurfaceGuard(
             model, physics.data.ptr, bodies, _footprints(model, physics.data.ptr, bodies),
             tcp_site=int(physics.bind(self._panda.tcp_site).element_id),
-            weld=int(physics.bind(self._weld).element_id),
             arm_dofs=np.array(physics.bind(self._panda.joints).dofadr),
-            torque_limits=self._torque_limits, weld_compliance=self._weld_compliance)
+            torque_limits=self._torque_limits)
 
 
 class BoundSurfaceGuard:
     """A `SurfaceGuard` reading one MjData (valid while that data lives)."""
 
-    def __init__(self, model, data, bodies, footprints, *, tcp_site, weld, arm_dofs,
-                 torque_limits, weld_compliance) -> None:
+    def __init__(self, model, data, bodies, footprints, *, tcp_site, arm_dofs,
+                 torque_limits) -> None:
         self._model, self._data = model, data
         self._bodies, self._footprints = bodies, footprints
-        self._tcp_site, self._weld, self._arm_dofs = tcp_site, weld, arm_dofs
-        self._torque_limits, self._weld_compliance = torque_limits, weld_compliance
+        self._tcp_site, self._arm_dofs = tcp_site, arm_dofs
+        self._torque_limits = torque_limits
         visible = VISIBLE_GROUPS[model.geom_group].astype(bool)
         self._surfaces = np.flatnonzero(visible)  # What the rays can hit.
+        # The objects: visible colliding geoms of bodies other than the world's (the floor).
+        self._objects = np.array([
+            geom for geom in self._surfaces
+            if model.geom_bodyid[geom] != 0
+            and (model.geom_contype[geom] or model.geom_conaffinity[geom])], dtype=int)
+        self._palm, self._fingers = int(bodies[0]), {int(b) for b in bodies[1:]}
+        corners = footprints[0]
+        self._palm_low, self._palm_high = corners.min(axis=0)[:2], corners.max(axis=0)[:2]
         self._geom = np.zeros(1, np.int32)
         self._jacp = np.zeros((3, model.nv))
 
     def on(self, model, data) -> "BoundSurfaceGuard":
         """The same guard reading another MjData of the same model."""
         return BoundSurfaceGuard(model, data, self._bodies, self._footprints,
-                                 tcp_site=self._tcp_site, weld=self._weld,
-                                 arm_dofs=self._arm_dofs,
-                                 torque_limits=self._torque_limits,
-                                 weld_compliance=self._weld_compliance)
+                                 tcp_site=self._tcp_site, arm_dofs=self._arm_dofs,
+                                 torque_limits=self._torque_limits)
 
     def footprint(self) -> np.ndarray:
         """The hand's lowest points, world frame, shape (n, 3)."""
@@ -120,12 +127,58 @@ class BoundSurfaceGuard:
         footprint, if already computed."""
         points = self.footprint() if points is None else points
         lowest = self._lowest_hit(points, RAY_START_ABOVE)
+        fractions = (0.0,)
         if np.hypot(*sideways) > MIN_SIDEWAYS:
+            fractions += PATH_FRACTIONS
             for fraction in PATH_FRACTIONS:
                 shifted = points.copy()
                 shifted[:, :2] += fraction * np.asarray(sideways)
                 lowest = min(lowest, self._lowest_hit(shifted, 0.0))
+        return min(lowest, self._palm_clearance(np.asarray(sideways), fractions))
+
+    def _palm_clearance(self, sideways: np.ndarray, fractions) -> float:
+        """How far the palm's underside can move down before it meets the top of an object
+        under it (now and at `fractions` of the way `sideways`), the objects held between
+        the fingers excepted. The palm is 20 cm wide: a 6 cm puck fits between the corners
+        the rays start from, and a hand lowered beside it would press it under the palm."""
+        model, data = self._model, self._data
+        if not len(self._objects):
+            return np.inf
+        rotation, origin = data.xmat[self._palm].reshape(3, 3), data.xpos[self._palm]
+        bottom = self.footprint()[:4, 2].min()  # The palm's corners come first.
+        held = None
+        lowest = np.inf
+        for geom in self._objects:
+            top, radius = _top_and_radius(model, data, geom)
+            if bottom - top > min(lowest, PALM_REACH):
+                continue
+            if held is None:
+                held = self._held_bodies()
+            if model.geom_bodyid[geom] in held:
+                continue
+            for fraction in fractions:
+                # The object's centre in the palm's frame, the palm moved `fraction` of the way.
+                offset = data.geom_xpos[geom] - origin
+                offset[:2] -= fraction * sideways
+                local = offset @ rotation
+                if np.all(local[:2] >= self._palm_low - radius) and np.all(
+                        local[:2] <= self._palm_high + radius):
+                    lowest = min(lowest, bottom - top)
+                    break
         return lowest
+
+    def _held_bodies(self) -> set:
+        """Bodies both fingers touch: held between them, not beneath the hand."""
+        model, data = self._model, self._data
+        touching: dict[int, set] = {}
+        for index in range(data.ncon):
+            contact = data.contact[index]
+            first = int(model.geom_bodyid[contact.geom1])
+            second = int(model.geom_bodyid[contact.geom2])
+            for finger, other in ((first, second), (second, first)):
+                if finger in self._fingers:
+                    touching.setdefault(other, set()).add(finger)
+        return {body for body, fingers in touching.items() if fingers == self._fingers}
 
     def _lowest_hit(self, points: np.ndarray, start_above: float) -> float:
         """The smallest clearance below `points` of a surface at or under them."""
@@ -146,36 +199,51 @@ class BoundSurfaceGuard:
         lever = np.abs(self._jacp[2, self._arm_dofs])
         return float(np.min(self._torque_limits / np.maximum(lever, 1e-9)))
 
-    def press_stiffness(self) -> float:
-        """Newtons per metre the weld pushes with when held still below its target: D / (d
-        tc^2) of its vertical row (equality rows come first in MuJoCo's constraint arrays;
-        a weld's first three rows are x, y, z)."""
-        data = self._data
-        rows = np.flatnonzero((data.efc_type[:data.ne] == _EQUALITY)
-                              & (data.efc_id[:data.ne] == self._weld))
-        return float(data.efc_D[rows[2]]) / self._weld_compliance
+    def press_depth(self, stiffness: float) -> float:
+        """How deep (m) below the touching height the target may go for a spring of
+        `stiffness` (N/m) to push with at most `max_push_force`."""
+        return self.max_push_force() / stiffness
 
-    def press_depth(self) -> float:
-        """How deep (m) below the touching height the target may go: the weld then pushes
-        with at most `max_push_force`."""
-        return self.max_push_force() / self.press_stiffness()
-
-    def guard(self, tcp: np.ndarray, target: np.ndarray) -> float:
+    def guard(self, tcp: np.ndarray, target: np.ndarray, stiffness: float) -> float:
         """The height for a target `target` (m, world) of the tool centre point now at
-        `tcp`: `target[2]`, raised where it would send the hand into a surface beneath it
-        deeper than the press depth."""
+        `tcp`, pulled by a spring of vertical `stiffness` (N/m): `target[2]`, raised where
+        it would send the hand into a surface beneath it deeper than the press depth."""
         descent = tcp[2] - target[2]
+        sideways = target[:2] - tcp[:2]
         if descent <= 0.0:
-            return target[2]  # Not going down: nothing to press into.
-        surfaces = self._surfaces
-        highest = np.max(self._data.geom_xpos[surfaces, 2] + self._model.geom_rbound[surfaces])
-        points = self.footprint()
-        if points[:, 2].min() - descent > highest:
-            return target[2]  # Nothing within reach below: no rays needed.
-        touching = tcp[2] - self.clearance(target[:2] - tcp[:2], points)
+            # Not going down: only the palm can press on something, carried sideways over
+            # an object whose top is above the palm's underside.
+            fractions = (0.0, *PATH_FRACTIONS) if np.hypot(*sideways) > MIN_SIDEWAYS else (0.0,)
+            touching = tcp[2] - self._palm_clearance(sideways, fractions)
+        else:
+            surfaces = self._surfaces
+            highest = np.max(self._data.geom_xpos[surfaces, 2]
+                             + self._model.geom_rbound[surfaces])
+            points = self.footprint()
+            if points[:, 2].min() - descent > highest:
+                return target[2]  # Nothing within reach below: no rays needed.
+            touching = tcp[2] - self.clearance(sideways, points)
         if target[2] >= touching:
             return target[2]
-        return max(target[2], touching - self.press_depth())
+        return max(target[2], touching - self.press_depth(stiffness))
+
+
+def _top_and_radius(model, data, geom: int) -> tuple[float, float]:
+    """A geom's highest point (m, world z) and the radius (m) of a circle about its centre
+    that covers most of its horizontal footprint."""
+    size, rotation = model.geom_size[geom], data.geom_xmat[geom].reshape(3, 3)
+    kind = model.geom_type[geom]
+    if kind == mujoco.mjtGeom.mjGEOM_BOX:
+        half_height = np.abs(rotation[2]) @ size
+        radius = max(np.abs(rotation[0]) @ size, np.abs(rotation[1]) @ size)
+    elif kind == mujoco.mjtGeom.mjGEOM_CYLINDER:
+        upright = abs(rotation[2, 2])  # |cos| of the axis's tilt.
+        tilted = np.sqrt(max(0.0, 1.0 - upright ** 2))
+        half_height = upright * size[1] + tilted * size[0]
+        radius = size[0] + tilted * size[1]
+    else:
+        half_height = radius = model.geom_rbound[geom]
+    return float(data.geom_xpos[geom, 2] + half_height), float(radius)
 
 
 def _footprints(model, data, bodies) -> np.ndarray:

@@ -74,17 +74,18 @@ def test_bench_rejects_an_unknown_task_naming_the_valid_ones(capsys):
     assert "pick_and_place" in capsys.readouterr().err
 
 
-def test_the_baseline_follows_the_env_trajectory_bit_for_bit():
+@pytest.mark.parametrize("control", ["mocap", "osc", "joints"])
+def test_the_baseline_follows_the_env_trajectory_bit_for_bit(control):
     """Same model, start state, actions, action law and MuJoCo calls: the baseline ends
     exactly where the env ends (one code path, one machine)."""
     measure = _measure_module()
-    env = gym.make("FrankaPickAndPlaceSparse-v0")
+    env = gym.make("FrankaPickAndPlaceSparse-v0", control=control)
     env.reset(seed=1)
     physics = env.unwrapped.composer_env.physics
     episode = measure.Episode(measure._snapshot(physics.model.ptr, physics.data.ptr))
     rng = np.random.default_rng(0)
     for _ in range(20):
-        action = rng.uniform(-1, 1, 4)
+        action = rng.uniform(-1, 1, env.action_space.shape)
         env.step(action.astype(np.float32))
         episode.actions.append(action.astype(np.float32).astype(np.float64))
     baseline = measure.BareMujocoBaseline(env)

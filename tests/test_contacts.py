@@ -1,8 +1,10 @@
 """Contact fidelity: the hand cannot press objects into the floor or launch them, its
 fingertips stay on the floor's surface, and the force it delivers is bounded like a real
-Panda's (contacts.py, surface_guard.py)."""
+Panda's (contacts.py, surface_guard.py), under the mocap weld and under torque control."""
 
 from __future__ import annotations
+
+import functools
 
 import mujoco
 import numpy as np
@@ -45,21 +47,33 @@ def _closed(env):
     return -1.0 if env.action_spec().shape[0] == 4 else None
 
 
+@functools.lru_cache
+def _fingertip_reach() -> float:
+    """How far (m) the closed fingertips reach below the tool centre point (the geometry the
+    mocap controller's surface guard measures; the same hand under every controller)."""
+    env = franka_composer.load("push", seed=0)
+    env.reset()
+    return env.task.controller.law.guard.reach_below_tcp()
+
+
 def _hover_over_object(env, height):
     """Puts the closed hand's fingertips `height` (m) above the object's top, centred on
     it to 1 mm; returns the timestep."""
     timestep = env.reset()
     start = timestep.observation[f"{env.task.prop.mjcf_model.model}/position"].copy()
     top = start[2] + env.task.prop.resting_height
-    fingertips = env.task.controller.law.guard.reach_below_tcp()
+    fingertips = _fingertip_reach()
     return move_tcp_to(env, timestep, [start[0], start[1], top + fingertips + height],
                        gripper=_closed(env), max_steps=60, tolerance=0.001)
 
 
+@pytest.mark.parametrize("control", ["mocap", "osc"])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(object_task_name, seed):
+def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(object_task_name, seed,
+                                                                  control):
     """Issue 11's press: full -z with x, y following the object for 80 steps."""
-    env = franka_composer.load(object_task_name, seed=seed, terminate_on_success=False)
+    env = franka_composer.load(object_task_name, seed=seed, terminate_on_success=False,
+                               control=control)
     timestep = _hover_over_object(env, height=0.03)
     name = env.task.prop.mjcf_model.model
     key, velocity_key = f"{name}/position", f"{name}/linear_velocity"
@@ -103,9 +117,9 @@ def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_i
     assert np.linalg.norm(timestep.observation[key][:2] - start[:2]) < 0.005
 
 
-def _press_bare_floor(x, y, steps=40):
+def _press_bare_floor(x, y, steps=40, control="mocap"):
     env = franka_composer.load("push", seed=0, terminate_on_success=False,
-                               object_range=(0, 0), object_centre=(0.3, 0.45))
+                               object_range=(0, 0), object_centre=(0.3, 0.45), control=control)
     timestep = env.reset()
     timestep = move_tcp_to(env, timestep, [x, y, 0.05], max_steps=60)
     deepest, forces = 0.0, []
@@ -118,8 +132,9 @@ def _press_bare_floor(x, y, steps=40):
     return env, deepest, forces
 
 
-def test_fingertips_pressing_the_bare_floor_stay_within_two_millimetres_of_it():
-    env, deepest, forces = _press_bare_floor(0.6, 0.0)
+@pytest.mark.parametrize("control", ["mocap", "osc"])
+def test_fingertips_pressing_the_bare_floor_stay_within_two_millimetres_of_it(control):
+    env, deepest, forces = _press_bare_floor(0.6, 0.0, control=control)
     assert forces[-1] > 0  # Pressing, not hovering.
     assert deepest < 0.002  # Measured 0.03 mm (before: 6-7 mm).
 

@@ -44,15 +44,20 @@ def test_every_id_is_documented_by_its_class_page():
 
     import franka_composer
 
-    for id_, (task, _) in franka_composer.ENV_IDS.items():
+    for id_, registered in franka_composer.ENV_IDS.items():
         env = gym.make(id_)
         page = type(env.unwrapped).__doc__
-        assert id_ in page and f'franka_composer.load("{task}")' in page
-        assert env.unwrapped.observation_layout.markdown_table() in page.replace("\n    ", "\n")
+        assert id_ in page and f'franka_composer.load("{registered.task}")' in page
+        # The page's table is the default controller's; joint control appends one field.
+        table = env.unwrapped.observation_layout.markdown_table().splitlines()
+        if registered.control == "joints":
+            assert table.pop().startswith("| ") and "joint angles" in page
+        assert "\n".join(table) in page.replace("\n    ", "\n")
         for section in ("Action space", "Observation space", "Rewards", "Starting state",
                         "Episode end", "Arguments", "Version history"):
             assert f"\n{section}\n" in page, (id_, section)
         for name, value in env.unwrapped.task.config.options.items():
-            if name != "reward_type":
+            if name not in ("reward_type", "control"):
                 assert f"{name} = {value!r}" in page, (id_, name)
+        assert "control = 'mocap'" in page
         env.close()

@@ -34,23 +34,29 @@ def _random_rollout(env, seed: int, steps: int):
     return obs, records
 
 
-def test_every_task_is_registered_with_its_episode_length():
-    assert set(ALL_IDS) == {f"Franka{t}{r}-v0" for t in ("Push", "Slide", "PickAndPlace",
-                                                          "Reach", "Stack", "Flip")
-                            for r in ("Sparse", "Dense")}
-    for id_, (task, _) in franka_composer.ENV_IDS.items():
-        assert gym.spec(id_).max_episode_steps == SPEC[task]["steps"]
+def test_every_task_is_registered_under_every_controller_with_its_episode_length():
+    assert set(ALL_IDS) == {f"Franka{t}{c}{r}-v0" for t in ("Push", "Slide", "PickAndPlace",
+                                                             "Reach", "Stack", "Flip")
+                            for c in ("", "Osc", "Joints") for r in ("Sparse", "Dense")}
+    for id_, registered in franka_composer.ENV_IDS.items():
+        assert gym.spec(id_).max_episode_steps == SPEC[registered.task]["steps"]
+        env = gym.make(id_)
+        assert env.unwrapped.task.config.control.kind == registered.control
     assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
+    assert env_id("stack", "sparse", "osc") == "FrankaStackOscSparse-v0"
 
 
 def test_spaces_match_the_spec(env_name):
     env = gym.make(env_name)
-    spec = SPEC[franka_composer.ENV_IDS[env_name][0]]
-    assert env.observation_space["observation"].shape == (spec["observation"],)
+    registered = franka_composer.ENV_IDS[env_name]
+    spec = SPEC[registered.task]
+    # Joint control: 7 joint-angle deltas instead of dx, dy, dz, and the 7 angles observed.
+    joints = 4 if registered.control == "joints" else 0
+    assert env.observation_space["observation"].shape == (spec["observation"] + 7 * bool(joints),)
     assert env.observation_space["achieved_goal"].shape == (spec["goal"],)
     assert env.observation_space["desired_goal"].shape == (spec["goal"],)
     assert {s.dtype for s in env.observation_space.spaces.values()} == {np.dtype(np.float64)}
-    assert env.action_space == gym.spaces.Box(-1, 1, (spec["action"],), np.float32)
+    assert env.action_space == gym.spaces.Box(-1, 1, (spec["action"] + joints,), np.float32)
     obs, info = env.reset(seed=0)
     assert env.observation_space.contains(obs)
     assert isinstance(info["is_success"], bool)
@@ -66,7 +72,7 @@ def test_gymnasium_and_sb3_env_checkers_pass(env_name):
 
 
 def test_step_reward_equals_compute_reward_and_success_matches_distance(env_name):
-    task = franka_composer.ENV_IDS[env_name][0]
+    task = franka_composer.ENV_IDS[env_name].task
     env = gym.make(env_name, terminate_on_success=False)
     unwrapped = env.unwrapped
     _, records = _random_rollout(env, seed=1, steps=SPEC[task]["steps"] + 10)
@@ -85,7 +91,7 @@ def test_step_reward_equals_compute_reward_and_success_matches_distance(env_name
 
 
 def test_batched_compute_reward_equals_per_pair_values(env_name):
-    task = franka_composer.ENV_IDS[env_name][0]
+    task = franka_composer.ENV_IDS[env_name].task
     env = gym.make(env_name).unwrapped
     achieved, desired = near_goal_pairs(task, np.random.default_rng(0), 1000)
     size = SPEC[task]["goal"]
@@ -148,8 +154,9 @@ def test_pickled_env_rebuilds_into_an_equivalent_env(env_name):
     assert clone.unwrapped.task.terminate_on_success is False
 
 
-def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name):
-    id_ = env_id(task_name, "sparse")
+@pytest.mark.parametrize("control", ["mocap", "osc", "joints"])
+def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name, control):
+    id_ = env_id(task_name, "sparse", control)
     env = gym.make(id_, render_mode="rgb_array", width=320, height=240)
     env.reset(seed=0)
     frame = env.render()
@@ -192,11 +199,12 @@ def test_step_before_reset_raises_gymnasiums_error():
 
 
 @pytest.mark.slow
-def test_async_vector_env_with_two_workers_steps():
-    envs = gym.vector.AsyncVectorEnv([lambda: gym.make("FrankaPushSparse-v0")] * 2)
+@pytest.mark.parametrize("control, size", [("mocap", 18), ("osc", 18), ("joints", 25)])
+def test_async_vector_env_with_two_workers_steps(control, size):
+    envs = gym.vector.AsyncVectorEnv([lambda: gym.make(env_id("push", "sparse", control))] * 2)
     try:
         obs, _ = envs.reset(seed=[0, 1])
-        assert obs["observation"].shape == (2, 18)
+        assert obs["observation"].shape == (2, size)
         assert not np.array_equal(obs["desired_goal"][0], obs["desired_goal"][1])
         for _ in range(5):
             obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())

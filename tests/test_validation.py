@@ -92,6 +92,21 @@ def test_bad_make_arguments_are_refused_at_construction(options, message):
         gym.make("FrankaPushSparse-v0", **options).unwrapped
 
 
+def test_an_id_that_names_a_controller_keeps_it_and_a_plain_id_takes_any():
+    with pytest.raises(ValueError, match="FrankaPushOscSparse-v0 is the sparse push task, "
+                                         "under osc control: its task, reward_type and "
+                                         "control cannot be changed; use "
+                                         "'FrankaPushJointsSparse-v0'"):
+        gym.make("FrankaPushOscSparse-v0", control="joints")
+    with pytest.raises(ValueError, match="unknown control 'torque'; valid controls: mocap, "
+                                         "osc, joints"):
+        gym.make("FrankaPushSparse-v0", control="torque")
+    assert gym.make("FrankaPushSparse-v0", control="osc").unwrapped.task.config.control.kind \
+        == "osc"
+    assert gym.make("FrankaPushOscSparse-v0", control="osc").unwrapped.task.config.control \
+        .kind == "osc"
+
+
 def test_human_rendering_without_a_display_raises_instead_of_aborting(monkeypatch):
     """GLFW aborts the whole process without a display; the env refuses first."""
     monkeypatch.delenv("DISPLAY", raising=False)

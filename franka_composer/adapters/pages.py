@@ -19,7 +19,8 @@ WIDTH = 88
 VERSION_HISTORY = (
     "v0: this implementation of the paper's tasks on the Menagerie Panda, with contacts "
     "that hold when the hand presses (objects cannot be pressed into the floor or "
-    "launched) and seeds of any size through np.random.SeedSequence.",
+    "launched), seeds of any size through np.random.SeedSequence, and three controllers "
+    "(mocap, osc, joints).",
 )
 
 
@@ -36,11 +37,20 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
                if name != "reward_type"]  # The id fixes it.
     sections = [
         ("Action space", [
-            f"Box(-1, 1, ({control.action_size},), float32). The first three components move "
-            f"the tool centre point's target by up to {control.max_tcp_step:g} m per step "
-            "along x, y, z: a mocap weld drags the hand there, held top-down, and the target "
-            "never runs into the surface beneath the hand beyond a press the arm's joint "
-            f"torques allow. {gripper}"]),
+            "Box(-1, 1, (n,), float32), by controller (the control option; the ids with Osc "
+            "or Joints in their names fix it). "
+            f"mocap (the default, n = {3 + int(control.actuated_gripper)}): the first three "
+            f"components move the tool centre point's target by up to "
+            f"{control.max_tcp_step:g} m per step along x, y, z; a mocap weld drags the hand "
+            "there, held top-down, and the target never runs into the surface beneath the "
+            "hand beyond a press the arm's joint torques allow. "
+            f"osc (n = {3 + int(control.actuated_gripper)}): the same target; joint torques "
+            "within the real Panda's limits (87 N m on joints 1-4, 12 N m on 5-7) from an "
+            "operational-space law move the hand towards it, held top-down. "
+            f"joints (n = {7 + int(control.actuated_gripper)}): the first seven components "
+            f"move each arm joint's servo target by up to {control.max_joint_step:g} rad from "
+            "its present angle, and the observation ends with the seven joint angles "
+            f"(rad). {gripper}"]),
         ("Observation space", [
             f"Dict(observation=Box({layout.size},), achieved_goal=Box({_goal_size(config)},), "
             f"desired_goal=Box({_goal_size(config)},)), float64. {goals} `observation`, "

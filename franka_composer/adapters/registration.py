@@ -1,17 +1,23 @@
-"""Registers the Gymnasium ids, generated from the task registry: one loop, no list.
+"""Registers the Gymnasium ids, generated from the task and controller registries: one
+loop, no list.
 
-`Franka{Task}{Sparse,Dense}-v0` for every task (the paper's three are the reference
-implementation's ids, so users of `panda_mujoco_gym` switch by changing one import). Each
-task has its own class, `Franka{Task}Env`, whose docstring is the task's documentation page
-(`pages.page`: spaces, observation table, rewards, episode rules, version history).
+`Franka{Task}{Sparse,Dense}-v0` for every task under the default (mocap) controller (the
+paper's three are the reference implementation's ids, so users of `panda_mujoco_gym` switch
+by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v0` under the others,
+panda-gym's naming. Each task has its own class, `Franka{Task}Env`, whose docstring is the
+task's documentation page (`pages.page`: spaces, observation table, rewards, episode rules,
+version history).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import gymnasium as gym
 
 from franka_composer.adapters.goal_env import FrankaGoalEnv
 from franka_composer.adapters.pages import page
+from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.rewards import REWARD_TYPES
 
@@ -22,21 +28,31 @@ def _camel(task: str) -> str:
     return "".join(part.capitalize() for part in task.split("_"))
 
 
-def env_id(task: str, reward_type: str, version: int = 0) -> str:
-    """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`."""
-    return f"Franka{_camel(task)}{reward_type.capitalize()}-v{version}"
+def env_id(task: str, reward_type: str, control: str = "mocap", version: int = 0) -> str:
+    """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`; with `osc` ->
+    `FrankaPickAndPlaceOscDense-v0`."""
+    controller = "" if control == "mocap" else control.capitalize()
+    return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
 
-#: Every registered id, mapped to its (task, reward type).
-ENV_IDS: dict[str, tuple[str, str]] = {
-    env_id(task, reward_type): (task, reward_type)
-    for task in ALL_TASKS for reward_type in REWARD_TYPES
+class RegisteredEnv(NamedTuple):
+    """What an id fixes."""
+
+    task: str
+    reward_type: str
+    control: str
+
+
+#: Every registered id, mapped to what it fixes.
+ENV_IDS: dict[str, RegisteredEnv] = {
+    env_id(task, reward_type, control): RegisteredEnv(task, reward_type, control)
+    for task in ALL_TASKS for control in CONTROLS for reward_type in REWARD_TYPES
 }
 
 
 def _task_class(task: str) -> type:
     """`Franka{Task}Env`: the task's Gymnasium env, documented by its page."""
-    ids = tuple(id_ for id_, (name, _) in ENV_IDS.items() if name == task)
+    ids = tuple(id_ for id_, registered in ENV_IDS.items() if registered.task == task)
 
     def __init__(self, task: str = task, reward_type: str = "sparse", *args, **options):
         FrankaGoalEnv.__init__(self, task, reward_type, *args, **options)
@@ -52,25 +68,34 @@ TASK_ENV_CLASSES: dict[str, type] = {task: _task_class(task) for task in ALL_TAS
 globals().update({cls.__name__: cls for cls in TASK_ENV_CLASSES.values()})
 
 
-def make_registered(registered_id: str, task: str, reward_type: str,
+def make_registered(registered_id: str, task: str, reward_type: str, control: str = "mocap",
                     **options) -> FrankaGoalEnv:
     """What `gym.make(id, **options)` builds. The id fixes the task and the reward type
-    (its spec's kwargs); a `task` or `reward_type` passed to `gym.make` that differs is an
-    error naming the id to use instead."""
-    fixed_task, fixed_reward_type = ENV_IDS[registered_id]
-    if (task, reward_type) != (fixed_task, fixed_reward_type):
-        wanted = env_id(task, reward_type) if (task, reward_type) in ENV_IDS.values() else None
+    (its spec's kwargs), and the controller where its name gives one (`...Osc...`,
+    `...Joints...`); the plain ids take any `control` option. A fixed value passed to
+    `gym.make` that differs is an error naming the id to use instead."""
+    fixed = ENV_IDS[registered_id]
+    asked = RegisteredEnv(task, reward_type, control)
+    if (asked.task, asked.reward_type) != (fixed.task, fixed.reward_type) or (
+            fixed.control != "mocap" and asked.control != fixed.control):
+        wanted = (env_id(*asked) if asked.task in ALL_TASKS and asked.reward_type in
+                  REWARD_TYPES and asked.control in CONTROLS else None)
+        controlled = "" if fixed.control == "mocap" else f", under {fixed.control} control"
         raise ValueError(
-            f"{registered_id} is the {fixed_reward_type} {fixed_task} task: its task and "
-            f"reward_type cannot be changed" + (f"; use {wanted!r}" if wanted else ""))
-    return TASK_ENV_CLASSES[task](task, reward_type, **options)
+            f"{registered_id} is the {fixed.reward_type} {fixed.task} task{controlled}: its "
+            + ("task, reward_type and control" if controlled else "task and reward_type")
+            + " cannot be changed"
+            + (f"; use {wanted!r}" if wanted else ""))
+    return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
 
 def register_envs() -> None:
     """Registers every id once (re-importing is harmless)."""
-    for id_, (task, reward_type) in ENV_IDS.items():
+    for id_, registered in ENV_IDS.items():
         if id_ not in gym.registry:
-            gym.register(id=id_, entry_point=ENTRY_POINT,
-                         kwargs={"registered_id": id_, "task": task,
-                                 "reward_type": reward_type},
-                         max_episode_steps=TASK_CONFIGS[task].max_episode_steps)
+            kwargs = {"registered_id": id_, "task": registered.task,
+                      "reward_type": registered.reward_type}
+            if registered.control != "mocap":
+                kwargs["control"] = registered.control
+            gym.register(id=id_, entry_point=ENTRY_POINT, kwargs=kwargs,
+                         max_episode_steps=TASK_CONFIGS[registered.task].max_episode_steps)

@@ -17,6 +17,7 @@ import gymnasium as gym
 
 from franka_composer.adapters.registration import env_id
 from franka_composer.cli.options import positive_int
+from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 
 
@@ -27,15 +28,17 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--tasks", nargs="+", default=list(ALL_TASKS), choices=ALL_TASKS,
                         metavar="TASK", help=f"tasks to time (default: all of "
                                              f"{', '.join(ALL_TASKS)})")
+    parser.add_argument("--control", choices=CONTROLS, default="mocap",
+                        help="controller to time (default: mocap)")
     parser.add_argument("--steps", type=positive_int, default=2000,
                         help="env steps timed per task, after 100 warm-up steps "
                              "(default: 2000)")
     parser.set_defaults(func=run)
 
 
-def measure(task: str, steps: int) -> dict:
+def measure(task: str, steps: int, control: str = "mocap") -> dict:
     """Steps/s under random actions (resets included) and the median reset (ms)."""
-    env = gym.make(env_id(task, "sparse"))
+    env = gym.make(env_id(task, "sparse", control))
     env.action_space.seed(0)
     env.reset(seed=0)
     actions = [env.action_space.sample() for _ in range(steps + 100)]
@@ -57,9 +60,10 @@ def measure(task: str, steps: int) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    print(f"{args.control} control")
     print("| task | env steps/s (random actions, resets included) | reset ms |")
     print("|---|---|---|")
     for task in args.tasks:
-        result = measure(task, args.steps)
+        result = measure(task, args.steps, args.control)
         print(f"| {task} | {result['steps_per_s']:.0f} | {result['reset_ms']:.2f} |")
     return 0

@@ -33,6 +33,9 @@ def add_parser(subparsers) -> None:
                              f"{','.join(franka_composer.ALL_TASKS)})")
     parser.add_argument("--episodes", type=positive_int, default=10,
                         help="episodes per task (default: 10)")
+    parser.add_argument("--control", choices=("mocap", "osc"), default="mocap",
+                        help="controller the experts act through (they act on dx, dy, dz, "
+                             "so not joints; default: mocap)")
     parser.add_argument("--seed", type=int, default=0,
                         help="episode i of each task is reset with seed + i (default: 0)")
     parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path(DEFAULT_OUT),
@@ -68,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_task(task: str, args: argparse.Namespace, on_episode_end) -> tuple:
     """Runs the expert on `task`; writes its video and first frame; returns a table row."""
     render_mode = None if args.no_video else "rgb_array"
-    env = gym.make(env_id(task, "sparse"), render_mode=render_mode,
+    env = gym.make(env_id(task, "sparse", args.control), render_mode=render_mode,
                    width=args.width, height=args.height)
     frames: list = []
 

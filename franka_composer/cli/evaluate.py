@@ -40,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
     for root in args.runs:
         run_dir = RunDir(root)
         config = run_dir.read_config()
-        env = make_env(config.task, terminate_on_success=config.terminate_on_success)
+        env = make_env(config.task, terminate_on_success=config.terminate_on_success,
+                       control=config.control)
         try:
             model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device,
                                backend=config.backend)
@@ -50,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
         result = RunResult(str(root), config.task, config.algo, config.seed,
                            int(model.num_timesteps), outcome.success_rate)
         results.append(result)
-        print(f"{root}: {config.task} {config.algo} seed {config.seed}, {result.steps} steps: "
+        print(f"{root}: {config.task} ({config.control} control) {config.algo} seed "
+              f"{config.seed}, {result.steps} steps: "
               f"success {100 * outcome.success_rate:.1f} % over {args.episodes} episodes")
     table = markdown_table(results)
     notes = seeds_note(results)

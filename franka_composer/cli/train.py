@@ -8,6 +8,7 @@ import os
 import pathlib
 
 from franka_composer.cli.options import positive_int
+from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
@@ -43,6 +44,8 @@ def add_parser(subparsers) -> None:
                     "checkpoints and the final model.zip to the run directory.")
     parser.add_argument("--task", choices=ALL_TASKS, default="push", help="task to learn")
     parser.add_argument("--algo", choices=ALGOS, default="tqc", help="learning algorithm")
+    parser.add_argument("--control", choices=CONTROLS, default="mocap",
+                        help="how actions move the arm (default: mocap, the paper's)")
     parser.add_argument("--backend", choices=BACKENDS, default="sb3",
                         help="'sb3' (default, the paper's): Stable-Baselines3 on PyTorch; "
                              "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
@@ -144,7 +147,8 @@ def run(args: argparse.Namespace) -> int:
             eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
             stop_after_evaluations=args.stop_after)
         run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
-                                            args.terminate_on_success, args.backend))
+                                            args.terminate_on_success, args.backend,
+                                            args.control))
     try:
         with _limit_threads(args.threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,

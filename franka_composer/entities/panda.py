@@ -1,11 +1,10 @@
 """The Franka Emika Panda (arm and parallel gripper) from MuJoCo Menagerie.
 
 Menagerie's `panda.xml` is loaded as it is and changed here, in code, for what the tasks
-need: the keyframe goes (it breaks once props add free joints), the arm's position servos go
-(a mocap weld moves the hand, and servos would fight it), gravity is compensated in the
-links (so the weld only has to move the arm, not hold it up), a tool-centre-point site is
-added between the fingertips, the gripper servo takes a finger width in metres, and only the
-hand and fingers collide, with the objects and the floor.
+need: the keyframe goes (it breaks once props add free joints), the arm is actuated as its
+controller needs (`ARM_ACTUATIONS`), a tool-centre-point site is added between the
+fingertips, the gripper servo takes a finger width in metres, and only the hand and fingers
+collide, with the objects and the floor.
 """
 
 from __future__ import annotations
@@ -17,6 +16,7 @@ from dm_control.composer.observation import observable
 
 from franka_composer import assets
 from franka_composer.entities.features import ArrayFeature
+from franka_composer.validation import check_choice
 
 #: Neutral arm configuration (rad), hand pointing straight down above the workspace.
 NEUTRAL_ARM_QPOS = (0.00, 0.41, 0.00, -1.85, 0.00, 2.26, 0.79)
@@ -50,6 +50,21 @@ _GRIPPER_DAMPING = 30.0
 _FINGER_CONDIM = 4
 _FINGER_FRICTION = (2.0, 0.005, 0.0001)
 
+#: How the arm can be driven, one per controller: "none" (no arm actuators: a mocap weld
+#: moves the hand, and servos would fight it), "torque" (a motor per joint, within the real
+#: Panda's torque limits) or "position" (Menagerie's servos). Under "none" and "position"
+#: the links compensate their own weight (MuJoCo's gravcomp), as the real Panda's joint
+#: controller does, so the weld or the servos only move the arm; under "torque" the control
+#: law must hold the arm up itself, within the limits.
+ARM_ACTUATIONS = ("none", "torque", "position")
+
+#: Derivative time (s) of the arm's position servos: damping = stiffness x this. Menagerie's
+#: 0.1 s (damping 450 N m s on joint 1) overdamps the servos 2-7x, so a 0.05 rad target step
+#: moves a joint only 37 % of the way within a 0.05 s control step, and zero actions leave
+#: it there. At 0.015 s a step moves a joint 83-100 % of the way within the control step
+#: (measured from the neutral pose, joint by joint) and 97-111 % in all.
+SERVO_DERIVATIVE_TIME = 0.015
+
 #: Collision bits: robot geoms collide with everything but each other.
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 0
 
@@ -57,11 +72,14 @@ ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 0
 class Panda(composer.Robot):
     """Menagerie's Panda with a tool-centre-point site and a width-controlled gripper."""
 
-    def _build(self, name: str = "panda", visual_meshes: bool = True) -> None:
+    def _build(self, name: str = "panda", visual_meshes: bool = True,
+               arm_actuation: str = "none") -> None:
         """`visual_meshes=False` leaves out the visual geoms and the meshes only they use
         (34 MB of mesh files and 35 MB compiled, per env): for envs that never render. The
         visual geoms have no mass (every body has its own inertial) and no contacts, so
-        the simulation is the same."""
+        the simulation is the same. `arm_actuation` is one of `ARM_ACTUATIONS`."""
+        check_choice("arm_actuation", arm_actuation, ARM_ACTUATIONS)
+        self._arm_actuation = arm_actuation
         self._mjcf_root = mjcf.from_path(str(assets.panda_xml()))
         self._mjcf_root.model = name
         if not visual_meshes:
@@ -70,14 +88,11 @@ class Panda(composer.Robot):
             for key in self._mjcf_root.keyframe.all_children():
                 key.remove()
         # The real arm's joint torque limits (Menagerie's servo force ranges: 87 N m on joints
-        # 1-4, 12 N m on 5-7), kept before the servos go: they bound how hard the hand can
-        # press (`surface_guard.py`).
+        # 1-4, 12 N m on 5-7), read before the servos may go: the torque motors take them,
+        # and they bound how hard a mocap-driven hand may press (`surface_guard.py`).
         self._arm_torque_limits = tuple(
             _force_limit(self._mjcf_root.find("actuator", name)) for name in _ARM_ACTUATORS)
-        for actuator_name in _ARM_ACTUATORS:
-            self._mjcf_root.find("actuator", actuator_name).remove()
-        for body_name in _MOVING_BODIES:
-            self._mjcf_root.find("body", body_name).gravcomp = 1
+        self._arm_actuators = self._configure_arm(arm_actuation)
         self._configure_collisions()
         self._configure_gripper()
 
@@ -93,6 +108,27 @@ class Panda(composer.Robot):
         self._arm_joints = tuple(self._mjcf_root.find("joint", j) for j in _ARM_JOINTS)
         self._finger_joints = tuple(self._mjcf_root.find("joint", j) for j in _FINGER_JOINTS)
         self._gripper_actuator = self._mjcf_root.find("actuator", _GRIPPER_ACTUATOR)
+
+    def _configure_arm(self, arm_actuation: str) -> tuple:
+        """The arm's actuators (joint 1 first) for `arm_actuation`, and gravity compensation
+        in the links where the actuation relies on it."""
+        servos = [self._mjcf_root.find("actuator", name) for name in _ARM_ACTUATORS]
+        for body_name in _MOVING_BODIES:
+            self._mjcf_root.find("body", body_name).gravcomp = int(arm_actuation != "torque")
+        if arm_actuation == "position":
+            for servo in servos:
+                stiffness = float(servo.gainprm[0])
+                servo.biasprm = (0, -stiffness, -stiffness * SERVO_DERIVATIVE_TIME)
+            return tuple(servos)
+        for servo in servos:
+            servo.remove()
+        if arm_actuation == "none":
+            return ()
+        return tuple(
+            self._mjcf_root.actuator.add(
+                "motor", name=f"torque{index + 1}", joint=f"joint{index + 1}",
+                ctrlrange=(-limit, limit), forcerange=(-limit, limit))
+            for index, limit in enumerate(self._arm_torque_limits))
 
     def _configure_collisions(self) -> None:
         """Only the hand and fingers collide (with props and floor): the links never reach
@@ -125,8 +161,18 @@ class Panda(composer.Robot):
 
     @property
     def actuators(self) -> tuple:
-        """The one actuator left: the gripper servo (finger width, m)."""
-        return (self._gripper_actuator,)
+        """The arm's actuators (none under mocap control), then the gripper servo."""
+        return (*self._arm_actuators, self._gripper_actuator)
+
+    @property
+    def arm_actuation(self) -> str:
+        """How the arm is driven: one of `ARM_ACTUATIONS`."""
+        return self._arm_actuation
+
+    @property
+    def arm_actuators(self) -> tuple:
+        """The arm's torque motors or position servos, joint 1 first (none under mocap)."""
+        return self._arm_actuators
 
     @property
     def gripper_actuator(self):

@@ -30,12 +30,17 @@ EXPERTS: dict[str, type[Expert]] = {
 def make_expert(env) -> Expert:
     """A fresh scripted expert for `env`: a Gymnasium env of this package (wrapped or not) or
     a dm_env from `franka_composer.load`. It reads the env's observation layout and task
-    configuration; a task without an expert is a ValueError naming those with one."""
+    configuration; a task without an expert is a ValueError naming those with one, and so
+    is an env under joint control (the experts act on dx, dy, dz: mocap and osc)."""
     if isinstance(env, str):
         raise TypeError("make_expert takes the environment, whose layout and options the "
                         f"expert reads, not a task name: make_expert(gym.make(...)), got {env!r}")
     task = getattr(env, "unwrapped", env).task
     expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
+    if not task.config.control.moves_the_tcp:
+        raise ValueError(f"the scripted experts act on dx, dy, dz, which the "
+                         f"{task.config.control.kind} controller does not take: use "
+                         f"control='mocap' or 'osc'")
     return expert(task.observation_layout, task.config)
 
 

@@ -3,10 +3,10 @@
 The goal is often out of the arm's reach, so the puck must glide there. Two facts about the
 hand drive the strike (both measured through the public interface, see the constants):
 
-- The hand moves in jerks: each control step the TCP races to its new target within a few
-  milliseconds, so a puck touched by a moving finger leaves at the jerk's peak speed, not
-  the average. A single step from rest against the puck is therefore a repeatable kick
-  whose length sets the puck's speed.
+- A single step from rest against the puck is a repeatable kick whose length sets the
+  puck's speed: under mocap the TCP races to its new target within a few milliseconds and
+  the puck leaves at the jerk's peak speed; under osc the torque-limited hand pushes it for
+  longer, softer (`CALIBRATIONS`, one per controller).
 - A puck leaves along the contact normal. Striking with a corner of the closed fingers
   (a box of half-size `FINGER_HALF_SIZE` around the TCP) lets the normal point anywhere.
 
@@ -16,6 +16,8 @@ the goal by `OVERSHOOT` rather than risk stopping short.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
@@ -31,31 +33,84 @@ STRIKE_HEIGHT = 0.025
 TRAVEL_HEIGHT = 0.1
 #: Gap (m) left between finger and puck before the kick.
 GAP = 0.002
+#: Fraction of a full step the hand descends to the strike point with: slow enough that a
+#: torque-driven arm (control="osc"), which brakes at ~10 m/s^2 going down, stops above the
+#: floor beside the puck rather than touching it.
+DESCENT_SPEED = 0.4
 #: How close (m) the TCP must be to the strike point before kicking.
 POSITION_TOLERANCE = 0.002
 #: Metres past the goal the strike aims for: passing through the goal succeeds.
 OVERSHOOT = 0.1
-#: Kick size to glide distance: distance = GLIDE_GAIN^2 * f(angle) * (kick - DEAD_KICK)^2,
-#: with the kick a fraction of a full step, fitted to strikes straight along +x.
-GLIDE_GAIN = 1.69
-DEAD_KICK = 0.061
 #: Strike angle (deg, world x axis = 0) -> how far the puck glides relative to a strike
 #: along +x.
 GLIDE_ANGLES = (-70.0, -45.0, -28.0, -26.0, -10.0, 0.0, 20.0, 40.0, 50.0, 70.0)
 GLIDE_FACTORS = (0.72, 0.75, 0.75, 0.9, 0.97, 1.0, 0.92, 0.84, 0.77, 0.72)
-#: Strike angle (deg) -> degrees the puck's path turns from the strike direction, in pieces
-#: (strike angles, turns) measured with 3 to 4 seeds each. The finger corner that meets the puck
-#: changes between pieces, and the turn with it: no strike sends the puck along paths between
-#: -32 and -23 degrees, or -3.6 and -0.6 (the nearest reachable path is used), and strikes at the
-#: changes themselves go either way, so the pieces stop short of them. A strike at exactly 0
-#: meets the flat front of the fingers.
-PATH_TURN_PIECES = (
-    ((-75.0, -55.0, -40.0, -28.5), (-3.5, -2.5, -3.2, -3.4)),
-    ((-26.5, -22.5, -20.0, -15.0, -10.0, -7.5, -5.0, -0.5),
-     (3.5, 3.0, 2.0, 0.9, 0.4, -0.6, -3.0, -3.1)),
-    ((0.0,), (-0.6,)),
-    ((0.5, 5.0, 20.0, 40.0, 55.0, 75.0), (0.8, 0.9, 0.7, 0.6, 0.9, 1.6)),
-)
+
+
+@dataclasses.dataclass(frozen=True)
+class StrikeCalibration:
+    """How a kick moves the puck under one controller, measured through the public interface.
+
+    Attributes:
+      glide_gain, dead_kick: kick size to glide distance, distance = glide_gain^2 *
+        f(angle) * (kick - dead_kick)^2 with the kick a fraction of a full step, fitted to
+        strikes straight along +x (f: `GLIDE_FACTORS`).
+      path_turn_pieces: strike angle (deg) -> degrees the puck's path turns from the strike
+        direction, in pieces (strike angles, turns) measured with 3 to 4 seeds each. The
+        finger corner that meets the puck changes between pieces, and the turn with it:
+        paths between pieces cannot be reached (the nearest reachable one is used), and
+        strikes at the changes themselves go either way, so the pieces stop short of them.
+        A strike at exactly 0 meets the flat front of the fingers.
+    """
+
+    glide_gain: float
+    dead_kick: float
+    path_turn_pieces: tuple
+
+    def __post_init__(self) -> None:
+        strikes, paths = [], []
+        for angles, turns in self.path_turn_pieces:
+            sampled = np.arange(angles[0], angles[-1] + 0.05, 0.1)  # Every 0.1 degree.
+            strikes.append(sampled)
+            paths.append(sampled + np.interp(sampled, angles, turns))
+        object.__setattr__(self, "_strikes", np.concatenate(strikes))
+        object.__setattr__(self, "_paths", np.concatenate(paths))
+
+    def strike_angle(self, path_angle: float) -> float:
+        """The strike direction (deg) whose puck path comes closest to `path_angle` (deg)."""
+        return float(self._strikes[np.argmin(np.abs(self._paths - path_angle))])
+
+    def kick(self, distance: float, strike_angle: float) -> float:
+        """The kick (a fraction of a full step) that glides the puck `distance` metres."""
+        glide = self.glide_gain * np.sqrt(np.interp(strike_angle, GLIDE_ANGLES, GLIDE_FACTORS))
+        return self.dead_kick + np.sqrt(distance) / glide
+
+
+#: Per controller (`control` option). Under mocap the hand jerks to each target within a few
+#: milliseconds and the puck leaves at the jerk's peak speed; no strike sends it along paths
+#: between -32 and -23 degrees, or -3.6 and -0.6. Under osc the torque-limited hand
+#: accelerates for the whole step and kicks softer (glide 0.17 / 0.31 / 0.48 / 0.84 m for
+#: kicks of 0.3 / 0.4 / 0.5 / 0.7, against mocap's 0.22 / 0.45 / 0.68 / 1.29); no strike
+#: sends it along paths between -38 and -23.4 degrees, and strikes between -15 and -2.5
+#: degrees turn the path by +0.5 or -5.5 degrees depending on where the puck lies (the
+#: table holds their mean).
+CALIBRATIONS = {
+    "mocap": StrikeCalibration(1.69, 0.061, (
+        ((-75.0, -55.0, -40.0, -28.5), (-3.5, -2.5, -3.2, -3.4)),
+        ((-26.5, -22.5, -20.0, -15.0, -10.0, -7.5, -5.0, -0.5),
+         (3.5, 3.0, 2.0, 0.9, 0.4, -0.6, -3.0, -3.1)),
+        ((0.0,), (-0.6,)),
+        ((0.5, 5.0, 20.0, 40.0, 55.0, 75.0), (0.8, 0.9, 0.7, 0.6, 0.9, 1.6)),
+    )),
+    "osc": StrikeCalibration(1.25, 0.0, (
+        ((-75.0, -65.0, -55.0, -45.0, -40.0, -35.0, -30.0),
+         (-2.2, -3.1, -3.7, -5.2, -6.1, -7.1, -7.9)),
+        ((-25.0, -20.0, -17.5, -15.0, -12.5, -10.0, -7.5, -5.0, -2.5),
+         (1.6, 1.5, 1.2, 0.0, -0.9, -2.4, -2.4, -2.4, -3.4)),
+        ((0.0,), (-0.1,)),
+        ((2.5, 10.0, 25.0, 40.0, 55.0, 75.0), (0.3, 0.5, 0.7, 0.9, 0.9, 1.4)),
+    )),
+}
 
 
 class SlideExpert(Expert):
@@ -64,6 +119,7 @@ class SlideExpert(Expert):
 
     def reset(self) -> None:
         self._waiting = False
+        self._calibration = CALIBRATIONS[self.config.control.kind]
 
     def act(self, obs: dict) -> np.ndarray:
         scene = self.scene(obs)
@@ -72,36 +128,18 @@ class SlideExpert(Expert):
             self._waiting = np.linalg.norm(scene.object_velocity[:2]) > 1e-4
             return self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])
         to_goal = scene.goal[:2] - puck[:2]
-        strike_angle = _strike_angle(np.degrees(np.arctan2(to_goal[1], to_goal[0])))
+        calibration = self._calibration
+        strike_angle = calibration.strike_angle(np.degrees(np.arctan2(to_goal[1], to_goal[0])))
         direction = np.array([np.cos(np.radians(strike_angle)), np.sin(np.radians(strike_angle))])
         corner = FINGER_HALF_SIZE * np.sign(direction)
         radius = self.config.objects[0].radius
         start = np.array([*(puck[:2] - direction * (radius + GAP) - corner), STRIKE_HEIGHT])
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._waiting = True
-            distance = np.linalg.norm(to_goal) + OVERSHOOT
-            glide = GLIDE_GAIN * np.sqrt(np.interp(strike_angle, GLIDE_ANGLES, GLIDE_FACTORS))
-            return np.array([*direction * (DEAD_KICK + np.sqrt(distance) / glide), 0.0])
+            kick = calibration.kick(np.linalg.norm(to_goal) + OVERSHOOT, strike_angle)
+            return np.array([*direction * kick, 0.0])
         if np.linalg.norm(tcp[:2] - start[:2]) < POSITION_TOLERANCE:
-            return self.move_towards(tcp, start)
+            return self.move_towards(tcp, start, DESCENT_SPEED)
         if tcp[2] < TRAVEL_HEIGHT - 0.02 and np.linalg.norm(tcp[:2] - puck[:2]) < 0.1:
             return self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])  # Lift clear of the puck.
         return self.move_towards(tcp, [*start[:2], TRAVEL_HEIGHT])
-
-
-def _reachable_strikes() -> tuple[np.ndarray, np.ndarray]:
-    """Strike angles sampled every 0.1 degree within each piece, and the paths they give."""
-    strikes, paths = [], []
-    for angles, turns in PATH_TURN_PIECES:
-        sampled = np.arange(angles[0], angles[-1] + 0.05, 0.1)
-        strikes.append(sampled)
-        paths.append(sampled + np.interp(sampled, angles, turns))
-    return np.concatenate(strikes), np.concatenate(paths)
-
-
-_STRIKES, _PATHS = _reachable_strikes()
-
-
-def _strike_angle(path_angle: float) -> float:
-    """The strike direction (deg) whose puck path comes closest to `path_angle` (deg)."""
-    return float(_STRIKES[np.argmin(np.abs(_PATHS - path_angle))])

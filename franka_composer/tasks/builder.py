@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from franka_composer.arenas import FloorArena
+from franka_composer.controllers import CONTROLLERS
 from franka_composer.entities import Panda
 from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.goal_task import GoalTask
@@ -11,7 +12,8 @@ from franka_composer.tasks.goal_task import GoalTask
 def build_task(config: TaskConfig, *, renderable: bool = True) -> GoalTask:
     """The task `config` describes; `renderable=False` builds the Panda without its visual
     meshes (for envs that never render: ~50 MB less, the same simulation)."""
-    panda = Panda(visual_meshes=renderable)
+    panda = Panda(visual_meshes=renderable,
+                  arm_actuation=CONTROLLERS[config.control.kind].ARM_ACTUATION)
     panda.check_arm_qpos("neutral_arm_qpos", config.neutral_arm_qpos)
     return GoalTask(FloorArena(friction=config.floor_friction), panda,
                     [spec.make() for spec in config.objects], config)

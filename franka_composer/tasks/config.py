@@ -18,7 +18,7 @@ from typing import Any, Callable, Union
 
 import numpy as np
 
-from franka_composer.controllers import ControlSettings
+from franka_composer.controllers import CONTROLS, ControlSettings
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -148,7 +148,8 @@ class TaskConfig:
         (roll, pitch, yaw; the paper's) or "quaternion" (w, x, y, z).
       floor_friction: sliding friction of the floor.
       workspace: where the object starts and goals lie.
-      control: how actions move the hand (and whether the gripper is actuated).
+      control: which controller moves the arm, how far an action moves it, and whether
+        the gripper is actuated.
       physics: MuJoCo's solver options.
       reward_type: "sparse" (0 / -1) or "dense" (-distance).
       distance_threshold: success radius (m).
@@ -292,8 +293,11 @@ OPTIONS: dict[str, Option] = {
     "goal_range": Option(("workspace", "goal_box", "size"), _extent),
     "goal_max_height": Option(("workspace", "goal_max_height"), _non_negative),
     "goal_in_air_probability": Option(("workspace", "goal_in_air_probability"), _probability),
+    "control": Option(("control", "kind"),
+                      lambda name, value: check_choice(name, value, CONTROLS)),
     "actuated_gripper": Option(("control", "actuated_gripper"), check_bool),
     "max_tcp_step": Option(("control", "max_tcp_step"), _positive),
+    "max_joint_step": Option(("control", "max_joint_step"), _positive),
     "max_finger_step": Option(("control", "max_finger_step"), _positive),
     "physics": Option(("physics",), _physics),
     "reward_type": Option(("reward_type",),

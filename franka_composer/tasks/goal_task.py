@@ -13,7 +13,7 @@ from dm_control.composer.observation import observable
 from dm_control.composer.variation import distributions
 
 from franka_composer.arenas import FloorArena
-from franka_composer.controllers import MocapController
+from franka_composer.controllers import Controller, make_controller
 from franka_composer.entities import Panda, Prop
 from franka_composer.entities.panda import MAX_FINGER_WIDTH
 from franka_composer.tasks import rewards
@@ -26,8 +26,8 @@ PLACEMENT_MARGIN = 0.01
 
 
 class GoalTask(composer.Task):
-    """Bring the objects (or the hand) to a goal with the Panda's tool centre point under
-    mocap control.
+    """Bring the objects (or the hand) to a goal with the Panda, moved by the controller the
+    config's `control` names.
 
     Wired from ready-made entities and the task's `TaskConfig` (`builder.build_task`).
     Reward and success are functions of (achieved goal, desired goal) only, through
@@ -53,7 +53,7 @@ class GoalTask(composer.Task):
         self._goal_spec: Goal = GOALS[config.goal](config, arena, panda, self._props)
         self._goal = np.zeros(self._goal_spec.size)
         arena.attach(self._goal_spec.marker)
-        self._controller = MocapController(arena, panda, config.control)
+        self._controller = make_controller(arena, panda, config.control)
         self._apply_physics_settings(config.physics)
         self.set_timesteps(control_timestep=config.control_timestep,
                            physics_timestep=config.physics.timestep)
@@ -134,7 +134,7 @@ class GoalTask(composer.Task):
         return self._goal_spec.metric
 
     @property
-    def controller(self) -> MocapController:
+    def controller(self) -> Controller:
         return self._controller
 
     @property
@@ -218,6 +218,17 @@ class GoalTask(composer.Task):
 
     def before_step(self, physics, action, random_state) -> None:
         self._controller.apply(physics, action)
+
+    @property
+    def substep_control(self):
+        """What must run before every physics step (a torque law), or None; it is all that
+        `before_substep` does, so the fast path may call it directly."""
+        return self._controller.substep_law
+
+    def before_substep(self, physics, action, random_state) -> None:
+        control = self._controller.substep_law
+        if control is not None:
+            control()
 
     def after_step(self, physics, random_state) -> None:
         self._update_distance()

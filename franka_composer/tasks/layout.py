@@ -109,7 +109,8 @@ _ORIENTATIONS = {
 def layout_for(config) -> ObservationLayout:
     """The observation layout of the task `config` (a `TaskConfig`) describes: the robot's
     fields, then per object its position, orientation, linear and angular velocity (the
-    paper's order; fields "object_position"..., or "object1_position"... for several)."""
+    paper's order; fields "object_position"..., or "object1_position"... for several), then,
+    under joint control, the arm's joint angles."""
     fields = [ObservationField(name, f"panda/{observable}", size, meaning, unit, per_step,
                                "–" if name == "finger_width" else "world")
               for name, observable, size, meaning, unit, per_step in _ROBOT_FIELDS
@@ -130,4 +131,8 @@ def layout_for(config) -> ObservationLayout:
             ObservationField(f"{prefix}_angular_velocity", f"{entity}/angular_velocity", 3,
                              f"{label} angular velocity", "rad/step", True),
         ]
+    if config.control.kind == "joints":
+        # Last, so every other field keeps its index under every controller.
+        fields.append(ObservationField("joint_angles", "panda/joints_pos", 7,
+                                       "arm joint angles, joint 1 first", "rad", False, "–"))
     return ObservationLayout(fields, config.control_timestep)

@@ -40,13 +40,14 @@ def algorithm_class(algo: str, backend: str = "sb3"):
     return {"ddpg": DDPG, "sac": SAC}[algo]
 
 
-def make_env(task: str, *, terminate_on_success: bool = True) -> gym.Env:
+def make_env(task: str, *, terminate_on_success: bool = True,
+             control: str = "mocap") -> gym.Env:
     """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...).
 
     `terminate_on_success=True` is the paper's ids; False gives Fetch semantics (episodes
     always last 50 steps), for which HER's relabelled rewards and `done` flags are exact.
     """
-    return gym.make(env_id(task, "sparse"), terminate_on_success=terminate_on_success)
+    return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success)
 
 
 def resolve_device(device: str) -> str:

@@ -14,6 +14,7 @@ import dataclasses
 import json
 import pathlib
 
+from franka_composer.controllers import CONTROLS
 from franka_composer.training.hyperparams import BACKENDS, Hyperparameters
 from franka_composer.validation import check_choice
 
@@ -34,21 +35,24 @@ class RunConfig:
     hyperparameters: Hyperparameters
     terminate_on_success: bool = True
     backend: str = "sb3"
+    control: str = "mocap"
 
     def __post_init__(self) -> None:
         check_choice("backend", self.backend, BACKENDS)
+        check_choice("control", self.control, CONTROLS)
 
     def to_dict(self) -> dict:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
                 "terminate_on_success": self.terminate_on_success, "backend": self.backend,
-                "hyperparameters": self.hyperparameters.to_dict()}
+                "control": self.control, "hyperparameters": self.hyperparameters.to_dict()}
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
-        # Runs written before the JAX backend existed have no "backend": they are SB3's.
+        # Runs written before the JAX backend or the controllers existed have no "backend"
+        # or "control": they are SB3's, under mocap control.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
-                   backend=data.get("backend", "sb3"),
+                   backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
 
 

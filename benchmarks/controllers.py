@@ -1,0 +1,46 @@
+"""Env steps/s of every task under each controller, in one process, as ratios to mocap.
+
+    python benchmarks/controllers.py [--tasks push slide ...] [--steps 2000] [--rounds 3]
+
+Each round times every (task, controller) once through `gym.make` under seeded random
+actions, resets included (`franka-composer bench`'s measurement); the best round counts, so
+a burst of load on the shared machine spoils one round, not the ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from franka_composer.cli.bench import measure
+from franka_composer.cli.options import positive_int
+from franka_composer.controllers import CONTROLS
+from franka_composer.tasks import ALL_TASKS
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", nargs="+", default=list(ALL_TASKS), choices=ALL_TASKS)
+    parser.add_argument("--steps", type=positive_int, default=2000)
+    parser.add_argument("--rounds", type=positive_int, default=3)
+    args = parser.parse_args(argv)
+    best: dict[tuple[str, str], dict] = {}
+    for _ in range(args.rounds):
+        for task in args.tasks:
+            for control in CONTROLS:
+                result = measure(task, args.steps, control)
+                key = (task, control)
+                if key not in best or result["steps_per_s"] > best[key]["steps_per_s"]:
+                    best[key] = result
+    print("| task | " + " | ".join(f"{c} steps/s" for c in CONTROLS)
+          + " | osc / mocap | joints / mocap | reset ms (mocap, osc, joints) |")
+    print("|---|" + "---|" * (len(CONTROLS) + 3))
+    for task in args.tasks:
+        rates = [best[(task, c)]["steps_per_s"] for c in CONTROLS]
+        resets = ", ".join(f"{best[(task, c)]['reset_ms']:.2f}" for c in CONTROLS)
+        print(f"| {task} | " + " | ".join(f"{r:.0f}" for r in rates)
+              + f" | {rates[1] / rates[0]:.2f} | {rates[2] / rates[0]:.2f} | {resets} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

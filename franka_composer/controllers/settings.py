@@ -1,0 +1,77 @@
+"""How actions in [-1, 1] map to motion, for every controller: one record, one place."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+#: Joints of the arm, each with one action component under joint control.
+ARM_JOINT_COUNT = 7
+#: Each controller's arm action: how many components, what they are, the action spec's
+#: name. The gripper, where it is actuated, adds one more, last, under every controller.
+ARM_ACTIONS = {
+    "mocap": (3, "dx, dy, dz", "tcp_delta"),
+    "osc": (3, "dx, dy, dz", "tcp_delta"),
+    "joints": (ARM_JOINT_COUNT, "dq1..dq7", "joint_delta"),
+}
+#: The `control` option's values: the paper's mocap first (the default).
+CONTROLS = tuple(ARM_ACTIONS)
+
+
+@dataclasses.dataclass(frozen=True)
+class ControlSettings:
+    """How actions in [-1, 1] map to motion.
+
+    Attributes:
+      kind: the controller, one of `CONTROLS`: "mocap" (a weld drags the hand, the paper's),
+        "osc" (joint torques from an operational-space law) or "joints" (joint servos).
+      max_tcp_step: metres the tool centre point's target moves per control step for an
+        action component of 1 (mocap and osc).
+      max_joint_step: radians a joint's target moves per control step for an action
+        component of 1 (joints; panda-gym's 0.05).
+      max_finger_step: metres the finger width changes per control step for a gripper
+        action of 1 (0.2 > 0.08: one full command opens or closes the hand).
+      actuated_gripper: whether the action has a last, gripper, component; if not, the
+        fingers are held closed.
+    """
+
+    kind: str = "mocap"
+    max_tcp_step: float = 0.05
+    max_joint_step: float = 0.05
+    max_finger_step: float = 0.2
+    actuated_gripper: bool = False
+
+    @property
+    def arm_action_size(self) -> int:
+        return ARM_ACTIONS[self.kind][0]
+
+    @property
+    def action_size(self) -> int:
+        return self.arm_action_size + int(self.actuated_gripper)
+
+    @property
+    def moves_the_tcp(self) -> bool:
+        """Whether the arm's action components move the tool centre point (dx, dy, dz)."""
+        return self.kind != "joints"
+
+    def describe_action(self) -> str:
+        """The action's components in words: "dx, dy, dz, gripper"."""
+        arm = ARM_ACTIONS[self.kind][1]
+        return f"{arm}, gripper" if self.actuated_gripper else arm
+
+    @property
+    def action_name(self) -> str:
+        """The action spec's name: "tcp_delta", "joint_delta_and_gripper"..."""
+        name = ARM_ACTIONS[self.kind][2]
+        return f"{name}_and_gripper" if self.actuated_gripper else name
+
+    def tcp_action(self, tcp, target, max_speed: float = 1.0) -> np.ndarray:
+        """The action law inverted: the position part of an action that takes the tool centre
+        point from `tcp` to `target` (m) in one step if it is that close, else straight
+        towards it at `max_speed` (a fraction of a full step). For scripted policies."""
+        step = (np.asarray(target) - tcp) / self.max_tcp_step
+        norm = np.linalg.norm(step)
+        if norm > max_speed:
+            step *= max_speed / norm
+        return step
