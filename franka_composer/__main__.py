@@ -2,6 +2,6 @@
 
 import sys
 
-from franka_composer.cli import main
+from franka_composer.cli import console
 
-sys.exit(main())
+sys.exit(console())

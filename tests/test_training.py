@@ -300,3 +300,51 @@ def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):
     with pytest.raises(SystemExit):
         cli.main(["train", "--stop-at-success", "1.5"])
     assert "must be a success rate in (0, 1], got '1.5'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_precision_sets_the_gradient_steps_and_nothing_else(tmp_path, monkeypatch, precision):
+    """bf16: every network pass of the gradient steps (batches of 32) in bfloat16, the
+    rollouts' and evaluations' (one observation) in float32, the saved weights float32, and
+    autocast off again afterwards; fp32: float32 throughout."""
+    import torch
+
+    from franka_composer.training import loop
+
+    seen = set()  # (network, batch size, output dtype)
+    build = loop.build_model
+
+    def build_and_watch(*args, **kwargs):
+        model = build(*args, **kwargs)
+        for name, module in (("actor", model.actor.latent_pi[0]),
+                             ("critic", model.critic.q_networks[0][0]),
+                             ("target", model.critic_target.q_networks[0][0])):
+            module.register_forward_hook(lambda module, inputs, output, name=name: seen.add(
+                (name, output.shape[0], output.dtype)))
+        return model
+
+    monkeypatch.setattr(loop, "build_model", build_and_watch)
+    out = tmp_path / precision
+    assert _train(out, "sac", 300, "--precision", precision) == 0
+    assert not torch.is_autocast_enabled("cpu")
+    assert RunDir(out).read_config().precision == precision
+    assert json.loads(RunDir(out).config_path.read_text())["precision"] == precision
+    trained = torch.bfloat16 if precision == "bf16" else torch.float32
+    assert seen == {("actor", 32, trained), ("critic", 32, trained), ("target", 32, trained),
+                    ("actor", 1, torch.float32)}
+    assert len(read_eval_rows(RunDir(out).eval_csv)) == 4
+    env = make_env("push")
+    model = load_model("sac", RunDir(out).final_model, env=env, device="cpu")
+    assert {p.dtype for p in model.policy.parameters()} == {torch.float32}
+    env.close()
+
+
+def test_bf16_needs_the_torch_backend(tmp_path, capsys):
+    with pytest.raises(ValueError, match="precision bf16 runs the networks under "
+                                         "torch.autocast: it needs backend sb3, not sbx"):
+        _train(tmp_path / "run", "sac", 100, "--backend", "sbx", "--precision", "bf16")
+    assert not (tmp_path / "run").exists()  # Refused before the run directory was made.
+    with pytest.raises(SystemExit):
+        _train(tmp_path / "run", "sac", 100, "--precision", "fp16")
+    assert "invalid choice: 'fp16'" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()

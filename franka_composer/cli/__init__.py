@@ -11,7 +11,7 @@ import importlib
 import sys
 
 #: Subcommand modules, in the order `--help` lists them.
-SUBCOMMANDS = ("demo", "rollout", "bench", "train", "evaluate", "plot")
+SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "evaluate", "plot")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,6 +34,16 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     return int(args.func(args) or 0)
+
+
+def console(argv: list[str] | None = None) -> int:
+    """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
+    status 2, as argparse reports its own errors, not a traceback."""
+    try:
+        return main(argv)
+    except ValueError as error:
+        print(f"franka-composer: error: {error}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

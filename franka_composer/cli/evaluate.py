@@ -18,7 +18,8 @@ def add_parser(subparsers) -> None:
                     "rate per run, then a Markdown table of mean ± std over seeds per task "
                     "and algorithm, in the layout of the paper's Table II.")
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
-                        help="run directories written by `franka-composer train`")
+                        help="run directories written by `franka-composer train`, or "
+                             "sweep directories (every run in them)")
     parser.add_argument("--episodes", type=positive_int, default=20,
                         help="test episodes per model (paper: 20)")
     parser.add_argument("--seed", type=int, default=2024,
@@ -35,9 +36,10 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.models import load_model, make_env
     from franka_composer.training.report import RunResult, markdown_table, seeds_note
     from franka_composer.training.runs import RunDir
+    from franka_composer.training.sweep import run_directories
 
     results = []
-    for root in args.runs:
+    for root in run_directories(args.runs):
         run_dir = RunDir(root)
         config = run_dir.read_config()
         env = make_env(config.task, terminate_on_success=config.terminate_on_success,

@@ -13,7 +13,8 @@ def add_parser(subparsers) -> None:
                     "(runs of the same task and algorithm), with median ± std shaded, one "
                     "panel per task and one line per algorithm, as in the paper's Fig. 4.")
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
-                        help="run directories written by `franka-composer train`")
+                        help="run directories written by `franka-composer train`, or "
+                             "sweep directories (every run in them)")
     parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("curves.png"),
                         help="image file to write (PNG, PDF or SVG by extension)")
     parser.set_defaults(func=run)
@@ -21,7 +22,8 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.curves import plot_curves
+    from franka_composer.training.sweep import run_directories
 
-    drawn = plot_curves(args.runs, args.out)
+    drawn = plot_curves(run_directories(args.runs), args.out)
     print(f"{len(drawn)} curve(s) -> {args.out}")
     return 0

@@ -10,7 +10,7 @@ import pathlib
 from franka_composer.cli.options import positive_int
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
-from franka_composer.training.hyperparams import ALGOS, BACKENDS, UPDATE_SCHEDULES
+from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 
 
@@ -51,6 +51,10 @@ def add_parser(subparsers) -> None:
                              "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
                              "Table I settings (RESULTS.md compares their speed). A resumed "
                              "run keeps the backend it was started with")
+    parser.add_argument("--precision", choices=PRECISIONS, default="fp32",
+                        help="the networks' arithmetic while training (sb3): fp32 (the "
+                             "paper's) or bf16 (torch.autocast; weights, optimiser state and "
+                             "evaluations stay fp32). A resumed run keeps its precision")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the run")
     parser.add_argument("--out", type=pathlib.Path, default=None,
                         help="run directory (default runs/TASK-ALGO-seedSEED)")
@@ -148,7 +152,7 @@ def run(args: argparse.Namespace) -> int:
             stop_after_evaluations=args.stop_after)
         run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
                                             args.terminate_on_success, args.backend,
-                                            args.control))
+                                            args.control, args.precision))
     try:
         with _limit_threads(args.threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,

@@ -5,8 +5,9 @@ Needs the `train` extra (Stable-Baselines3, sb3-contrib, matplotlib); the `jax` 
 `hyperparams.TABLE_I`; `loop.train` runs (and resumes) one run directory.
 """
 
-from franka_composer.training.hyperparams import (ALGOS, BACKENDS, TABLE_I, UPDATE_SCHEDULES,
-                                                  Hyperparameters, hyperparameters)
+from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS, TABLE_I,
+                                                  UPDATE_SCHEDULES, Hyperparameters,
+                                                  hyperparameters)
 
-__all__ = ["ALGOS", "BACKENDS", "TABLE_I", "UPDATE_SCHEDULES", "Hyperparameters",
+__all__ = ["ALGOS", "BACKENDS", "PRECISIONS", "TABLE_I", "UPDATE_SCHEDULES", "Hyperparameters",
            "hyperparameters"]

@@ -24,6 +24,11 @@ UPDATE_SCHEDULES = ("step", "episode")
 #: same Table I settings and SB3's replay buffers and rollout loop.
 BACKENDS = ("sb3", "sbx")
 
+#: The arithmetic of the networks' passes (sb3): "fp32" is the paper's; "bf16" runs them
+#: under torch.autocast in bfloat16, weights and optimiser state kept in fp32
+#: (`training/precision.py`).
+PRECISIONS = ("fp32", "bf16")
+
 
 @dataclasses.dataclass(frozen=True)
 class Hyperparameters:

@@ -17,6 +17,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from franka_composer.training.callbacks import Evaluation, LatestCheckpoint, WallClock
 from franka_composer.training.models import build_model, load_model, make_env
+from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows, write_eval_rows
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.
@@ -89,7 +90,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
                             episodes=hp.eval_episodes, stop_success_rate=hp.stop_success_rate,
                             stop_after=hp.stop_after_evaluations)
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every)
-    callbacks = CallbackList([evaluation, checkpoint])
+    precision = GradientStepPrecision(config.precision)
+    callbacks = CallbackList([precision, evaluation, checkpoint])
     remaining = hp.total_steps - model.num_timesteps
     if run.read_outcome().get("stopped_early"):
         remaining = 0  # It met the stopping rule: more steps would not be the same run.
@@ -100,10 +102,12 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
                             reset_num_timesteps=not resume, tb_log_name="run",
                             progress_bar=progress)
     except KeyboardInterrupt:
+        precision.close()
         if getattr(checkpoint, "model", None) is not None:  # Interrupted inside learn.
             checkpoint.save()
         raise
     finally:
+        precision.close()
         env.close()
         eval_env.close()
     if getattr(checkpoint, "model", None) is None:  # Nothing trained (a finished run resumed).

@@ -15,7 +15,7 @@ import json
 import pathlib
 
 from franka_composer.controllers import CONTROLS
-from franka_composer.training.hyperparams import BACKENDS, Hyperparameters
+from franka_composer.training.hyperparams import BACKENDS, PRECISIONS, Hyperparameters
 from franka_composer.validation import check_choice
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
@@ -26,7 +26,9 @@ class RunConfig:
     """What a run trains: enough to rebuild its model and environments on resume.
 
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
-    wrote it, so resume and evaluate read it from here.
+    wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
+    is how the networks' passes are computed while training; the weights are fp32 either
+    way, so evaluation and loading do not depend on it.
     """
 
     task: str
@@ -36,23 +38,31 @@ class RunConfig:
     terminate_on_success: bool = True
     backend: str = "sb3"
     control: str = "mocap"
+    precision: str = "fp32"
 
     def __post_init__(self) -> None:
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
+        check_choice("precision", self.precision, PRECISIONS)
+        if self.precision != "fp32" and self.backend != "sb3":
+            raise ValueError(f"precision {self.precision} runs the networks under "
+                             f"torch.autocast: it needs backend sb3, not {self.backend} "
+                             "(which trains in JAX)")
 
     def to_dict(self) -> dict:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
                 "terminate_on_success": self.terminate_on_success, "backend": self.backend,
-                "control": self.control, "hyperparameters": self.hyperparameters.to_dict()}
+                "control": self.control, "precision": self.precision,
+                "hyperparameters": self.hyperparameters.to_dict()}
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
-        # Runs written before the JAX backend or the controllers existed have no "backend"
-        # or "control": they are SB3's, under mocap control.
+        # Runs written before the JAX backend, the controllers or bf16 existed have no
+        # "backend", "control" or "precision": they are SB3's, mocap, fp32.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
+                   precision=data.get("precision", "fp32"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
 
 

@@ -1,0 +1,78 @@
+"""Milliseconds per gradient step in fp32 and in bf16 (`train --precision`), same model, same
+replay buffer, one process, as ratios.
+
+    python benchmarks/precision.py [--task push] [--algos sac tqc ddpg] [--steps 100]
+                                   [--rounds 3] [--threads 1]
+
+For each algorithm: a model with Table I's settings for the task, its HER buffer filled by
+1000 steps of the untrained policy; then `rounds` alternating rounds of `steps` gradient
+steps (SB3's own `train`) in each precision, the fastest round of each counted, so a burst
+of load on the shared machine spoils one round, not the ratio. Prints a Markdown table and
+whether the CPU has bf16 units (without them autocast emulates bf16 and is slower).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+from franka_composer.cli.options import positive_int
+from franka_composer.tasks import ALL_TASKS
+from franka_composer.training import ALGOS, PRECISIONS, hyperparameters
+from franka_composer.training.models import build_model, make_env
+from franka_composer.training.precision import autocast
+
+FILL_STEPS = 1000
+
+
+def cpu_has_bf16() -> bool:
+    """Whether the CPU reports bf16 instructions (AVX512-BF16 or AMX-BF16)."""
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            flags = cpuinfo.read()
+    except OSError:
+        return False
+    return "avx512_bf16" in flags or "amx_bf16" in flags
+
+
+def time_gradient_steps(task: str, algo: str, steps: int, rounds: int) -> dict[str, float]:
+    """Fastest ms per gradient step per precision."""
+    hp = hyperparameters(task, algo).replace(learning_starts=FILL_STEPS)
+    env = make_env(task)
+    model = build_model(task, algo, hp, env, seed=0, device="cpu")
+    model.learn(total_timesteps=FILL_STEPS)  # Fills the buffer; sets up SB3's logger.
+    best = {precision: float("inf") for precision in PRECISIONS}
+    for _ in range(rounds):
+        for precision in PRECISIONS:
+            with autocast(precision, model.device):
+                start = time.perf_counter()
+                model.train(gradient_steps=steps, batch_size=hp.batch_size)
+                elapsed = time.perf_counter() - start
+            best[precision] = min(best[precision], 1000 * elapsed / steps)
+    env.close()
+    return best
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="push", choices=ALL_TASKS)
+    parser.add_argument("--algos", nargs="+", default=["sac", "tqc", "ddpg"], choices=ALGOS)
+    parser.add_argument("--steps", type=positive_int, default=100)
+    parser.add_argument("--rounds", type=positive_int, default=3)
+    parser.add_argument("--threads", type=positive_int, default=1)
+    args = parser.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(args.threads)
+    print(f"CPU bf16 units: {'yes' if cpu_has_bf16() else 'no'}; torch {torch.__version__}; "
+          f"{args.threads} thread(s); {args.task}, Table I networks and batch")
+    print("\n| algorithm | fp32 ms/step | bf16 ms/step | fp32 / bf16 |\n|---|---|---|---|")
+    for algo in args.algos:
+        ms = time_gradient_steps(args.task, algo, args.steps, args.rounds)
+        print(f"| {algo} | {ms['fp32']:.1f} | {ms['bf16']:.1f} | "
+              f"{ms['fp32'] / ms['bf16']:.2f} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,116 @@
+"""`franka-composer sweep`: a grid of training runs as Ray tasks, resumable, with a live
+table (`franka_composer/training/sweep.py`)."""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+
+from franka_composer.cli.options import positive_int
+from franka_composer.tasks import ALL_TASKS
+from franka_composer.training.hyperparams import ALGOS
+
+#: `train` options the sweep sets itself, per cell.
+_SET_BY_THE_SWEEP = ("--task", "--algo", "--seed", "--out", "--total-steps", "--resume")
+
+
+def add_parser(subparsers) -> None:
+    from franka_composer.training.sweep import GRIDS
+
+    parser = subparsers.add_parser(
+        "sweep", help="train a grid of runs (tasks x algorithms x seeds) as Ray tasks",
+        description="Train every cell of a grid (a named campaign, or --tasks x --algos x "
+                    "--seeds with --steps each) as an ordinary `franka-composer train` run "
+                    "in OUT/TASK-ALGO-seedN, one CPU each, as Ray tasks on a local Ray (or "
+                    "the cluster at --address; OUT must then be on a file system all its "
+                    "nodes share). Running the same sweep again resumes unfinished cells "
+                    "from their checkpoints and skips finished ones; Ctrl-C checkpoints the "
+                    "running cells. `evaluate OUT` and `plot OUT` read the sweep. Options "
+                    "after `--` go to every cell's `train` (e.g. -- --update-schedule "
+                    "episode --threads 1). Needs Ray: pip install 'franka_composer[sweep]'.")
+    parser.add_argument("--out", type=pathlib.Path, required=True,
+                        help="the sweep's directory: one run directory per cell")
+    parser.add_argument("--grid", choices=sorted(GRIDS),
+                        help="a named grid: table2 is the paper's Table II with issue 15's "
+                             "budgets and the early-stopping rule")
+    parser.add_argument("--tasks", nargs="+", choices=ALL_TASKS, metavar="TASK")
+    parser.add_argument("--algos", nargs="+", choices=ALGOS, metavar="ALGO")
+    parser.add_argument("--seeds", nargs="+", type=int, metavar="SEED")
+    parser.add_argument("--steps", type=_budgets, metavar="N|TASK=N,...",
+                        help="each cell's step budget, or one per task (push=250000,...)")
+    parser.add_argument("--address", default=None,
+                        help="an existing Ray cluster (e.g. auto, or ray://host:10001); "
+                             "default: start a local Ray")
+    parser.add_argument("--num-cpus", type=positive_int, default=None,
+                        help="cells at once on the local Ray (default: every CPU)")
+    parser.add_argument("--refresh", type=float, default=30.0, metavar="SECONDS",
+                        help="how often the table of cells is shown (default 30)")
+    parser.add_argument("--status", action="store_true",
+                        help="show the table of cells (what OUT holds) and exit: from a "
+                             "second terminal, or to list a grid's cells and budgets")
+    parser.add_argument("train_args", nargs="*", metavar="-- TRAIN_OPTION",
+                        help="options passed to every cell's `train`")
+    parser.set_defaults(func=run)
+
+
+def _budgets(text: str):
+    """N, or TASK=N,TASK=N."""
+    if "=" not in text:
+        return positive_int(text)
+    budgets = {}
+    for item in text.split(","):
+        task, _, steps = item.partition("=")
+        if task not in ALL_TASKS:
+            raise argparse.ArgumentTypeError(f"unknown task {task!r} in --steps; valid "
+                                             f"tasks: {', '.join(ALL_TASKS)}")
+        budgets[task] = positive_int(steps)
+    return budgets
+
+
+def cells_of(args: argparse.Namespace):
+    """The grid the arguments ask for; a clear error if they ask for none or two."""
+    from franka_composer.training.sweep import GRIDS, STOPPING_RULE, grid
+
+    explicit = [args.tasks, args.algos, args.seeds, args.steps]
+    if args.grid:
+        if any(value is not None for value in explicit):
+            raise ValueError("--grid names a whole grid: give it alone, or --tasks, --algos, "
+                             "--seeds and --steps instead")
+        return GRIDS[args.grid], STOPPING_RULE
+    if any(value is None for value in explicit):
+        raise ValueError("a sweep needs --grid, or all of --tasks, --algos, --seeds and "
+                         "--steps")
+    if isinstance(args.steps, dict) and set(args.tasks) - set(args.steps):
+        missing = ", ".join(sorted(set(args.tasks) - set(args.steps)))
+        raise ValueError(f"--steps has no budget for {missing}")
+    return grid(args.tasks, args.algos, args.seeds, args.steps), ()
+
+
+def run(args: argparse.Namespace) -> int:
+    from franka_composer.cli import build_parser
+    from franka_composer.training.sweep import cell_status, run_sweep, status_table, train_command
+
+    cells, rule = cells_of(args)
+    if args.status:
+        print(status_table([cell_status(cell, args.out) for cell in cells]))
+        return 0
+    train_args = (*rule, *args.train_args)
+    for option in args.train_args:
+        if option.split("=", 1)[0] in _SET_BY_THE_SWEEP:
+            raise ValueError(f"{option} is set by the sweep for each cell; valid after --: "
+                             "the other options of `franka-composer train`")
+    try:
+        import ray  # noqa: F401
+    except ImportError as error:
+        raise ValueError("franka-composer sweep runs its cells on Ray: pip install "
+                         "'franka_composer[sweep]' (or pip install ray)") from error
+    for cell in cells:  # Every cell's options are checked by train's own parser first.
+        build_parser().parse_args(train_command(cell, args.out, train_args)[3:])
+    statuses = run_sweep(cells, args.out, train_args, address=args.address,
+                         num_cpus=args.num_cpus, refresh_s=args.refresh,
+                         show=lambda table: print(table + "\n", flush=True))
+    failed = [s.name for s in statuses if s.state == "failed"]
+    if failed:
+        print(f"failed: {', '.join(failed)} (see {args.out}/<cell>.log)")
+        return 1
+    return 0

@@ -1,0 +1,161 @@
+"""`franka-composer sweep`: the grid as data, resumable cells, the live table, and a tiny
+two-cell sweep on a local Ray (training/sweep.py, cli/sweep.py)."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import pytest
+
+from franka_composer import cli
+from franka_composer.training.runs import RunDir, read_eval_rows
+from franka_composer.training.sweep import (GRIDS, Cell, cell_status, grid, run_directories,
+                                            status_table, train_command)
+
+#: Small enough for seconds per cell (as tests/test_training.py's tiny runs).
+TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
+        "--learning-starts", "100", "--eval-every", "100", "--eval-episodes", "2",
+        "--threads", "1", "--device", "cpu"]
+
+
+def test_the_table2_grid_is_issue_15s_budgets():
+    cells = {(c.task, c.algo): [] for c in GRIDS["table2"]}
+    for cell in GRIDS["table2"]:
+        cells[(cell.task, cell.algo)].append((cell.seed, cell.steps, cell.options))
+    slide = ("--net-arch", "256,256,256", "--batch-size", "512")
+    expected = {
+        ("push", "sac"): (3, 250_000, ()), ("push", "tqc"): (3, 250_000, ()),
+        ("push", "ddpg"): (3, 150_000, ()),
+        ("pick_and_place", "sac"): (3, 400_000, ()), ("pick_and_place", "tqc"): (3, 400_000, ()),
+        ("pick_and_place", "ddpg"): (1, 200_000, ()),
+        ("slide", "sac"): (3, 200_000, slide), ("slide", "tqc"): (3, 200_000, slide),
+        ("slide", "ddpg"): (1, 200_000, slide),
+    }
+    assert set(cells) == set(expected)
+    for key, (seeds, steps, options) in expected.items():
+        assert cells[key] == [(seed, steps, options) for seed in range(seeds)], key
+    assert len(GRIDS["table2"]) == 23
+
+
+def test_a_grid_takes_one_budget_or_one_per_task():
+    cells = grid(["push", "slide"], ["sac"], [0, 1], {"push": 10, "slide": 20})
+    assert [(c.name, c.steps) for c in cells] == [
+        ("push-sac-seed0", 10), ("push-sac-seed1", 10), ("slide-sac-seed0", 20),
+        ("slide-sac-seed1", 20)]
+    assert {c.steps for c in grid(["push"], ["sac", "tqc"], [0], 5)} == {5}
+
+
+def test_a_cell_starts_with_its_options_and_resumes_with_what_still_applies(tmp_path):
+    cell = Cell("slide", "tqc", 2, 1000, ("--net-arch", "8,8"))
+    args = ("--threads", "1", "--update-schedule", "episode", "--device=cpu")
+    start = train_command(cell, tmp_path, args)
+    assert start[:4] == [sys.executable, "-m", "franka_composer", "train"]
+    assert start[4:] == ["--out", str(tmp_path / "slide-tqc-seed2"), "--total-steps", "1000",
+                         "--no-progress", "--task", "slide", "--algo", "tqc", "--seed", "2",
+                         "--net-arch", "8,8", *args]
+    resume = train_command(cell, tmp_path, args, resume=True)
+    assert resume[4:] == ["--out", str(tmp_path / "slide-tqc-seed2"), "--total-steps", "1000",
+                          "--no-progress", "--resume", "--threads", "1", "--device=cpu"]
+
+
+def _write_run(root, name, rows, outcome=None):
+    run = RunDir(root / name)
+    run.root.mkdir(parents=True)
+    run.config_path.write_text(json.dumps({"task": "push"}))
+    run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
+        f"{steps},{wall},{rate},-1\n" for steps, wall, rate in rows))
+    if outcome:
+        run.write_outcome(*outcome)
+    return run
+
+
+def test_the_status_of_each_cell_is_read_from_its_directory(tmp_path):
+    cells = grid(["push"], ["sac"], [0, 1, 2, 3], 4000)
+    _write_run(tmp_path, "push-sac-seed0", [(0, 1, 0.0), (2000, 101, 0.2), (4000, 201, 0.6)],
+               (4000, False, 201))
+    _write_run(tmp_path, "push-sac-seed1", [(0, 1, 0.0), (2000, 51, 1.0)], (2000, True, 51))
+    _write_run(tmp_path, "push-sac-seed2", [(0, 1, 0.0), (2000, 41, 0.4)])
+    statuses = [cell_status(cell, tmp_path) for cell in cells]
+    assert [(s.state, s.steps, s.success_rate) for s in statuses] == [
+        ("done", 4000, 0.6), ("stopped early", 2000, 1.0), ("unfinished", 2000, 0.4),
+        ("waiting", 0, None)]
+    assert statuses[0].steps_per_s == pytest.approx(20.0)  # 2000 steps in 100 s.
+    assert statuses[2].steps_per_s == pytest.approx(50.0)
+    assert cell_status(cells[2], tmp_path, running=True).state == "running"
+    assert cell_status(cells[2], tmp_path, failed=True).state == "failed"
+    table = status_table(statuses).splitlines()
+    assert table[0] == "| cell | state | steps | budget | steps/s | latest success |"
+    assert table[2] == "| push-sac-seed0 | done | 4,000 | 4,000 | 20.0 | 60 % |"
+    assert table[5] == "| push-sac-seed3 | waiting | 0 | 4,000 | – | – |"
+
+
+def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
+    for name in ("push-sac-seed1", "push-sac-seed0"):
+        _write_run(tmp_path / "sweep", name, [(0, 1, 0.0)])
+    single = _write_run(tmp_path, "alone", [(0, 1, 0.0)]).root
+    assert run_directories([tmp_path / "sweep", single]) == [
+        tmp_path / "sweep" / "push-sac-seed0", tmp_path / "sweep" / "push-sac-seed1", single]
+    with pytest.raises(ValueError, match="is neither a training run nor a sweep of runs"):
+        run_directories([tmp_path / "sweep" / "nothing"])
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--grid", "table2", "--tasks", "push"], "--grid names a whole grid: give it alone"),
+    (["--tasks", "push", "--algos", "sac"], "a sweep needs --grid, or all of --tasks, "
+                                             "--algos, --seeds and --steps"),
+    (["--tasks", "push", "slide", "--algos", "sac", "--seeds", "0", "--steps", "push=10"],
+     "--steps has no budget for slide"),
+    (["--grid", "table2", "--", "--seed", "3"], "--seed is set by the sweep for each cell"),
+])
+def test_a_bad_sweep_is_refused_before_anything_runs(tmp_path, argv, message):
+    with pytest.raises(ValueError, match=message):
+        cli.main(["sweep", "--out", str(tmp_path / "sweep"), *argv])
+    assert not (tmp_path / "sweep").exists()
+
+
+def test_bad_train_options_and_budgets_are_refused_by_the_parsers(tmp_path, capsys):
+    base = ["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
+            "--seeds", "0"]
+    with pytest.raises(SystemExit):
+        cli.main([*base, "--steps", "10", "--", "--bogus"])
+    assert "unrecognized arguments: --bogus" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        cli.main([*base, "--steps", "shove=10"])
+    assert "unknown task 'shove' in --steps" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.slow
+def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("ray")
+    pytest.importorskip("stable_baselines3")
+    out = tmp_path / "sweep"
+    sweep = ["sweep", "--out", str(out), "--tasks", "push", "--algos", "sac", "--seeds", "0",
+             "1", "--num-cpus", "2", "--refresh", "1000"]
+    assert cli.main([*sweep, "--steps", "200", "--", *TINY]) == 0
+    for seed in (0, 1):
+        run = RunDir(out / f"push-sac-seed{seed}")
+        assert run.read_config().seed == seed
+        assert [r["steps"] for r in read_eval_rows(run.eval_csv)] == [0, 100, 200]
+        assert run.read_outcome()["steps"] == 200
+    assert "| push-sac-seed1 | done | 200 | 200 |" in capsys.readouterr().out
+    # The same sweep again: nothing to do, so Ray is not even started.
+    import ray
+
+    monkeypatch.setattr(ray, "init", lambda **kwargs: pytest.fail("Ray started"))
+    assert cli.main([*sweep, "--steps", "200", "--", *TINY]) == 0
+    monkeypatch.undo()
+    # A larger budget resumes both cells from their checkpoints: their first evaluations,
+    # wall times included, are kept (a fresh start would have rewritten them).
+    before = {seed: read_eval_rows(RunDir(out / f"push-sac-seed{seed}").eval_csv)
+              for seed in (0, 1)}
+    assert cli.main([*sweep, "--steps", "push=300", "--", *TINY]) == 0
+    for seed in (0, 1):
+        run = RunDir(out / f"push-sac-seed{seed}")
+        rows = read_eval_rows(run.eval_csv)
+        assert rows[:3] == before[seed] and [r["steps"] for r in rows] == [0, 100, 200, 300]
+        assert run.read_outcome()["steps"] == 300
+    capsys.readouterr()
+    assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
+    assert "push / sac: seeds 0, 1; trained steps 300, 300" in capsys.readouterr().out
