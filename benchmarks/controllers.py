@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from franka_composer.cli.bench import measure
+from franka_composer.cli.bench import best_of_rounds
 from franka_composer.cli.options import positive_int
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
@@ -23,14 +23,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=positive_int, default=2000)
     parser.add_argument("--rounds", type=positive_int, default=3)
     args = parser.parse_args(argv)
-    best: dict[tuple[str, str], dict] = {}
-    for _ in range(args.rounds):
-        for task in args.tasks:
-            for control in CONTROLS:
-                result = measure(task, args.steps, control)
-                key = (task, control)
-                if key not in best or result["steps_per_s"] > best[key]["steps_per_s"]:
-                    best[key] = result
+    best = best_of_rounds(args.tasks, {c: {"control": c} for c in CONTROLS}, args.steps,
+                          args.rounds)
     print("| task | " + " | ".join(f"{c} steps/s" for c in CONTROLS)
           + " | osc / mocap | joints / mocap | reset ms (mocap, osc, joints) |")
     print("|---|" + "---|" * (len(CONTROLS) + 3))

@@ -13,7 +13,7 @@ from franka_composer.tasks import build_task, task_config
 MAX_RESET_ATTEMPTS = 10
 
 
-def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool = True,
+def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool | None = True,
          **task_kwargs) -> GoalEnvironment:
     """Builds the named task as a Composer (dm_env) environment.
 
@@ -25,6 +25,7 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
       renderable: False leaves the Panda's visual meshes out of the model (~40 MB less per
         env, for processes that never render; `physics.render` then shows no arm). The
         simulation is bit-identical either way: the visual geoms have no mass or contacts.
+        None: renderable only where the camera observations draw the visual meshes.
       **task_kwargs: overrides of the task's `TaskConfig` fields, e.g.
         `terminate_on_success=False`, `distance_threshold=0.03`.
 

@@ -48,7 +48,6 @@ FOOTPRINT_BAND = 0.002
 #: Geom groups the rays see. Menagerie's Panda puts its visual and collision geoms in groups
 #: 2 and 3, so the rays never hit the hand itself; the floor and the objects are in group 0.
 VISIBLE_GROUPS = np.array([1, 1, 0, 0, 1, 1], dtype=np.uint8)
-_ROBOT_GROUPS = (2, 3)
 _DOWN = np.array([0.0, 0.0, -1.0])
 
 

@@ -59,9 +59,11 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             _check_display()
         _check_render_size(width, height)
         check_choice("camera", camera, CAMERAS)
-        # An env that never renders leaves the Panda's visual meshes out (~40 MB per env).
+        # An env that never renders leaves the Panda's visual meshes out (~40 MB per env),
+        # unless its observations are images.
         self._env = suite.load(task, reward_type=reward_type,
-                               renderable=render_mode is not None, **task_kwargs)
+                               renderable=True if render_mode is not None else None,
+                               **task_kwargs)
         self._task = self._env.task
         self.task_name = task
         self.render_mode = render_mode
@@ -72,14 +74,18 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._closed = False
 
         self._layout = self._task.observation_layout
+        settings = self._task.config.observations
+        self._state, self._pixel_keys = settings.state, self._task.pixel_keys
         goal_box = spaces.Box(-np.inf, np.inf, shape=(self._task.goal_size,),
                               dtype=OBSERVATION_DTYPE)
-        self.observation_space = spaces.Dict({
-            "observation": spaces.Box(-np.inf, np.inf, shape=(self._layout.size,),
-                                      dtype=OBSERVATION_DTYPE),
-            "achieved_goal": goal_box,
-            "desired_goal": goal_box,
-        })
+        # The goals are state vectors in every observation mode: HER relabels them exactly.
+        space = {"observation": spaces.Box(-np.inf, np.inf, shape=(self._layout.size,),
+                                           dtype=OBSERVATION_DTYPE)} if self._state else {}
+        space.update(achieved_goal=goal_box, desired_goal=goal_box)
+        for key in self._pixel_keys:
+            space[key] = spaces.Box(0, 255, shape=(settings.height, settings.width, 3),
+                                    dtype=np.uint8)
+        self.observation_space = spaces.Dict(space)
         action_spec = self._env.action_spec()
         self.action_space = spaces.Box(-1.0, 1.0, shape=action_spec.shape, dtype=np.float32)
         self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
@@ -200,14 +206,14 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     # ----- Reshaping ------------------------------------------------------------------------
 
     def _observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
-        return {
-            "observation": self._layout.flatten(composer_obs),
-            "achieved_goal": np.concatenate([composer_obs[key]
-                                             for key in self._task.achieved_goal_keys],
-                                            dtype=OBSERVATION_DTYPE),
-            "desired_goal": np.array(composer_obs[self._task.desired_goal_key],
-                                     dtype=OBSERVATION_DTYPE),
-        }
+        obs = {"observation": self._layout.flatten(composer_obs)} if self._state else {}
+        obs["achieved_goal"] = np.concatenate(
+            [composer_obs[key] for key in self._task.achieved_goal_keys], dtype=OBSERVATION_DTYPE)
+        obs["desired_goal"] = np.array(composer_obs[self._task.desired_goal_key],
+                                       dtype=OBSERVATION_DTYPE)
+        for key in self._pixel_keys:
+            obs[key] = composer_obs[key]
+        return obs
 
 
 def _check_render_size(width: int, height: int) -> None:

@@ -36,9 +36,10 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(func=run)
 
 
-def measure(task: str, steps: int, control: str = "mocap") -> dict:
-    """Steps/s under random actions (resets included) and the median reset (ms)."""
-    env = gym.make(env_id(task, "sparse", control))
+def measure(task: str, steps: int, control: str = "mocap", **options) -> dict:
+    """Steps/s under random actions (resets included) and the median reset (ms), through
+    `gym.make` with the task `options`."""
+    env = gym.make(env_id(task, "sparse", control), **options)
     env.action_space.seed(0)
     env.reset(seed=0)
     actions = [env.action_space.sample() for _ in range(steps + 100)]
@@ -57,6 +58,21 @@ def measure(task: str, steps: int, control: str = "mocap") -> dict:
         resets.append(time.perf_counter() - start)
     env.close()
     return {"steps_per_s": steps / elapsed, "reset_ms": statistics.median(resets) * 1e3}
+
+
+def best_of_rounds(tasks, settings: dict[str, dict], steps: int, rounds: int) -> dict:
+    """{(task, setting name): `measure`'s result} for each task under each setting (keyword
+    arguments of `measure`), the fastest of `rounds` rounds; every round measures every
+    pair once, so a burst of load on a shared machine spoils one round, not a ratio."""
+    best: dict[tuple[str, str], dict] = {}
+    for _ in range(rounds):
+        for task in tasks:
+            for name, options in settings.items():
+                result = measure(task, steps, **options)
+                if (task, name) not in best or (
+                        result["steps_per_s"] > best[task, name]["steps_per_s"]):
+                    best[task, name] = result
+    return best
 
 
 def run(args: argparse.Namespace) -> int:

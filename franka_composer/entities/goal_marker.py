@@ -7,6 +7,9 @@ from dm_control import composer, mjcf
 
 from franka_composer.entities.faces import add_coloured_faces
 
+#: A site group MuJoCo does not draw by default (it draws groups 0-2): hidden markers.
+HIDDEN_GROUP = 3
+
 
 class GoalMarker(composer.Entity):
     """Translucent sites the task moves each episode: one sphere (a position goal), one box
@@ -40,6 +43,12 @@ class GoalMarker(composer.Entity):
     @property
     def mjcf_model(self) -> mjcf.RootElement:
         return self._mjcf_root
+
+    def hide(self) -> None:
+        """Leaves the marker out of every image (cameras and `render`): its sites go to a
+        group that is not drawn. Sites have no physics, so nothing else changes."""
+        for site in self._mjcf_root.find_all("site"):
+            site.group = HIDDEN_GROUP
 
     @property
     def site(self):

@@ -24,9 +24,18 @@ NEUTRAL_ARM_QPOS = (0.00, 0.41, 0.00, -1.85, 0.00, 2.26, 0.79)
 #: Largest opening between the fingers (m): each finger slides 0.04.
 MAX_FINGER_WIDTH = 0.08
 
+#: Menagerie's geom groups for the Panda: visual meshes, and collision hulls.
+VISUAL_GROUP, COLLISION_GROUP = 2, 3
+
 #: Tool centre point: between the fingertips, this far from the hand body along its z axis
 #: (panda-gym's grasp target).
 TCP_OFFSET = 0.105
+
+#: The wrist camera, in the hand's frame: 6 cm to the side of the hand's axis (clear of the
+#: fingers, which open along y) and 2 cm below the flange, looking at a point 5.5 cm past
+#: the tool centre point, image rows along the fingers' opening, as cameras mounted on real
+#: Panda hands see the grasp. MuJoCo cameras look along their -z axis.
+WRIST_CAMERA = dict(pos=(0.06, 0.0, 0.02), xyaxes=(0, 1, 0, 0.919, 0, 0.394), fovy=60)
 
 _ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 8))
 _FINGER_JOINTS = ("finger_joint1", "finger_joint2")
@@ -80,6 +89,7 @@ class Panda(composer.Robot):
         the simulation is the same. `arm_actuation` is one of `ARM_ACTUATIONS`."""
         check_choice("arm_actuation", arm_actuation, ARM_ACTUATIONS)
         self._arm_actuation = arm_actuation
+        self._has_visual_meshes = bool(visual_meshes)
         self._mjcf_root = mjcf.from_path(str(assets.panda_xml()))
         self._mjcf_root.model = name
         if not visual_meshes:
@@ -105,6 +115,7 @@ class Panda(composer.Robot):
             "framelinvel", name="tcp_velocity", objtype="site", objname=self._tcp_site
         )
         self._hand = hand
+        self._wrist_camera = hand.add("camera", name="wrist", **WRIST_CAMERA)
         self._arm_joints = tuple(self._mjcf_root.find("joint", j) for j in _ARM_JOINTS)
         self._finger_joints = tuple(self._mjcf_root.find("joint", j) for j in _FINGER_JOINTS)
         self._gripper_actuator = self._mjcf_root.find("actuator", _GRIPPER_ACTUATOR)
@@ -214,6 +225,16 @@ class Panda(composer.Robot):
     def hand(self):
         """The hand body; the mocap weld attaches here through `tcp_site`."""
         return self._hand
+
+    @property
+    def has_visual_meshes(self) -> bool:
+        """Whether the model has Menagerie's visual meshes (`visual_meshes`)."""
+        return self._has_visual_meshes
+
+    @property
+    def wrist_camera(self):
+        """The camera on the hand (`WRIST_CAMERA`)."""
+        return self._wrist_camera
 
     @property
     def tcp_velocity(self):

@@ -9,9 +9,15 @@ from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.goal_task import GoalTask
 
 
-def build_task(config: TaskConfig, *, renderable: bool = True) -> GoalTask:
+def build_task(config: TaskConfig, *, renderable: bool | None = True) -> GoalTask:
     """The task `config` describes; `renderable=False` builds the Panda without its visual
-    meshes (for envs that never render: ~50 MB less, the same simulation)."""
+    meshes (for envs that never render: ~50 MB less, the same simulation), None only where
+    the camera observations draw them."""
+    if renderable is None:
+        renderable = config.observations.needs_visual_meshes
+    elif config.observations.needs_visual_meshes and not renderable:
+        raise ValueError("camera_meshes='visual' draws the Panda's visual meshes in the "
+                         "camera observations: renderable=False leaves them out")
     panda = Panda(visual_meshes=renderable,
                   arm_actuation=CONTROLLERS[config.control.kind].ARM_ACTUATION)
     panda.check_arm_qpos("neutral_arm_qpos", config.neutral_arm_qpos)

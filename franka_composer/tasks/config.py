@@ -110,6 +110,52 @@ class PuckSpec:
 
 ObjectSpec = Union[BlockSpec, PuckSpec]
 
+#: What an observation holds: the state vector (the paper's), camera images, or both. The
+#: goals stay state vectors in every mode, so rewards and HER relabelling are unchanged.
+OBSERVATION_MODES = ("state", "pixels", "state+pixels")
+#: Cameras that can give pixel observations: the arena's fixed view of the workspace, and
+#: one on the hand looking past the fingers (the usual view for grasping).
+PIXEL_CAMERAS = ("workspace", "wrist")
+#: Largest camera image (pixels a side): MuJoCo's offscreen buffer (`arenas/floor.py`).
+MAX_PIXELS = 1024
+#: How the Panda is drawn in camera observations: "hulls", its collision hulls (3k
+#: triangles; an 84 x 84 image costs ~10x less on software GL, and at that size looks the
+#: same), or "visual", Menagerie's visual meshes (135k triangles).
+CAMERA_MESHES = ("hulls", "visual")
+
+
+@dataclasses.dataclass(frozen=True)
+class ObservationSettings:
+    """What the agent observes.
+
+    Attributes:
+      mode: one of `OBSERVATION_MODES`.
+      cameras: the cameras whose images are observed (in pixel modes), from
+        `PIXEL_CAMERAS`, each under the key "<camera>_pixels".
+      height, width: each image's size in pixels (84 x 84: the Atari/DrQ convention).
+      goal_marker_visible: whether the goal is drawn (a pixel policy must see its goal).
+      camera_meshes: how the Panda is drawn in the images, one of `CAMERA_MESHES`.
+    """
+
+    mode: str = "state"
+    cameras: tuple[str, ...] = ("workspace",)
+    height: int = 84
+    width: int = 84
+    goal_marker_visible: bool = True
+    camera_meshes: str = "hulls"
+
+    @property
+    def needs_visual_meshes(self) -> bool:
+        return self.pixels and self.camera_meshes == "visual"
+
+    @property
+    def state(self) -> bool:
+        return "state" in self.mode
+
+    @property
+    def pixels(self) -> bool:
+        return "pixels" in self.mode
+
 
 @dataclasses.dataclass(frozen=True)
 class PhysicsSettings:
@@ -158,6 +204,7 @@ class TaskConfig:
       control_timestep: seconds per control step (a whole multiple of the physics step).
       neutral_arm_qpos: arm joint angles (rad) at reset.
       max_episode_steps: control steps before Gymnasium truncates an episode.
+      observations: the state vector, camera images or both (`ObservationSettings`).
     """
 
     name: str = "push"
@@ -175,6 +222,7 @@ class TaskConfig:
     control_timestep: float = 0.05
     neutral_arm_qpos: tuple[float, ...] = NEUTRAL_ARM_QPOS
     max_episode_steps: int = 50
+    observations: ObservationSettings = ObservationSettings()
 
     def replace(self, **options) -> "TaskConfig":
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
@@ -273,6 +321,19 @@ def _extent(name, value):
     return check_vector(name, value, 2, minimum=0.0)
 
 
+def _cameras(name, value):
+    cameras = (value,) if isinstance(value, str) else value
+    if (not isinstance(cameras, (tuple, list)) or not cameras
+            or len(set(map(str, cameras))) != len(cameras)):
+        raise ValueError(f"{name} must be a camera name or a non-empty sequence of different "
+                         f"ones from {', '.join(PIXEL_CAMERAS)}, got {value!r}")
+    return tuple(check_choice("camera", camera, PIXEL_CAMERAS) for camera in cameras)
+
+
+def _pixels(name, value):
+    return check_number(name, value, minimum=1, maximum=MAX_PIXELS, integer=True)
+
+
 def _physics(name, value):
     if not isinstance(value, PhysicsSettings):
         raise ValueError(f"{name} must be a PhysicsSettings record, got {value!r}")
@@ -305,6 +366,15 @@ OPTIONS: dict[str, Option] = {
     "distance_threshold": Option(("distance_threshold",), _positive),
     "terminate_on_success": Option(("terminate_on_success",), check_bool),
     "control_timestep": Option(("control_timestep",), _positive),
+    "observation_mode": Option(("observations", "mode"),
+                               lambda name, value: check_choice(name, value,
+                                                                OBSERVATION_MODES)),
+    "cameras": Option(("observations", "cameras"), _cameras),
+    "pixel_height": Option(("observations", "height"), _pixels),
+    "pixel_width": Option(("observations", "width"), _pixels),
+    "goal_marker_visible": Option(("observations", "goal_marker_visible"), check_bool),
+    "camera_meshes": Option(("observations", "camera_meshes"),
+                            lambda name, value: check_choice(name, value, CAMERA_MESHES)),
     "neutral_arm_qpos": Option(("neutral_arm_qpos",),
                                lambda name, value: check_vector(name, value, 7)),
 }

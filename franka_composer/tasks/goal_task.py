@@ -11,13 +11,15 @@ from dm_control import composer
 from dm_control.composer import initializers
 from dm_control.composer.observation import observable
 from dm_control.composer.variation import distributions
+from dm_control.mujoco import wrapper
 
 from franka_composer.arenas import FloorArena
 from franka_composer.controllers import Controller, make_controller
 from franka_composer.entities import Panda, Prop
-from franka_composer.entities.panda import MAX_FINGER_WIDTH
+from franka_composer.entities.panda import COLLISION_GROUP, MAX_FINGER_WIDTH, VISUAL_GROUP
 from franka_composer.tasks import rewards
-from franka_composer.tasks.config import PhysicsSettings, TaskConfig, Workspace
+from franka_composer.tasks.config import (ObservationSettings, PhysicsSettings, TaskConfig,
+                                         Workspace)
 from franka_composer.tasks.goals import GOALS, Goal
 from franka_composer.tasks.layout import ObservationLayout, layout_for
 
@@ -52,6 +54,8 @@ class GoalTask(composer.Task):
             arena.add_free_entity(prop)
         self._goal_spec: Goal = GOALS[config.goal](config, arena, panda, self._props)
         self._goal = np.zeros(self._goal_spec.size)
+        if not config.observations.goal_marker_visible:
+            self._goal_spec.marker.hide()
         arena.attach(self._goal_spec.marker)
         self._controller = make_controller(arena, panda, config.control)
         self._apply_physics_settings(config.physics)
@@ -60,10 +64,10 @@ class GoalTask(composer.Task):
         self._placers = self._make_placers(config.workspace)
 
         self._observation_layout = layout_for(config)
-        self._enable_observables()
+        self._enable_observables(config.observations)
         goal = observable.Generic(lambda physics: self._goal.copy())
         goal.enabled = True
-        self._task_observables = {"goal": goal}
+        self._task_observables = {"goal": goal, **self._camera_observables(config.observations)}
 
     def _make_placers(self, workspace: Workspace) -> list:
         """How the objects are placed each episode: resting, upright, in the object box."""
@@ -88,13 +92,39 @@ class GoalTask(composer.Task):
                      "iterations", "ls_iterations"):
             setattr(option, name, getattr(settings, name))
 
-    def _enable_observables(self) -> None:
-        """Enables exactly the observables the observation vector is built from (others stay
-        available to enable)."""
+    def _enable_observables(self, settings: ObservationSettings) -> None:
+        """Enables exactly the observables the observation is built from: the state vector's
+        (in state modes) and the achieved goal's (others stay available to enable)."""
         entities = {entity.mjcf_model.model: entity for entity in [self._panda, *self._props]}
-        for field in self._observation_layout.fields:
-            entity_name, observable_name = field.key.split("/")
+        keys = set(self._goal_spec.achieved_keys)
+        if settings.state:
+            keys.update(self._observation_layout.keys)
+        for key in keys:
+            entity_name, observable_name = key.split("/")
             entities[entity_name].observables.get_observable(observable_name).enabled = True
+
+    def _camera_observables(self, settings: ObservationSettings) -> dict:
+        """Composer camera observables "<camera>_pixels", (height, width, 3) uint8, for the
+        pixel modes."""
+        if not settings.pixels:
+            return {}
+        cameras = {"workspace": self._arena.workspace_camera,
+                   "wrist": self._panda.wrist_camera}
+        scene = wrapper.MjvOption()  # The Panda's collision hulls (group 3) or visual meshes.
+        scene.geomgroup[VISUAL_GROUP] = settings.camera_meshes == "visual"
+        scene.geomgroup[COLLISION_GROUP] = settings.camera_meshes == "hulls"
+        observables = {}
+        for name in settings.cameras:
+            camera = observable.MJCFCamera(cameras[name], height=settings.height,
+                                           width=settings.width, scene_option=scene)
+            camera.enabled = True
+            observables[f"{name}_pixels"] = camera
+        return observables
+
+    @property
+    def pixel_keys(self) -> tuple[str, ...]:
+        """The camera observables' names ("workspace_pixels", ...), in the cameras' order."""
+        return tuple(key for key in self._task_observables if key.endswith("_pixels"))
 
     # ----- What the adapter and users read -------------------------------------------------
 
