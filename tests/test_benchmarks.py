@@ -93,3 +93,24 @@ def test_the_baseline_follows_the_env_trajectory_bit_for_bit(control):
     assert seconds > 0 and contacts > 0
     np.testing.assert_array_equal(baseline.data.qpos, physics.data.qpos)
     np.testing.assert_array_equal(baseline.data.qvel, physics.data.qvel)
+
+
+@pytest.mark.slow
+def test_the_still_baseline_is_what_an_untrained_run_scores(tmp_path):
+    """An untrained policy scores exactly the episodes that start solved: the zero-action
+    replay of a run's evaluations gives the rates of the run's own first evaluations
+    (learning starts after them)."""
+    spec = importlib.util.spec_from_file_location("still_baseline",
+                                                  BENCHMARKS / "still_baseline.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    out = tmp_path / "run"
+    assert main(["train", "--task", "push", "--algo", "sac", "--seed", "0", "--out", str(out),
+                 "--total-steps", "400", "--learning-starts", "400", "--eval-every", "100",
+                 "--net-arch", "8", "--threads", "1", "--no-progress", "--device", "cpu"]) == 0
+    run = [row["success_rate"] for row in read_eval_rows(RunDir(out).eval_csv)]
+    still = module.still_rates("push", "mocap", seed=0, evaluations=len(run))
+    assert still == run
+    assert still[:3] == [0.0, 2 / 15, 2 / 15]  # Seed 0's evaluations: 0, 2 and 2 solved.
