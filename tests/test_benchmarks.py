@@ -113,4 +113,34 @@ def test_the_still_baseline_is_what_an_untrained_run_scores(tmp_path):
     run = [row["success_rate"] for row in read_eval_rows(RunDir(out).eval_csv)]
     still = module.still_rates("push", "mocap", seed=0, evaluations=len(run))
     assert still == run
-    assert still[:3] == [0.0, 2 / 15, 2 / 15]  # Seed 0's evaluations: 0, 2 and 2 solved.
+    assert still[:3] == [0.0, 1 / 15, 2 / 15]  # Seed 0: 0, 1 and 2 episodes start solved.
+
+
+@pytest.mark.slow
+def test_a_resumed_run_evaluates_the_episodes_an_uninterrupted_run_would(tmp_path):
+    """Learning starts after the budget, so the policy is the same untrained network in
+    both runs and only the episodes decide the evaluations: a run stopped at 300 steps and
+    resumed to 600 logs what an uninterrupted 600-step run logs, not its first
+    evaluations' episodes again (which would score differently: the still baseline)."""
+    spec = importlib.util.spec_from_file_location("still_baseline",
+                                                  BENCHMARKS / "still_baseline.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    def train(out, *args):
+        assert main(["train", "--out", str(out), "--threads", "1", "--no-progress",
+                     "--device", "cpu", *args]) == 0
+
+    start = ["--task", "push", "--algo", "sac", "--seed", "0", "--learning-starts", "1000",
+             "--eval-every", "100", "--checkpoint-every", "100", "--net-arch", "8"]
+    train(tmp_path / "whole", *start, "--total-steps", "600")
+    train(tmp_path / "resumed", *start, "--total-steps", "300")
+    train(tmp_path / "resumed", "--resume", "--total-steps", "600")
+    whole, resumed = (read_eval_rows(RunDir(tmp_path / name).eval_csv)
+                      for name in ("whole", "resumed"))
+    assert [row["steps"] for row in resumed] == [0, 100, 200, 300, 400, 500, 600]
+    for key in ("success_rate", "mean_reward"):
+        assert [row[key] for row in resumed] == [row[key] for row in whole]
+    still = module.still_rates("push", "mocap", seed=0, evaluations=7)
+    assert still[4:] != still[1:4]  # Evaluating the first episodes again would show.

@@ -71,6 +71,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._renderer = None
         self._render_thread = None  # The thread whose GL context renders this env.
         self._timestep = None
+        self._stream_started = False  # Whether a reset has seeded the episode stream.
         self._closed = False
 
         self._layout = self._task.observation_layout
@@ -122,11 +123,13 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             raise ValueError(f"unknown reset option(s) {', '.join(map(repr, sorted(options)))}; "
                              "this environment takes none (task options go to gym.make)")
         super().reset(seed=seed)
-        if seed is not None or self._timestep is None:
-            # The episode stream is a function of the seed; unseeded first resets draw it
+        if seed is not None or not self._stream_started:
+            # The episode stream is a function of the seed; an unseeded first reset draws it
             # from Gymnasium's np_random so `reset()` alone is still reproducible per env.
+            # Later unseeded resets continue it, however the episodes before them ended.
             seeding.reseed(self._env.random_state,
                            seed if seed is not None else int(self.np_random.integers(2**63 - 1)))
+            self._stream_started = True
         self._timestep = self._env.reset()
         obs = self._observation(self._timestep.observation)
         if self.render_mode == "human":

@@ -37,6 +37,15 @@ def _sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+def _skip_evaluated_episodes(eval_env, evaluations: int, episodes: int) -> None:
+    """Moves the evaluation env's episode stream past `evaluations` evaluations: each one
+    (SB3's `evaluate_policy`) resets once and then after each of its `episodes` episodes,
+    and which episodes a reset draws depends only on the seed, not on the policy. Without
+    this a resumed run would evaluate the episodes of its first evaluations again."""
+    for _ in range(evaluations * (episodes + 1)):
+        eval_env.reset()
+
+
 def start(root: pathlib.Path, config: RunConfig) -> RunDir:
     """Creates a run directory for `config`; one that already holds a run is a ValueError."""
     run = RunDir(pathlib.Path(root))
@@ -74,8 +83,11 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
                            backend=config.backend)
         model.load_replay_buffer(run.checkpoint_buffer)
         # Evaluations logged after the checkpoint belong to steps that will be redone.
-        rows = read_eval_rows(run.eval_csv)
-        write_eval_rows(run.eval_csv, [r for r in rows if r["steps"] <= state["steps"]])
+        rows = [r for r in read_eval_rows(run.eval_csv) if r["steps"] <= state["steps"]]
+        write_eval_rows(run.eval_csv, rows)
+        # The evaluations go on with the episodes an uninterrupted run would see next.
+        _skip_evaluated_episodes(eval_env, sum(r["steps"] % hp.eval_every == 0 for r in rows),
+                                 hp.eval_episodes)
         # Fresh episodes for the resumed stream, still a function of the seed.
         model.set_random_seed(config.seed + int(state["steps"]))
     else:
