@@ -47,7 +47,7 @@ PY
       cell=$(basename "$(dirname "$dir")")/$(basename "$dir")
       mkdir -p "results/precision/$cell"
       for file in config.json eval.csv outcome.json; do
-        [ -f "$dir/$file" ] && cp "$dir/$file" "results/precision/$cell/"
+        if [ -f "$dir/$file" ]; then cp "$dir/$file" "results/precision/$cell/"; fi
       done
     done
     ;;

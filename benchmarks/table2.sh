@@ -29,7 +29,7 @@ case "${1:-}" in
       cell=$(basename "$dir")
       mkdir -p "results/table2/$cell"
       for file in config.json eval.csv outcome.json; do
-        [ -f "$dir/$file" ] && cp "$dir/$file" "results/table2/$cell/"
+        if [ -f "$dir/$file" ]; then cp "$dir/$file" "results/table2/$cell/"; fi
       done
     done
     ls results/table2
