@@ -14,6 +14,7 @@ from dm_env import specs
 
 from franka_composer.controllers.settings import ControlSettings
 from franka_composer.entities.panda import MAX_FINGER_WIDTH, Panda
+from franka_composer.surface_guard import BoundSurfaceGuard, SurfaceGuard
 
 
 class ActionLaw:
@@ -53,6 +54,37 @@ class ActionLaw:
 
     def __call__(self, action: np.ndarray) -> None:
         raise NotImplementedError
+
+
+class TcpTargetLaw(ActionLaw):
+    """A law that sends the tool centre point towards a target each control step (mocap's
+    weld, osc's torques): the target, kept from running into the surface beneath the hand
+    (`SurfaceGuard`), is worked out here for both."""
+
+    def __init__(self, settings, model, data, ids: dict) -> None:
+        super().__init__(settings, model, data, ids)
+        self._tcp_pos = data.site_xpos[ids["tcp_site"]]
+        self._guard = ids["guard"]
+        self._target = np.zeros(3)
+
+    def on(self, model, data) -> "TcpTargetLaw":
+        return type(self)(self._settings, model, data,
+                          dict(self._ids, guard=self._guard.on(model, data)))
+
+    @property
+    def guard(self) -> BoundSurfaceGuard:
+        """What keeps the target from running into the surface beneath the hand."""
+        return self._guard
+
+    def _set_target(self, action: np.ndarray, stiffness: float) -> bool:
+        """Sets the target to the tool centre point plus `max_tcp_step` times the first three
+        components of `action` (clipped), no deeper than the guard allows for a spring of
+        `stiffness` (N/m); returns whether the guard raised it (the hand presses)."""
+        tcp, target = self._tcp_pos, self._target
+        np.add(tcp, self._settings.max_tcp_step * action[:3], out=target)
+        wanted = target[2]
+        target[2] = self._guard.guard(tcp, target, stiffness)
+        return target[2] > wanted
 
 
 class Controller:
@@ -133,6 +165,25 @@ class Controller:
     def apply(self, physics, action) -> None:
         """Sets the commands for the next control step."""
         self.law(self.validate(action))
+
+
+class TcpTargetController(Controller):
+    """A controller whose law is a `TcpTargetLaw`: it owns the surface guard, and gives the
+    law the tool centre point and the guard bound to the physics."""
+
+    def __init__(self, arena, panda: Panda, settings: ControlSettings) -> None:
+        super().__init__(arena, panda, settings)
+        self._surface_guard = SurfaceGuard(panda)
+
+    @property
+    def surface_guard(self) -> SurfaceGuard:
+        """What keeps the target from running into the surface beneath the hand."""
+        return self._surface_guard
+
+    def _law_ids(self, physics) -> dict:
+        return dict(super()._law_ids(physics),
+                    tcp_site=int(physics.bind(self._panda.tcp_site).element_id),
+                    guard=self._surface_guard.bind(physics))
 
 
 def contiguous(indices, what: str) -> slice:

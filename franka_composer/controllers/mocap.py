@@ -11,8 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from franka_composer.controllers.base import ActionLaw, Controller
-from franka_composer.surface_guard import BoundSurfaceGuard, SurfaceGuard
+from franka_composer.controllers.base import TcpTargetController, TcpTargetLaw
 
 # Weld stiffness (critically damped, time constant in s). MuJoCo's default 0.02 s lets the
 # hand lag a full command by ~40 % over a 0.05 s control step. A stiff 0.006 s tracks 99 %
@@ -38,7 +37,7 @@ _EQUALITY = mujoco.mjtConstraint.mjCNSTR_EQUALITY
 
 
 
-class MocapController(Controller):
+class MocapController(TcpTargetController):
     """Adds a mocap body and a weld to the arena, and turns actions into mocap targets."""
 
     ARM_ACTUATION = "none"
@@ -53,12 +52,6 @@ class MocapController(Controller):
         self._weld = root.equality.add("weld", name="tcp_weld", site1=target_site,
                                        site2=panda.tcp_site, solref=_WELD_SOLREF,
                                        solimp=_WELD_SOLIMP)
-        self._surface_guard = SurfaceGuard(panda)
-
-    @property
-    def surface_guard(self) -> SurfaceGuard:
-        """What keeps the target from running into the surface beneath the hand."""
-        return self._surface_guard
 
     @property
     def target(self):
@@ -81,32 +74,19 @@ class MocapController(Controller):
         model = physics.model.ptr
         return MocapLaw(self.settings, model, physics.data.ptr, dict(
             self._law_ids(physics),
-            tcp_site=int(physics.bind(self._panda.tcp_site).element_id),
             mocap=int(model.body(self._target.full_identifier).mocapid[0]),
-            weld=int(physics.bind(self._weld).element_id),
-            guard=self._surface_guard.bind(physics)))
+            weld=int(physics.bind(self._weld).element_id)))
 
 
-class MocapLaw(ActionLaw):
+class MocapLaw(TcpTargetLaw):
     """The mocap action law. Components are clipped to [-1, 1], as in Fetch. The target is
     the tool centre point plus `max_tcp_step` times the first three, kept from running into
     the surface beneath the hand (`SurfaceGuard`); the gripper as every controller's."""
 
     def __init__(self, settings, model, data, ids: dict) -> None:
         super().__init__(settings, model, data, ids)
-        self._tcp_pos = data.site_xpos[ids["tcp_site"]]
         self._mocap_pos = data.mocap_pos[ids["mocap"]]
         self._weld = ids["weld"]
-        self._guard = ids["guard"]
-
-    def on(self, model, data) -> "MocapLaw":
-        return MocapLaw(self._settings, model, data,
-                        dict(self._ids, guard=self._guard.on(model, data)))
-
-    @property
-    def guard(self) -> BoundSurfaceGuard:
-        """What keeps the target from running into the surface beneath the hand."""
-        return self._guard
 
     def press_stiffness(self) -> float:
         """Newtons per metre the weld pushes with when held still below its target: MuJoCo
@@ -121,8 +101,6 @@ class MocapLaw(ActionLaw):
     def __call__(self, action: np.ndarray) -> None:
         """Writes the mocap target (and gripper command) for `action` (float64)."""
         action = np.clip(action, -1.0, 1.0)
-        tcp = self._tcp_pos
-        target = tcp + self._settings.max_tcp_step * action[:3]
-        target[2] = self._guard.guard(tcp, target, self.press_stiffness())
-        self._mocap_pos[:] = target
+        self._set_target(action, self.press_stiffness())
+        self._mocap_pos[:] = self._target
         self.command_gripper(action)

@@ -43,8 +43,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from franka_composer.controllers.base import ActionLaw, Controller, contiguous
-from franka_composer.surface_guard import BoundSurfaceGuard, SurfaceGuard
+from franka_composer.controllers.base import TcpTargetController, TcpTargetLaw, contiguous
 
 #: Seconds between torque updates (250 Hz: every other 2 ms physics step), the torques held
 #: in between. The real Panda's torque loop runs at 1 kHz; at 500 Hz (every physics step)
@@ -66,30 +65,24 @@ NULL_DAMPING = 10.0
 _VERTICAL = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
 
 
-class OscController(Controller):
+class OscController(TcpTargetController):
     """Drives the Panda's torque motors with the operational-space law."""
 
     ARM_ACTUATION = "torque"
-
-    def __init__(self, arena, panda, settings) -> None:
-        super().__init__(arena, panda, settings)
-        self._surface_guard = SurfaceGuard(panda)
 
     def _bind_law(self, physics) -> "OscLaw":
         panda = self._panda
         timestep = float(physics.model.opt.timestep)
         return OscLaw(self.settings, physics.model.ptr, physics.data.ptr, dict(
             self._law_ids(physics),
-            tcp_site=int(physics.bind(panda.tcp_site).element_id),
             arm_dofs=contiguous(physics.bind(panda.joints).dofadr, "arm dofs"),
             arm_qpos=contiguous(physics.bind(panda.joints).qposadr, "arm qpos addresses"),
             motors=contiguous(physics.bind(panda.arm_actuators).element_id, "arm motors"),
             torque_limits=np.asarray(panda.arm_torque_limits, dtype=np.float64),
-            guard=self._surface_guard.bind(physics),
             substeps_per_update=max(1, int(round(UPDATE_PERIOD / timestep)))))
 
 
-class OscLaw(ActionLaw):
+class OscLaw(TcpTargetLaw):
     """The operational-space law on one MjData (see the module docstring). It works with
     MuJoCo's own routines on the data's factorised mass matrix (`mj_solveM`, `mj_mulM`),
     which the physics step has brought up to date, and preallocated arrays: it runs 250
@@ -101,10 +94,9 @@ class OscLaw(ActionLaw):
         super().__init__(settings, model, data, ids)
         nv = model.nv
         self._site, self._every = ids["tcp_site"], ids["substeps_per_update"]
-        self._guard = ids["guard"]
         arm = ids["arm_dofs"]
         self._limits = ids["torque_limits"]
-        self._tcp_pos, self._tcp_mat = data.site_xpos[self._site], data.site_xmat[self._site]
+        self._tcp_mat = data.site_xmat[self._site]
         self._q, self._qdot = data.qpos[ids["arm_qpos"]], data.qvel[arm]
         self._bias, self._torques = data.qfrc_bias[arm], data.ctrl[ids["motors"]]
         self._jacobian = np.zeros((6, nv))  # Position rows, then rotation rows.
@@ -121,7 +113,6 @@ class OscLaw(ActionLaw):
         self._force, self._column = np.zeros(6), np.zeros(6)
         self._pressing = False  # Whether the target was kept from going into a surface.
         self._apparent_inertia = np.zeros(6)  # diag(Lambda), while pressing.
-        self._target = np.zeros(3)
         self._rest = np.zeros(len(self._limits))
         self._orientation = np.zeros(4)  # The hand's wanted orientation (w, x, y, z).
         self._quat, self._inverse, self._turn = np.zeros(4), np.zeros(4), np.zeros(4)
@@ -129,15 +120,6 @@ class OscLaw(ActionLaw):
         self._gains = (STIFFNESS, 2 * DAMPING_RATIO * np.sqrt(STIFFNESS),
                        ROTATION_STIFFNESS, 2 * DAMPING_RATIO * np.sqrt(ROTATION_STIFFNESS))
         self._phase = 0
-
-    def on(self, model, data) -> "OscLaw":
-        return OscLaw(self._settings, model, data,
-                      dict(self._ids, guard=self._guard.on(model, data)))
-
-    @property
-    def guard(self) -> BoundSurfaceGuard:
-        """What keeps the target from running into the surface beneath the hand."""
-        return self._guard
 
     def reset(self) -> None:
         """Holds the hand where it starts, top-down at its starting yaw, the elbow at the
@@ -154,11 +136,7 @@ class OscLaw(ActionLaw):
         the tool centre point plus `max_tcp_step` times the first three components, kept
         from running into the surface beneath the hand (`SurfaceGuard`)."""
         action = np.clip(action, -1.0, 1.0)
-        tcp, target = self._tcp_pos, self._target
-        np.add(tcp, self._settings.max_tcp_step * action[:3], out=target)
-        wanted = target[2]
-        target[2] = self._guard.guard(tcp, target, self.vertical_stiffness())
-        self._pressing = target[2] > wanted
+        self._pressing = self._set_target(action, self.vertical_stiffness())
         self.command_gripper(action)
 
     def substep(self) -> None:
