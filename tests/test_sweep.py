@@ -159,3 +159,20 @@ def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monk
     capsys.readouterr()
     assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
     assert "push / sac: seeds 0, 1; trained steps 300, 300" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--seeds", "-1"], "argument --seeds: must be an integer from 0 to 2147483647, got '-1'"),
+    (["--seeds", "2147483648"], "must be an integer from 0 to 2147483647"),
+    (["--refresh", "0"], "argument --refresh: must be a number of seconds > 0, got '0'"),
+    (["--refresh", "nan"], "must be a number of seconds > 0"),
+])
+def test_bad_seeds_and_refresh_periods_are_refused_by_the_parser(tmp_path, capsys, argv,
+                                                                 message):
+    base = {"--tasks": ["push"], "--algos": ["sac"], "--seeds": ["0"], "--steps": ["10"]}
+    base[argv[0]] = argv[1:]
+    args = [item for key, values in base.items() for item in (key, *values)]
+    with pytest.raises(SystemExit):
+        cli.main(["sweep", "--out", str(tmp_path / "s"), *args])
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

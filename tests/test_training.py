@@ -348,3 +348,15 @@ def test_bf16_needs_the_torch_backend(tmp_path, capsys):
         _train(tmp_path / "run", "sac", 100, "--precision", "fp16")
     assert "invalid choice: 'fp16'" in capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])
+def test_a_seed_sb3_cannot_take_is_refused_before_the_run_exists(tmp_path, capsys, seed):
+    """SB3 seeds NumPy with the seed plus the evaluation offset (and plus the steps on a
+    resume), at most 2**32 - 1: a bad seed is refused by the parser, not after config.json
+    was written."""
+    with pytest.raises(SystemExit):
+        _train(tmp_path / "run", "sac", 100, "--seed", seed)
+    assert "argument --seed: must be an integer from 0 to 2147483647" in \
+        capsys.readouterr().err
+    assert not (tmp_path / "run").exists()

@@ -14,3 +14,31 @@ def positive_int(text: str) -> int:
     if not (value >= 1 and value.is_integer()):
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
     return int(value)
+
+
+#: Training seeds stay below 2**31: SB3 seeds NumPy's legacy generator (at most 2**32 - 1)
+#: with the seed plus the evaluation offset, and with the seed plus the steps on a resume.
+MAX_TRAINING_SEED = 2**31 - 1
+
+
+def training_seed(text: str) -> int:
+    """A training run's seed: an integer in [0, MAX_TRAINING_SEED]."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= MAX_TRAINING_SEED:
+        raise argparse.ArgumentTypeError(
+            f"must be an integer from 0 to {MAX_TRAINING_SEED}, got {text!r}")
+    return value
+
+
+def positive_seconds(text: str) -> float:
+    """A finite number of seconds > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text!r}")
+    return value

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import positive_int, positive_seconds, training_seed
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
 
@@ -35,7 +35,7 @@ def add_parser(subparsers) -> None:
                              "budgets and the early-stopping rule")
     parser.add_argument("--tasks", nargs="+", choices=ALL_TASKS, metavar="TASK")
     parser.add_argument("--algos", nargs="+", choices=ALGOS, metavar="ALGO")
-    parser.add_argument("--seeds", nargs="+", type=int, metavar="SEED")
+    parser.add_argument("--seeds", nargs="+", type=training_seed, metavar="SEED")
     parser.add_argument("--steps", type=_budgets, metavar="N|TASK=N,...",
                         help="each cell's step budget, or one per task (push=250000,...)")
     parser.add_argument("--address", default=None,
@@ -43,7 +43,7 @@ def add_parser(subparsers) -> None:
                              "default: start a local Ray")
     parser.add_argument("--num-cpus", type=positive_int, default=None,
                         help="cells at once on the local Ray (default: every CPU)")
-    parser.add_argument("--refresh", type=float, default=30.0, metavar="SECONDS",
+    parser.add_argument("--refresh", type=positive_seconds, default=30.0, metavar="SECONDS",
                         help="how often the table of cells is shown (default 30)")
     parser.add_argument("--status", action="store_true",
                         help="show the table of cells (what OUT holds) and exit: from a "

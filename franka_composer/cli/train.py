@@ -7,7 +7,7 @@ import contextlib
 import os
 import pathlib
 
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import positive_int, training_seed
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
@@ -55,7 +55,8 @@ def add_parser(subparsers) -> None:
                         help="the networks' arithmetic while training (sb3): fp32 (the "
                              "paper's) or bf16 (torch.autocast; weights, optimiser state and "
                              "evaluations stay fp32). A resumed run keeps its precision")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of the run")
+    parser.add_argument("--seed", type=training_seed, default=0,
+                        help="random seed of the run (0 to 2**31 - 1)")
     parser.add_argument("--out", type=pathlib.Path, default=None,
                         help="run directory (default runs/TASK-ALGO-seedSEED)")
     parser.add_argument("--resume", action="store_true",

@@ -119,8 +119,9 @@ PIXEL_CAMERAS = ("workspace", "wrist")
 #: Largest camera image (pixels a side): MuJoCo's offscreen buffer (`arenas/floor.py`).
 MAX_PIXELS = 1024
 #: How the Panda is drawn in camera observations: "hulls", its collision hulls (3k
-#: triangles; an 84 x 84 image costs ~10x less on software GL, and at that size looks the
-#: same), or "visual", Menagerie's visual meshes (135k triangles).
+#: triangles; with one 84 x 84 camera an env step is 6x faster on software GL,
+#: `benchmarks/pixels.py`, and at that size it looks the same), or "visual", Menagerie's
+#: visual meshes (135k triangles).
 CAMERA_MESHES = ("hulls", "visual")
 
 
