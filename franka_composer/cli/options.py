@@ -5,12 +5,17 @@ from __future__ import annotations
 import argparse
 
 
+def number(text: str) -> float:
+    """`text` as a float; NaN (which fails every range check) if it is not a number."""
+    try:
+        return float(text)
+    except ValueError:
+        return float("nan")
+
+
 def positive_int(text: str) -> int:
     """An integer >= 1; a whole number in scientific notation (5e5) is accepted too."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
+    value = number(text)
     if not (value >= 1 and value.is_integer()):
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
     return int(value)
@@ -35,10 +40,7 @@ def training_seed(text: str) -> int:
 
 def positive_seconds(text: str) -> float:
     """A finite number of seconds > 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
+    value = number(text)
     if not 0.0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text!r}")
     return value

@@ -7,7 +7,7 @@ import contextlib
 import os
 import pathlib
 
-from franka_composer.cli.options import positive_int, training_seed
+from franka_composer.cli.options import number, positive_int, training_seed
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
@@ -26,10 +26,7 @@ def _net_arch(text: str) -> tuple[int, ...]:
 
 
 def _rate(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
+    value = number(text)
     if not 0.0 < value <= 1.0:
         raise argparse.ArgumentTypeError(f"must be a success rate in (0, 1], got {text!r}")
     return value
