@@ -2,10 +2,12 @@
 
 Composer's `step` loops over a control step's substeps in Python, calling substep hooks and
 the observation updater each time. When no hook needs to run between substeps and every
-observable is read once per control step with no delay, buffer or aggregator (the default),
-that loop only costs time: `FastEnvironment` then calls `physics.step(n_sub_steps)` once
-(which MuJoCo runs in C, and which honours `suppress_physics_errors()`) and reads the
-observables directly, and falls back to Composer's loop otherwise. A task's torque law (its
+observable is due only at the end of a control step, that loop only costs time:
+`FastEnvironment` then calls `physics.step(n_sub_steps)` once (which MuJoCo runs in C, and
+which honours `suppress_physics_errors()`); it reads the observables directly where none has
+a delay, buffer or aggregator (the default), else updates Composer's buffers once, at the
+last substep (an observation delayed by whole control steps, `randomization`); and falls
+back to Composer's loop otherwise. A task's torque law (its
 `substep_control`, all its `before_substep` does) is called before each physics step in a
 plain loop instead. It also:
 - keeps the observation updater across resets while its make-up is unchanged (rebuilding it
@@ -164,10 +166,8 @@ class FastEnvironment(GoalEnvironment):
             hook = getattr(hooks, "_" + name)
             if hook.entity_hooks or hook.extra_hooks:
                 return False
-        return all(
-            enabled.update_interval == 1 and enabled.delay == 0
-            and enabled.buffer_size < self._n_sub_steps
-            for enabled in self._observation_updater._enabled_list)
+        return all(_due_at_control_steps(enabled, self._n_sub_steps)
+                   for enabled in self._observation_updater._enabled_list)
 
     def _direct_observables(self) -> list | None:
         """(name, callable) per observable when each is simply read at the end of the step
@@ -177,7 +177,8 @@ class FastEnvironment(GoalEnvironment):
             return None
         direct = []
         for name, enabled in structure.items():
-            if enabled.buffer_size != 1 or enabled.observable.aggregator is not None:
+            if (enabled.buffer_size != 1 or enabled.observable.aggregator is not None
+                    or enabled.delay != 0 or enabled.update_interval != 1):
                 return None
             direct.append((name, enabled.observation_callable))
         return direct
@@ -203,6 +204,13 @@ class FastEnvironment(GoalEnvironment):
         with self._physics.reset_context():
             self._hooks.initialize_episode(self._physics_proxy, self._random_state)
         self._reset_next_step = False
+        if self._observables_signature() != self._signature:
+            # The episode's initialisation changed how observables are read (a randomised
+            # observation delay): Composer's updater takes it from here, as on its own path.
+            self._updater_rebuilt = True
+            self._observation_updater.reset(self._physics_proxy, self._random_state)
+            return dm_env.TimeStep(dm_env.StepType.FIRST, None, None,
+                                   self._observation_updater.get_observation())
         return dm_env.TimeStep(dm_env.StepType.FIRST, None, None, self._read_observation())
 
     def _read_observation(self) -> dict:
@@ -274,3 +282,16 @@ class FastEnvironment(GoalEnvironment):
             return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, obs)
         self._reset_next_step = True
         return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, obs)
+
+
+def _due_at_control_steps(enabled, substeps: int) -> bool:
+    """Whether an enabled observable is only ever due at the end of a control step: read
+    every substep with no delay and a buffer shorter than a control step (Composer then
+    schedules only the last substeps), or read once per control step with a delay of whole
+    control steps into a one-entry buffer."""
+    interval, delay = enabled.update_interval, enabled.delay
+    if not (isinstance(interval, int) and isinstance(delay, int)):
+        return False  # Drawn anew at each update (a Variation).
+    if interval == 1 and delay == 0:
+        return enabled.buffer_size < substeps
+    return interval == substeps and delay % substeps == 0 and enabled.buffer_size == 1

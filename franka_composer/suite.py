@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from dm_control import composer
 
 from franka_composer import seeding
 from franka_composer.environment import GoalEnvironment
@@ -51,4 +52,7 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
         strip_singleton_obs_buffer_dim=True,
         raise_exception_on_physics_error=False,
         max_reset_attempts=MAX_RESET_ATTEMPTS,
+        # A delayed observation (`randomization`) shows the reset's reading until the first
+        # delayed one arrives, not zeros.
+        delayed_observation_padding=composer.ObservationPadding.INITIAL_VALUE,
     )

@@ -109,3 +109,20 @@ def grasp_block(env):
     for _ in range(4):
         timestep = env.step(np.array([0, 0, 0, -1], np.float32))
     return timestep
+
+
+def her_samples(env, steps: int, count: int = 512):
+    """(next achieved goals, desired goals, rewards) of `count` transitions SB3's
+    `HerReplayBuffer` relabels ("future", 4 goals per transition) after `steps` random steps
+    of `env`: what HER trains on."""
+    from stable_baselines3 import SAC, HerReplayBuffer
+
+    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer,
+                replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
+                learning_starts=10_000, buffer_size=1000, seed=0,
+                policy_kwargs=dict(net_arch=[8]), device="cpu")
+    model.learn(total_timesteps=steps)  # Random actions only.
+    samples = model.replay_buffer.sample(count)
+    return (samples.next_observations["achieved_goal"].numpy(),
+            samples.observations["desired_goal"].numpy(),
+            samples.rewards.numpy().squeeze(-1))

@@ -11,7 +11,7 @@ import pytest
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from conftest import SPEC, near_goal_pairs, spec_distance
+from conftest import SPEC, her_samples, near_goal_pairs, spec_distance
 
 ALL_IDS = tuple(franka_composer.ENV_IDS)
 
@@ -311,18 +311,8 @@ def test_her_relabelled_rewards_are_exact(task_name):
     """SB3's HerReplayBuffer relabels with `compute_reward` (a quaternion goal for flip, six
     coordinates for stack): every sampled reward is the task's reward for its goals, and
     the relabelling does produce goals that the original episodes missed."""
-    from stable_baselines3 import SAC, HerReplayBuffer
-
     env = gym.make(env_id(task_name, "sparse"), terminate_on_success=False)
-    model = SAC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer,
-                replay_buffer_kwargs=dict(n_sampled_goal=4, goal_selection_strategy="future"),
-                learning_starts=10_000, buffer_size=1000, seed=0,
-                policy_kwargs=dict(net_arch=[8]), device="cpu")
-    model.learn(total_timesteps=4 * SPEC[task_name]["steps"])  # Random actions only.
-    samples = model.replay_buffer.sample(512)
-    achieved = samples.next_observations["achieved_goal"].numpy()
-    desired = samples.observations["desired_goal"].numpy()
-    rewards = samples.rewards.numpy().squeeze(-1)
+    achieved, desired, rewards = her_samples(env, 4 * SPEC[task_name]["steps"])
     np.testing.assert_array_equal(
         rewards, env.unwrapped.compute_reward(achieved, desired, None).astype(np.float32))
     successes = spec_distance(task_name, achieved, desired) < SPEC[task_name]["threshold"]

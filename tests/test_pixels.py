@@ -55,8 +55,8 @@ def test_cameras_and_image_size_are_options_and_dm_env_names_the_observables():
     for key in env.task.pixel_keys:
         assert timestep.observation[key].shape == (48, 64, 3)
         assert timestep.observation[key].dtype == np.uint8
-    # Pixels only: the state vector's observables are off, the achieved goal's stay on.
-    assert set(timestep.observation) == {"wrist_pixels", "workspace_pixels", "block/position",
+    # Pixels only: the state vector's observables are off; the goals are the task's own.
+    assert set(timestep.observation) == {"wrist_pixels", "workspace_pixels", "achieved_goal",
                                          "goal"}
     assert franka_composer.load("push", cameras="wrist").task.config.observations.cameras == (
         "wrist",)

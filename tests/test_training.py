@@ -139,6 +139,28 @@ def test_no_terminate_on_success_reaches_the_env(tmp_path):
     env.close()
 
 
+def test_a_randomised_run_trains_resumes_and_evaluates_on_randomised_envs(tmp_path, capsys,
+                                                                          monkeypatch):
+    from franka_composer.training import loop
+
+    made = []
+    real_make_env = loop.make_env
+    monkeypatch.setattr(loop, "make_env", lambda task, **options: made.append(options)
+                        or real_make_env(task, **options))
+    out = tmp_path / "randomised"
+    assert _train(out, "sac", 100, "--randomization", "default",
+                  "--checkpoint-every", "100") == 0
+    assert json.loads(RunDir(out).config_path.read_text())["randomization"] == "default"
+    assert _train(out, "sac", 200, "--resume") == 0
+    assert [options["randomization"] for options in made] == ["default"] * 4  # Train, eval.
+    assert cli.main(["evaluate", str(out), "--episodes", "2"]) == 0
+    assert "push" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        _train(tmp_path / "bad", "sac", 100, "--randomization", "strong")
+    assert "invalid choice: 'strong' (choose from 'default')" in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()
+
+
 def test_evaluate_prints_table_ii_layout(runs, tmp_path, capsys):
     table = tmp_path / "table.md"
     assert cli.main(["evaluate", *map(str, runs.values()), "--episodes", "2",

@@ -72,6 +72,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._render_thread = None  # The thread whose GL context renders this env.
         self._timestep = None
         self._stream_started = False  # Whether a reset has seeded the episode stream.
+        self._randomization = None  # This episode's randomised parameters, if randomised.
         self._closed = False
 
         self._layout = self._task.observation_layout
@@ -131,10 +132,12 @@ class FrankaGoalEnv(gym.Env, EzPickle):
                            seed if seed is not None else int(self.np_random.integers(2**63 - 1)))
             self._stream_started = True
         self._timestep = self._env.reset()
+        self._randomization = (self._task.randomization
+                               if self._task.config.randomization.enabled else None)
         obs = self._observation(self._timestep.observation)
         if self.render_mode == "human":
             self.render()
-        return obs, {"is_success": self._task.success}
+        return obs, self._info()
 
     def step(self, action):
         self._check_open()
@@ -142,7 +145,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
         self._timestep = self._env.step(action)
         obs = self._observation(self._timestep.observation)
-        info = {"is_success": self._task.success}
+        info = self._info()
         reward = REWARD_DTYPE(self._timestep.reward)
         terminated = bool(self._timestep.last())
         if terminated:
@@ -208,10 +211,17 @@ class FrankaGoalEnv(gym.Env, EzPickle):
 
     # ----- Reshaping ------------------------------------------------------------------------
 
+    def _info(self) -> dict:
+        """`is_success`, and under randomisation the episode's parameters (a new dict each
+        time, of immutable values)."""
+        if self._randomization is None:
+            return {"is_success": self._task.success}
+        return {"is_success": self._task.success, "randomization": dict(self._randomization)}
+
     def _observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
         obs = {"observation": self._layout.flatten(composer_obs)} if self._state else {}
-        obs["achieved_goal"] = np.concatenate(
-            [composer_obs[key] for key in self._task.achieved_goal_keys], dtype=OBSERVATION_DTYPE)
+        obs["achieved_goal"] = np.array(composer_obs[self._task.achieved_goal_key],
+                                        dtype=OBSERVATION_DTYPE)
         obs["desired_goal"] = np.array(composer_obs[self._task.desired_goal_key],
                                        dtype=OBSERVATION_DTYPE)
         for key in self._pixel_keys:

@@ -42,8 +42,7 @@ def run(args: argparse.Namespace) -> int:
     for root in run_directories(args.runs):
         run_dir = RunDir(root)
         config = run_dir.read_config()
-        env = make_env(config.task, terminate_on_success=config.terminate_on_success,
-                       control=config.control)
+        env = make_env(config.task, **config.env_options)
         try:
             model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device,
                                backend=config.backend)

@@ -9,6 +9,7 @@ import pathlib
 
 from franka_composer.cli.options import number, positive_int, training_seed
 from franka_composer.controllers import CONTROLS
+from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
@@ -43,6 +44,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--algo", choices=ALGOS, default="tqc", help="learning algorithm")
     parser.add_argument("--control", choices=CONTROLS, default="mocap",
                         help="how actions move the arm (default: mocap, the paper's)")
+    parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
+                        help="domain randomisation preset for training and evaluation "
+                             "(default: none); README, Domain randomisation")
     parser.add_argument("--backend", choices=BACKENDS, default="sb3",
                         help="'sb3' (default, the paper's): Stable-Baselines3 on PyTorch; "
                              "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
@@ -150,7 +154,8 @@ def run(args: argparse.Namespace) -> int:
             stop_after_evaluations=args.stop_after)
         run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
                                             args.terminate_on_success, args.backend,
-                                            args.control, args.precision))
+                                            args.control, args.precision,
+                                            args.randomization))
     try:
         with _limit_threads(args.threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,

@@ -124,6 +124,11 @@ class Controller:
     def _bind_law(self, physics) -> ActionLaw:
         raise NotImplementedError
 
+    def scale_gains(self, physics, factor: float) -> None:
+        """Scales the controller's stiffness by `factor` from the next step on, each
+        controller keeping its damping rule (domain randomisation; no recompilation)."""
+        raise NotImplementedError
+
     def _law_ids(self, physics) -> dict:
         """The ids every law needs: the finger joints' qpos addresses, the gripper servo."""
         left, right = (int(a) for a in physics.bind(self._panda.finger_joints).qposadr)
@@ -162,9 +167,11 @@ class Controller:
             raise ValueError(f"action must be finite, got {array.tolist()}")
         return array
 
-    def apply(self, physics, action) -> None:
-        """Sets the commands for the next control step."""
-        self.law(self.validate(action))
+    def apply(self, physics, action, perturb=None) -> None:
+        """Sets the commands for the next control step; `perturb` (e.g. action noise) acts
+        on the checked action."""
+        action = self.validate(action)
+        self.law(action if perturb is None else perturb(action))
 
 
 class TcpTargetController(Controller):

@@ -29,6 +29,10 @@ class JointController(Controller):
             servos=contiguous(physics.bind(panda.arm_actuators).element_id, "arm servos"),
             low=low, high=high))
 
+    def scale_gains(self, physics, factor: float) -> None:
+        """The servos' stiffness times `factor`, their derivative time kept."""
+        self._panda.set_servo_gain(physics, factor)
+
 
 class JointLaw(ActionLaw):
     """Joint-angle deltas to servo targets, on one MjData."""

@@ -31,8 +31,6 @@ _WELD_SOLREF = (WELD_TIMECONST, 1.0)
 # target may go into a surface, hence the force, is bounded by `SurfaceGuard`.
 WELD_IMPEDANCE = 0.9
 _WELD_SOLIMP = (WELD_IMPEDANCE, WELD_IMPEDANCE, 0.001, 0.5, 2.0)
-# s^2: the weld's press stiffness is its vertical row's D over this (`press_stiffness`).
-_WELD_COMPLIANCE = WELD_IMPEDANCE * WELD_TIMECONST ** 2
 _EQUALITY = mujoco.mjtConstraint.mjCNSTR_EQUALITY
 
 
@@ -70,6 +68,11 @@ class MocapController(TcpTargetController):
         target.mocap_pos = tcp.xpos
         target.mocap_quat = quat
 
+    def scale_gains(self, physics, factor: float) -> None:
+        """The weld's stiffness times `factor`: its time constant over sqrt(factor), still
+        critically damped."""
+        physics.bind(self._weld).solref = (WELD_TIMECONST / np.sqrt(factor), 1.0)
+
     def _bind_law(self, physics) -> "MocapLaw":
         model = physics.model.ptr
         return MocapLaw(self.settings, model, physics.data.ptr, dict(
@@ -87,6 +90,7 @@ class MocapLaw(TcpTargetLaw):
         super().__init__(settings, model, data, ids)
         self._mocap_pos = data.mocap_pos[ids["mocap"]]
         self._weld = ids["weld"]
+        self._solref, self._solimp = model.eq_solref[self._weld], model.eq_solimp[self._weld]
 
     def press_stiffness(self) -> float:
         """Newtons per metre the weld pushes with when held still below its target: MuJoCo
@@ -96,7 +100,8 @@ class MocapLaw(TcpTargetLaw):
         data = self._data
         rows = np.flatnonzero((data.efc_type[:data.ne] == _EQUALITY)
                               & (data.efc_id[:data.ne] == self._weld))
-        return float(data.efc_D[rows[2]]) / _WELD_COMPLIANCE
+        compliance = self._solimp[0] * self._solref[0] ** 2  # s^2: d tc^2
+        return float(data.efc_D[rows[2]]) / compliance
 
     def __call__(self, action: np.ndarray) -> None:
         """Writes the mocap target (and gripper command) for `action` (float64)."""

@@ -65,10 +65,30 @@ NULL_DAMPING = 10.0
 _VERTICAL = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
 
 
+def _gains(factor: float) -> tuple[float, float, float, float]:
+    """Position stiffness and damping, orientation stiffness and damping, for stiffness
+    `factor` times the nominal, critically damped (`DAMPING_RATIO`)."""
+    stiffness, rotation_stiffness = STIFFNESS * factor, ROTATION_STIFFNESS * factor
+    return (stiffness, 2 * DAMPING_RATIO * np.sqrt(stiffness),
+            rotation_stiffness, 2 * DAMPING_RATIO * np.sqrt(rotation_stiffness))
+
+
 class OscController(TcpTargetController):
     """Drives the Panda's torque motors with the operational-space law."""
 
     ARM_ACTUATION = "torque"
+
+    def __init__(self, arena, panda, settings) -> None:
+        super().__init__(arena, panda, settings)
+        self._gain_scale = 1.0
+
+    def scale_gains(self, physics, factor: float) -> None:
+        """The law's stiffness times `factor`, set on the law as the episode starts."""
+        self._gain_scale = float(factor)
+
+    def initialize_episode(self, physics) -> None:
+        super().initialize_episode(physics)
+        self.law.set_gain_scale(self._gain_scale)
 
     def _bind_law(self, physics) -> "OscLaw":
         panda = self._panda
@@ -117,9 +137,12 @@ class OscLaw(TcpTargetLaw):
         self._orientation = np.zeros(4)  # The hand's wanted orientation (w, x, y, z).
         self._quat, self._inverse, self._turn = np.zeros(4), np.zeros(4), np.zeros(4)
         self._rotation_error = np.zeros(3)
-        self._gains = (STIFFNESS, 2 * DAMPING_RATIO * np.sqrt(STIFFNESS),
-                       ROTATION_STIFFNESS, 2 * DAMPING_RATIO * np.sqrt(ROTATION_STIFFNESS))
+        self._gains = _gains(1.0)
         self._phase = 0
+
+    def set_gain_scale(self, factor: float) -> None:
+        """Stiffness (position and orientation) times `factor`, still critically damped."""
+        self._gains = _gains(factor)
 
     def reset(self) -> None:
         """Holds the hand where it starts, top-down at its starting yaw, the elbow at the
@@ -154,7 +177,7 @@ class OscLaw(TcpTargetLaw):
         hand, the hand held still: STIFFNESS times the hand's operational-space inertia
         along z, Lambda_zz (from the last torque update)."""
         mujoco.mju_cholSolve(self._column, self._inverse_inertia, _VERTICAL)
-        return STIFFNESS * float(self._column[2])
+        return self._gains[0] * float(self._column[2])
 
     def _factor_inertia(self) -> None:
         """The Jacobian, J M^-1 and the Cholesky factor of Lambda^-1 = J M^-1 J^T, from the

@@ -255,6 +255,26 @@ class Panda(composer.Robot):
         physics.bind(self._finger_joints).qvel = 0.0
         physics.bind(self._gripper_actuator).ctrl = finger_width
 
+    def set_servo_gain(self, physics, factor: float) -> None:
+        """Scales the arm's position servos' stiffness by `factor`, with the same derivative
+        time (`SERVO_DERIVATIVE_TIME`), without recompiling; only under "position"."""
+        if self._arm_actuation != "position":
+            raise ValueError(f"the Panda's arm has no position servos under "
+                             f"arm_actuation={self._arm_actuation!r}")
+        for servo in self._arm_actuators:
+            stiffness = float(servo.gainprm[0]) * factor
+            bound = physics.bind(servo)
+            bound.gainprm[0] = stiffness
+            bound.biasprm[1:3] = (-stiffness, -stiffness * SERVO_DERIVATIVE_TIME)
+
+    def set_gripper_gain(self, physics, factor: float) -> None:
+        """Scales the gripper servo's stiffness by `factor`, its damping by the square root
+        (the same damping ratio): for domain randomisation, without recompiling."""
+        servo = physics.bind(self._gripper_actuator)
+        stiffness, damping = _GRIPPER_STIFFNESS * factor, _GRIPPER_DAMPING * np.sqrt(factor)
+        servo.gainprm[0] = stiffness / 2
+        servo.biasprm[1:3] = (-stiffness, -damping)
+
     def finger_width(self, physics) -> float:
         """Distance between the fingers (m)."""
         return float(np.sum(physics.bind(self._finger_joints).qpos))

@@ -21,6 +21,7 @@ import numpy as np
 from franka_composer.controllers import CONTROLS, ControlSettings
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
+from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.tasks.rewards import REWARD_TYPES
 from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
                                         check_vector)
@@ -206,6 +207,8 @@ class TaskConfig:
       neutral_arm_qpos: arm joint angles (rad) at reset.
       max_episode_steps: control steps before Gymnasium truncates an episode.
       observations: the state vector, camera images or both (`ObservationSettings`).
+      randomization: what is randomised each episode (`randomization` package); off by
+        default.
     """
 
     name: str = "push"
@@ -224,6 +227,7 @@ class TaskConfig:
     neutral_arm_qpos: tuple[float, ...] = NEUTRAL_ARM_QPOS
     max_episode_steps: int = 50
     observations: ObservationSettings = ObservationSettings()
+    randomization: RandomizationSettings = RandomizationSettings()
 
     def replace(self, **options) -> "TaskConfig":
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
@@ -376,6 +380,7 @@ OPTIONS: dict[str, Option] = {
     "goal_marker_visible": Option(("observations", "goal_marker_visible"), check_bool),
     "camera_meshes": Option(("observations", "camera_meshes"),
                             lambda name, value: check_choice(name, value, CAMERA_MESHES)),
+    "randomization": Option(("randomization",), randomization_settings),
     "neutral_arm_qpos": Option(("neutral_arm_qpos",),
                                lambda name, value: check_vector(name, value, 7)),
 }

@@ -17,6 +17,8 @@ from franka_composer.arenas import FloorArena
 from franka_composer.controllers import Controller, make_controller
 from franka_composer.entities import Panda, Prop
 from franka_composer.entities.panda import COLLISION_GROUP, MAX_FINGER_WIDTH, VISUAL_GROUP
+from franka_composer.randomization import Randomizer
+from franka_composer.randomization.parameters import noise_parameter
 from franka_composer.tasks import rewards
 from franka_composer.tasks.config import (ObservationSettings, PhysicsSettings, TaskConfig,
                                          Workspace)
@@ -33,7 +35,9 @@ class GoalTask(composer.Task):
 
     Wired from ready-made entities and the task's `TaskConfig` (`builder.build_task`).
     Reward and success are functions of (achieved goal, desired goal) only, through
-    `rewards.compute_reward`, so HER relabelling is exact.
+    `rewards.compute_reward`, so HER relabelling is exact. The goals are observed exactly
+    ("achieved_goal", "goal"): observation noise and delay (`randomization`) act on what the
+    policy senses of the robot and the objects, never on the goals the reward is made of.
     """
 
     def __init__(self, arena: FloorArena, panda: Panda, props: list[Prop],
@@ -66,8 +70,13 @@ class GoalTask(composer.Task):
         self._observation_layout = layout_for(config)
         self._enable_observables(config.observations)
         goal = observable.Generic(lambda physics: self._goal.copy())
-        goal.enabled = True
-        self._task_observables = {"goal": goal, **self._camera_observables(config.observations)}
+        achieved = observable.Generic(lambda physics: self._goal_spec.achieved())
+        goal.enabled = achieved.enabled = True
+        self._cameras = self._observed_cameras(config.observations)
+        self._task_observables = {"goal": goal, "achieved_goal": achieved,
+                                  **self._camera_observables(config.observations)}
+        self._randomizer = (self._make_randomizer(config) if config.randomization.enabled
+                            else None)
 
     def _make_placers(self, workspace: Workspace) -> list:
         """How the objects are placed each episode: resting, upright, in the object box."""
@@ -93,29 +102,48 @@ class GoalTask(composer.Task):
             setattr(option, name, getattr(settings, name))
 
     def _enable_observables(self, settings: ObservationSettings) -> None:
-        """Enables exactly the observables the observation is built from: the state vector's
-        (in state modes) and the achieved goal's (others stay available to enable)."""
-        entities = {entity.mjcf_model.model: entity for entity in [self._panda, *self._props]}
-        keys = set(self._goal_spec.achieved_keys)
+        """Enables exactly the entity observables the state vector is built from, in state
+        modes (others stay available to enable)."""
         if settings.state:
-            keys.update(self._observation_layout.keys)
-        for key in keys:
-            entity_name, observable_name = key.split("/")
-            entities[entity_name].observables.get_observable(observable_name).enabled = True
+            for key in self._observation_layout.keys:
+                self._entity_observable(key).enabled = True
 
-    def _camera_observables(self, settings: ObservationSettings) -> dict:
-        """Composer camera observables "<camera>_pixels", (height, width, 3) uint8, for the
-        pixel modes."""
+    def _entity_observable(self, key: str):
+        """The entity observable "<entity>/<name>"."""
+        entities = {entity.mjcf_model.model: entity for entity in [self._panda, *self._props]}
+        entity_name, observable_name = key.split("/")
+        return entities[entity_name].observables.get_observable(observable_name)
+
+    def _observed_cameras(self, settings: ObservationSettings) -> dict:
+        """The camera elements the pixel observations render, by camera name."""
         if not settings.pixels:
             return {}
         cameras = {"workspace": self._arena.workspace_camera,
                    "wrist": self._panda.wrist_camera}
+        return {name: cameras[name] for name in settings.cameras}
+
+    def _make_randomizer(self, config: TaskConfig) -> Randomizer:
+        """The randomizer, with what the policy senses: the state vector's observables
+        (each with its noise) and the cameras' images (delayed, not noised)."""
+        sensed = []
+        if config.observations.state:
+            sensed += [(self._entity_observable(field.key), noise_parameter(field))
+                       for field in self._observation_layout.fields]
+        sensed += [(self._task_observables[f"{name}_pixels"], None) for name in self._cameras]
+        return Randomizer(config.randomization, arena=self._arena, panda=self._panda,
+                          props=self._props, controller=self._controller, sensed=sensed,
+                          cameras=list(self._cameras.values()),
+                          substeps=self.physics_steps_per_control_step)
+
+    def _camera_observables(self, settings: ObservationSettings) -> dict:
+        """Composer camera observables "<camera>_pixels", (height, width, 3) uint8, for the
+        pixel modes."""
         scene = wrapper.MjvOption()  # The Panda's collision hulls (group 3) or visual meshes.
         scene.geomgroup[VISUAL_GROUP] = settings.camera_meshes == "visual"
         scene.geomgroup[COLLISION_GROUP] = settings.camera_meshes == "hulls"
         observables = {}
-        for name in settings.cameras:
-            camera = observable.MJCFCamera(cameras[name], height=settings.height,
+        for name, element in self._cameras.items():
+            camera = observable.MJCFCamera(element, height=settings.height,
                                            width=settings.width, scene_option=scene)
             camera.enabled = True
             observables[f"{name}_pixels"] = camera
@@ -194,13 +222,20 @@ class GoalTask(composer.Task):
         return self._observation_layout
 
     @property
-    def achieved_goal_keys(self) -> tuple[str, ...]:
-        """The observables whose concatenation is the achieved goal."""
-        return self._goal_spec.achieved_keys
+    def achieved_goal_key(self) -> str:
+        """The task observable holding the achieved goal (read exactly, never corrupted)."""
+        return "achieved_goal"
 
     @property
     def desired_goal_key(self) -> str:
         return "goal"
+
+    @property
+    def randomization(self) -> dict:
+        """This episode's randomised parameters, by name (`randomization.PARAMETERS`:
+        factors of the nominal values, colours, offsets, angles, delay steps); empty when
+        the task is not randomised. For system identification and analysis."""
+        return dict(self._randomizer.values) if self._randomizer is not None else {}
 
     def compute_reward(self, achieved_goal, desired_goal) -> np.ndarray:
         return rewards.compute_reward(achieved_goal, desired_goal, self.reward_type,
@@ -224,7 +259,16 @@ class GoalTask(composer.Task):
 
     # ----- Composer hooks -------------------------------------------------------------------
 
+    def after_compile(self, physics, random_state) -> None:
+        # Views, not bindings: the achieved goal is read every step (valid while this
+        # physics lives; Composer calls this again whenever it compiles a new one).
+        self._goal_spec.bind(physics)
+        if self._randomizer is not None:
+            self._randomizer.bind(physics)
+
     def initialize_episode(self, physics, random_state: np.random.RandomState) -> None:
+        if self._randomizer is not None:  # First: masses and gains before anything moves.
+            self._randomizer.start_episode(physics, random_state)
         self._panda.configure_joints(physics, self._neutral_arm_qpos, self._initial_finger_width)
         for placer in self._placers:
             placer(physics, random_state)
@@ -232,9 +276,6 @@ class GoalTask(composer.Task):
         self._goal_spec.show(physics, self._goal)
         physics.forward()
         self._controller.initialize_episode(physics)
-        # Views, not bindings: read every step (valid while this physics lives; Composer
-        # makes a new one only when recompiling, and initialises again then).
-        self._goal_spec.bind(physics)
         self._update_distance()
 
     def _update_distance(self) -> None:
@@ -247,7 +288,8 @@ class GoalTask(composer.Task):
         return self._controller.action_spec()
 
     def before_step(self, physics, action, random_state) -> None:
-        self._controller.apply(physics, action)
+        self._controller.apply(physics, action, perturb=(
+            None if self._randomizer is None else self._randomizer.step_action))
 
     @property
     def substep_control(self):

@@ -41,11 +41,6 @@ class Goal(abc.ABC):
         self.marker = self._make_marker()
         self._views: list[np.ndarray] = []
 
-    @property
-    @abc.abstractmethod
-    def achieved_keys(self) -> tuple[str, ...]:
-        """The Composer observables whose concatenation is the achieved goal."""
-
     @abc.abstractmethod
     def _elements(self) -> list:
         """The MJCF elements (with their attribute) the achieved goal is read from."""
@@ -88,10 +83,6 @@ class ObjectPositionGoal(Goal):
         self._in_air = distributions.Bernoulli(prob=workspace.goal_in_air_probability)
         self._lift = distributions.Uniform(low=0.0, high=workspace.goal_max_height)
 
-    @property
-    def achieved_keys(self) -> tuple[str, ...]:
-        return (f"{self._props[0].mjcf_model.model}/position",)
-
     def _elements(self) -> list:
         return [(self._props[0].position, "sensordata")]
 
@@ -111,10 +102,6 @@ class TcpPositionGoal(ObjectPositionGoal):
     """The tool centre point to a point above the goal square (reach): the same rule as
     `ObjectPositionGoal` from the surface up (a lift probability of 1 makes it uniform in
     the box up to `goal_max_height`)."""
-
-    @property
-    def achieved_keys(self) -> tuple[str, ...]:
-        return (f"{self._panda.mjcf_model.model}/tcp_position",)
 
     def _elements(self) -> list:
         return [(self._panda.tcp_site, "xpos")]
@@ -139,10 +126,6 @@ class StackedGoal(Goal):
     def _make_marker(self) -> GoalMarker:
         return GoalMarker(shape="box", size=self._props[0].resting_height,
                           rgbas=[prop.rgba[:3] + (0.35,) for prop in self._props])
-
-    @property
-    def achieved_keys(self) -> tuple[str, ...]:
-        return tuple(f"{prop.mjcf_model.model}/position" for prop in self._props)
 
     def _elements(self) -> list:
         return [(prop.position, "sensordata") for prop in self._props]
@@ -172,10 +155,6 @@ class OrientationGoal(Goal):
         cube = self._props[0]
         return GoalMarker(shape="box", size=cube.resting_height,
                           rgbas=[cube.rgba[:3] + (0.35,)], face_colours=True)
-
-    @property
-    def achieved_keys(self) -> tuple[str, ...]:
-        return (f"{self._props[0].mjcf_model.model}/orientation",)
 
     def _elements(self) -> list:
         return [(self._props[0].orientation, "sensordata")]

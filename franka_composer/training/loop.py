@@ -66,11 +66,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
             config, hyperparameters=config.hyperparameters.replace(total_steps=total_steps))
         run.write_config(config)
     hp = config.hyperparameters
-    env = make_env(config.task, terminate_on_success=config.terminate_on_success,
-                   control=config.control)
-    eval_env = DummyVecEnv([lambda: make_env(config.task,
-                                             terminate_on_success=config.terminate_on_success,
-                                             control=config.control)])
+    env = make_env(config.task, **config.env_options)
+    eval_env = DummyVecEnv([lambda: make_env(config.task, **config.env_options)])
     eval_env.seed(config.seed + EVAL_SEED_OFFSET)
     tensorboard = str(run.tensorboard) if importlib.util.find_spec("tensorboard") else None
 

@@ -41,13 +41,16 @@ def algorithm_class(algo: str, backend: str = "sb3"):
 
 
 def make_env(task: str, *, terminate_on_success: bool = True,
-             control: str = "mocap") -> gym.Env:
+             control: str = "mocap", randomization: str | None = None) -> gym.Env:
     """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...).
 
     `terminate_on_success=True` is the paper's ids; False gives Fetch semantics (episodes
     always last 50 steps), for which HER's relabelled rewards and `done` flags are exact.
+    `randomization`: a preset's name (`randomization.PRESETS`), or None.
     """
-    return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success)
+    options = {} if randomization is None else {"randomization": randomization}
+    return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success,
+                    **options)
 
 
 def resolve_device(device: str) -> str:

@@ -15,6 +15,7 @@ import json
 import pathlib
 
 from franka_composer.controllers import CONTROLS
+from franka_composer.randomization import PRESETS
 from franka_composer.training.hyperparams import BACKENDS, PRECISIONS, Hyperparameters
 from franka_composer.validation import check_choice
 
@@ -39,11 +40,14 @@ class RunConfig:
     backend: str = "sb3"
     control: str = "mocap"
     precision: str = "fp32"
+    randomization: str | None = None
 
     def __post_init__(self) -> None:
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
         check_choice("precision", self.precision, PRECISIONS)
+        if self.randomization is not None:
+            check_choice("randomization", self.randomization, tuple(PRESETS), also="None")
         if self.precision != "fp32" and self.backend != "sb3":
             raise ValueError(f"precision {self.precision} runs the networks under "
                              f"torch.autocast: it needs backend sb3, not {self.backend} "
@@ -53,16 +57,25 @@ class RunConfig:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
                 "terminate_on_success": self.terminate_on_success, "backend": self.backend,
                 "control": self.control, "precision": self.precision,
+                "randomization": self.randomization,
                 "hyperparameters": self.hyperparameters.to_dict()}
+
+    @property
+    def env_options(self) -> dict:
+        """The options its environments are made with (`models.make_env`)."""
+        return dict(terminate_on_success=self.terminate_on_success, control=self.control,
+                    randomization=self.randomization)
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
-        # Runs written before the JAX backend, the controllers or bf16 existed have no
-        # "backend", "control" or "precision": they are SB3's, mocap, fp32.
+        # Runs written before the JAX backend, the controllers, bf16 or randomisation existed
+        # have no "backend", "control", "precision" or "randomization": they are SB3's,
+        # mocap, fp32, not randomised.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
                    precision=data.get("precision", "fp32"),
+                   randomization=data.get("randomization"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
 
 

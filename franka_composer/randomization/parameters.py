@@ -1,0 +1,147 @@
+"""What can be randomised, each parameter once: its group, what a sample is, what it means.
+
+A randomisation is data: a mapping from these names to `composer.variation` distributions
+(or constants), `RandomizationSettings`. Each episode every episode parameter is drawn once,
+by calling its distribution with `initial_value` set to the parameter's nominal value in its
+own terms (`Parameter.nominal`: 1 for a factor, the object's colour for `object_rgb`, zeros
+for an offset), so `Uniform(0.8, 1.2)` and `noises.Multiplicative(Uniform(0.8, 1.2))` both
+work. A noise parameter is the distribution of what is added to each reading (or action),
+drawn afresh every control step.
+
+Samples are checked before anything reaches MuJoCo: a factor must be finite and > 0, a
+colour within [0, 1], a delay a whole number of control steps >= 0.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+#: The groups, in the order their streams are split off (`randomizer.py`): each group
+#: draws from its own stream, so randomising one never changes what another draws.
+GROUPS = ("physics", "visual", "sensing", "action")
+
+#: Longest observation delay (control steps): Composer keeps every reading in flight.
+MAX_DELAY = 50
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """One randomisable quantity.
+
+    Attributes:
+      group: one of `GROUPS`.
+      kind: "factor" (scales a nominal value, > 0), "colour" (RGB in [0, 1]), "offset" (a
+        3-vector added to a nominal one), "angle" (rad), "steps" (control steps, >= 0), or
+        "noise" (added to every reading or action).
+      meaning: what it changes, for the README's table.
+      unit: of a sample.
+      per_object: drawn once per object (each object its own), else once per episode.
+    """
+
+    group: str
+    kind: str
+    meaning: str
+    unit: str = "–"
+    per_object: bool = False
+
+    @property
+    def episode(self) -> bool:
+        """Whether it is drawn once per episode (reported), rather than every step."""
+        return self.kind != "noise"
+
+    def nominal(self, colour=None):
+        """The `initial_value` its distribution is called with: the identity of its kind."""
+        if self.kind == "factor":
+            return 1.0
+        if self.kind == "colour":
+            return np.ones(3) if colour is None else np.asarray(colour[:3], dtype=np.float64)
+        if self.kind == "offset":
+            return np.zeros(3)
+        if self.kind in ("angle", "steps"):
+            return 0
+        raise ValueError(f"a {self.kind} parameter has no episode value")
+
+    def check(self, name: str, value) -> np.ndarray | float | int:
+        """A sample as a float, int or float array, or a ValueError naming `name`."""
+        array = np.asarray(value, dtype=np.float64) if _real(value) else None
+        shape = (3,) if self.kind in ("colour", "offset") else ()
+        if array is None or array.shape != shape or not np.isfinite(array).all():
+            what = "3 finite numbers" if shape else "one finite number"
+            raise ValueError(f"randomization {name!r} must draw {what}, drew {value!r}")
+        if self.kind == "factor" and not array > 0:
+            raise ValueError(f"randomization {name!r} is a factor and must draw > 0, drew "
+                             f"{float(array)!r}")
+        if self.kind == "colour" and not ((array >= 0) & (array <= 1)).all():
+            raise ValueError(f"randomization {name!r} is a colour and must draw numbers in "
+                             f"[0, 1], drew {array.tolist()}")
+        if self.kind == "steps":
+            if array != np.round(array) or not 0 <= array <= MAX_DELAY:
+                raise ValueError(f"randomization {name!r} must draw a whole number of control "
+                                 f"steps in [0, {MAX_DELAY}], drew {value!r}")
+            return int(array)
+        return array if shape else float(array)
+
+
+def _real(value) -> bool:
+    try:
+        array = np.asarray(value)
+    except Exception:  # pylint: disable=broad-except
+        return False
+    return array.dtype.kind in "iuf"
+
+
+#: Every randomisable parameter, by the name a randomisation mapping uses.
+PARAMETERS: dict[str, Parameter] = {
+    # Physics: model values written each episode, no recompilation.
+    "object_mass": Parameter("physics", "factor", "each object's mass (its inertia with it)",
+                             per_object=True),
+    "object_friction": Parameter("physics", "factor", "each object's sliding friction",
+                                 per_object=True),
+    "floor_friction": Parameter("physics", "factor", "the floor's sliding friction"),
+    "gripper_gain": Parameter("physics", "factor",
+                              "the gripper servo's stiffness (damping kept at its ratio)"),
+    "joint_damping": Parameter("physics", "factor", "the arm joints' damping"),
+    "controller_gain": Parameter("physics", "factor",
+                                 "the controller's stiffness: mocap's weld, osc's impedance, "
+                                 "the joint servos (each keeps its damping rule)"),
+    # Visual: what the cameras see, nothing the simulation computes.
+    "object_rgb": Parameter("visual", "colour", "each object's colour", "RGB",
+                            per_object=True),
+    "floor_tint": Parameter("visual", "colour", "the floor's colour, multiplying its checker",
+                            "RGB"),
+    "robot_tint": Parameter("visual", "colour", "the Panda's colours, multiplied", "RGB"),
+    "light_direction": Parameter("visual", "offset",
+                                 "added to each light's direction (then normalised)", "–"),
+    "light_intensity": Parameter("visual", "factor", "the lights' diffuse intensity"),
+    "camera_position": Parameter("visual", "offset",
+                                 "added to each observed camera's position (its body's frame)",
+                                 "m"),
+    "camera_rotation": Parameter("visual", "angle",
+                                 "each observed camera turned by this about a random axis",
+                                 "rad"),
+    # Sensing: what the policy reads of the robot and the objects (not the goals).
+    "position_noise": Parameter("sensing", "noise",
+                                "added to every position reading (TCP, objects, fingers)", "m"),
+    "angle_noise": Parameter("sensing", "noise",
+                             "added to every angle reading (orientations, joint angles)",
+                             "rad"),
+    "velocity_noise": Parameter("sensing", "noise",
+                                "added to every velocity reading, before it is made per step",
+                                "m/s, rad/s"),
+    "observation_delay": Parameter("sensing", "steps",
+                                   "the observation (state and images) is this many control "
+                                   "steps old", "steps"),
+    # Actuation.
+    "action_noise": Parameter("action", "noise", "added to every action component before it "
+                              "is clipped to [-1, 1]"),
+}
+
+
+def noise_parameter(field) -> str:
+    """The noise parameter a state-vector field's readings get (`layout.ObservationField`):
+    velocities (per step in the vector), positions (m), or angles (orientations, joints)."""
+    if field.per_control_step:
+        return "velocity_noise"
+    return "position_noise" if field.unit == "m" else "angle_noise"

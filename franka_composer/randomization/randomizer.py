@@ -1,0 +1,245 @@
+"""Draws one episode's randomised parameters and writes them into the compiled model.
+
+Nothing is recompiled: every parameter is a value of the compiled MjModel (masses, inertias,
+frictions, damping, gains, colours, lights, cameras), written at the start of an episode
+from the nominal values read once after compilation; `mj_setConst` then brings the model's
+derived constants (subtree masses, the inverse weights contacts are regularised with) in
+line with new masses. Sensing goes through Composer: noise is each observable's corruptor,
+the delay its `delay` (`update_interval` one control step, so the observation at step t is
+exactly the reading at the end of step t - k).
+
+Streams. The draws come from streams of their own, one per group (`GROUPS`), keyed each
+episode by a fingerprint of the episode's random state, which they do not advance: the
+episodes (object placements, goals) are those of the same seed without randomisation, and
+randomising one group never changes what another draws (visual randomisation leaves the
+state trajectory as it was). Still a function of the seed alone.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import mujoco
+import numpy as np
+from dm_control.composer.variation import noises, variation_values
+
+from franka_composer.randomization.parameters import GROUPS, PARAMETERS
+from franka_composer.randomization.settings import RandomizationSettings
+
+
+class Randomizer:
+    """One task's randomisation: `start_episode` draws and writes the episode's parameters;
+    the sensed observables' corruptors and the action noise draw every step.
+
+    Args:
+      settings: what is randomised and how.
+      arena, panda, props, controller: the task's parts whose values are written.
+      sensed: the observables the policy reads (the state vector's and the cameras'), each
+        with the noise parameter its readings get ("position_noise"...; None for images).
+      cameras: the camera elements the observation renders (for the pose jitter).
+      substeps: physics steps per control step (Composer counts delays in them).
+    """
+
+    def __init__(self, settings: RandomizationSettings, *, arena, panda, props, controller,
+                 sensed: list, cameras: list, substeps: int) -> None:
+        self._settings, self._ranges = settings, dict(settings.ranges)
+        self._arena, self._panda, self._props = arena, panda, list(props)
+        self._controller, self._cameras, self._substeps = controller, list(cameras), substeps
+        self._streams = {group: np.random.RandomState(0) for group in GROUPS}
+        self._values: dict = {}
+        self._nominal: dict = {}
+        # Counts resets and control steps: readings within one tick share their noise.
+        self._tick = 0
+        self._sensed = [observable for observable, _ in sensed]
+        for observable, noise in sensed:
+            if noise is not None and noise in self._ranges:
+                observable.corruptor = _StepNoise(self._ranges[noise], self)
+        action_noise = self._ranges.get("action_noise")
+        self._action_noise = None if action_noise is None else noises.Additive(action_noise)
+
+    @property
+    def settings(self) -> RandomizationSettings:
+        return self._settings
+
+    @property
+    def values(self) -> dict:
+        """This episode's drawn parameters, by name (factors, colours, offsets, angles,
+        steps: `PARAMETERS`), as floats, ints and tuples; per-object ones one per object."""
+        return self._values
+
+    # ----- Once per compiled model ----------------------------------------------------------
+
+    def bind(self, physics) -> None:
+        """Reads the nominal values of what is written (the model as compiled)."""
+        model = physics.model
+
+        def ids(elements) -> np.ndarray:
+            return np.asarray(physics.bind(elements).element_id, dtype=int)
+
+        bodies = np.array([physics.bind(prop.geom).bodyid for prop in self._props], dtype=int)
+        object_geoms = ids([prop.geom for prop in self._props]) if self._props else []
+        panda_geoms = ids(self._panda.mjcf_model.find_all("geom"))
+        panda_materials = ids(self._panda.mjcf_model.find_all("material"))
+        lights = ids(self._arena.mjcf_model.find_all("light"))
+        cameras = ids(self._cameras) if self._cameras else np.zeros(0, dtype=int)
+        arm_dofs = np.asarray(physics.bind(self._panda.joints).dofadr, dtype=int)
+        floor = int(physics.bind(self._arena.floor).element_id)
+        self._nominal = dict(
+            bodies=bodies, mass=model.body_mass[bodies].copy(),
+            inertia=model.body_inertia[bodies].copy(),
+            object_geoms=object_geoms,
+            object_friction=model.geom_friction[object_geoms, 0].copy(),
+            floor=floor, floor_friction=float(model.geom_friction[floor, 0]),
+            floor_material=int(model.geom_matid[floor]),
+            floor_rgba=model.mat_rgba[int(model.geom_matid[floor])].copy(),
+            panda_geoms=panda_geoms, panda_geom_rgba=model.geom_rgba[panda_geoms].copy(),
+            panda_materials=panda_materials,
+            panda_material_rgba=model.mat_rgba[panda_materials].copy(),
+            lights=lights, light_dir=model.light_dir[lights].copy(),
+            light_diffuse=model.light_diffuse[lights].copy(),
+            cameras=cameras, cam_pos=model.cam_pos[cameras].copy(),
+            cam_quat=model.cam_quat[cameras].copy(),
+            arm_dofs=arm_dofs, damping=model.dof_damping[arm_dofs].copy())
+
+    # ----- Each episode ---------------------------------------------------------------------
+
+    def start_episode(self, physics, random_state: np.random.RandomState) -> None:
+        """Draws the episode's parameters (from streams keyed by `random_state`'s present
+        state, which is not advanced), checks them, and writes them."""
+        self._split_streams(random_state)
+        self._tick += 1
+        values = {}
+        for name, distribution in self._ranges.items():
+            parameter = PARAMETERS[name]
+            if not parameter.episode:
+                continue
+            stream = self._streams[parameter.group]
+            if parameter.per_object:  # Each object its own (none for reach).
+                values[name] = [self._draw(name, distribution, parameter.nominal(prop.rgba),
+                                           stream) for prop in self._props]
+            else:
+                values[name] = self._draw(name, distribution, parameter.nominal(), stream)
+        self._write(physics, values)
+        self._values = {name: _plain(value) for name, value in values.items()}
+
+    @property
+    def tick(self) -> int:
+        """Changes at every reset and every control step."""
+        return self._tick
+
+    def stream(self, group: str) -> np.random.RandomState:
+        return self._streams[group]
+
+    def step_action(self, action: np.ndarray) -> np.ndarray:
+        """A control step begins with the checked `action`: readings at its end get new
+        noise, and the action gets this step's action noise (the controller clips it)."""
+        self._tick += 1
+        if self._action_noise is None:
+            return action
+        return np.asarray(self._action_noise(initial_value=action, current_value=action,
+                                             random_state=self._streams["action"]),
+                          dtype=np.float64)
+
+    def _split_streams(self, random_state: np.random.RandomState) -> None:
+        """One Philox stream per group, keyed by a hash of the episode's random state and
+        the group's name (a SeedSequence over MT19937's 625 words costs 0.8 ms; this 60 us)."""
+        _, keys, position, *_ = random_state.get_state()
+        fingerprint = hashlib.blake2b(keys.tobytes(), digest_size=16)
+        fingerprint.update(int(position).to_bytes(4, "little"))
+        for group in GROUPS:
+            key = fingerprint.copy()
+            key.update(group.encode())
+            self._streams[group] = np.random.RandomState(
+                np.random.Philox(key=int.from_bytes(key.digest(), "little")))
+
+    @staticmethod
+    def _draw(name, distribution, nominal, stream):
+        return PARAMETERS[name].check(
+            name, variation_values.evaluate(distribution, nominal, nominal, stream))
+
+    def _write(self, physics, values: dict) -> None:
+        model, nominal = physics.model, self._nominal
+        ptr = model.ptr
+        if values.get("object_mass"):
+            factors = np.asarray(values["object_mass"])
+            ptr.body_mass[nominal["bodies"]] = nominal["mass"] * factors
+            ptr.body_inertia[nominal["bodies"]] = nominal["inertia"] * factors[:, None]
+            # Subtree masses and the inverse weights contacts are regularised with.
+            mujoco.mj_setConst(ptr, physics.data.ptr)
+        if values.get("object_friction"):
+            ptr.geom_friction[nominal["object_geoms"], 0] = (
+                nominal["object_friction"] * np.asarray(values["object_friction"]))
+        if "floor_friction" in values:
+            ptr.geom_friction[nominal["floor"], 0] = (nominal["floor_friction"]
+                                                      * values["floor_friction"])
+        if "joint_damping" in values:
+            ptr.dof_damping[nominal["arm_dofs"]] = nominal["damping"] * values["joint_damping"]
+        if "gripper_gain" in values:
+            self._panda.set_gripper_gain(physics, values["gripper_gain"])
+        if "controller_gain" in values:
+            self._controller.scale_gains(physics, values["controller_gain"])
+        self._write_visual(ptr, values)
+        if "observation_delay" in values:
+            steps = values["observation_delay"]
+            for observable in self._sensed:
+                # Read once per control step, k control steps late (0: Composer's default).
+                observable.update_interval = self._substeps if steps else 1
+                observable.delay = steps * self._substeps
+
+    def _write_visual(self, ptr, values: dict) -> None:
+        nominal = self._nominal
+        if values.get("object_rgb"):
+            ptr.geom_rgba[nominal["object_geoms"], :3] = np.asarray(values["object_rgb"])
+        if "floor_tint" in values:
+            ptr.mat_rgba[nominal["floor_material"], :3] = (nominal["floor_rgba"][:3]
+                                                           * values["floor_tint"])
+        if "robot_tint" in values:
+            tint = values["robot_tint"]
+            ptr.geom_rgba[nominal["panda_geoms"], :3] = nominal["panda_geom_rgba"][:, :3] * tint
+            ptr.mat_rgba[nominal["panda_materials"], :3] = (
+                nominal["panda_material_rgba"][:, :3] * tint)
+        if "light_direction" in values:
+            direction = nominal["light_dir"] + values["light_direction"]
+            ptr.light_dir[nominal["lights"]] = direction / np.linalg.norm(
+                direction, axis=1, keepdims=True)
+        if "light_intensity" in values:
+            ptr.light_diffuse[nominal["lights"]] = (nominal["light_diffuse"]
+                                                    * values["light_intensity"])
+        if "camera_position" in values:
+            ptr.cam_pos[nominal["cameras"]] = nominal["cam_pos"] + values["camera_position"]
+        if "camera_rotation" in values:
+            # About an axis uniform on the sphere, drawn from the visual stream.
+            axis = self._streams["visual"].normal(size=3)
+            axis /= np.linalg.norm(axis)
+            turn, quat = np.zeros(4), np.zeros(4)
+            mujoco.mju_axisAngle2Quat(turn, axis, values["camera_rotation"])
+            for row, camera in enumerate(nominal["cameras"]):
+                mujoco.mju_mulQuat(quat, nominal["cam_quat"][row], turn)
+                ptr.cam_quat[camera] = quat
+
+
+class _StepNoise:
+    """A Composer corruptor adding a noise distribution's draw to a reading, one draw per
+    control step, from the randomizer's sensing stream (not the environment's, which draws
+    the episodes). However often Composer reads an observable within a step (its updater
+    reads each once more when it is rebuilt at a reset), the step's reading gets the same
+    noise: the fast and stock paths observe the same values."""
+
+    def __init__(self, distribution, randomizer: Randomizer) -> None:
+        self._distribution, self._randomizer = distribution, randomizer
+        self._tick, self._noise = None, None
+
+    def __call__(self, value, random_state=None):
+        randomizer = self._randomizer
+        if self._tick != randomizer.tick:
+            self._noise = variation_values.evaluate(self._distribution, value, value,
+                                                    randomizer.stream("sensing"))
+            self._tick = randomizer.tick
+        return value + self._noise
+
+
+def _plain(value):
+    """A drawn value as immutable floats, ints and tuples (JSON writes them as lists)."""
+    if isinstance(value, (list, np.ndarray)):
+        return tuple(_plain(item) for item in value)
+    return float(value) if isinstance(value, (float, np.floating)) else value

@@ -1,0 +1,161 @@
+"""The `randomization` task option: None (off, the default), a preset's name, or a mapping
+from `PARAMETERS` names to `composer.variation` distributions (or constants).
+
+`PRESETS["default"]` holds ranges a sim-to-real user would start from, each with its reason.
+Build on it in Python: `{**PRESETS["default"], "object_mass": Uniform(0.2, 2.0)}`; a value of
+None leaves that parameter out.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, Mapping
+
+import numpy as np
+from dm_control.composer.variation import distributions, variation_values
+
+from franka_composer.randomization.parameters import PARAMETERS
+from franka_composer.validation import check_choice, check_names
+
+#: Each preset: parameter -> (distribution class, its arguments, why this range).
+PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
+    "object_mass": (distributions.Uniform, (0.5, 1.5),
+                    "the objects' real mass is rarely known: +-50 % of the paper's 1 kg"),
+    "object_friction": (distributions.Uniform, (0.7, 1.3),
+                        "friction coefficients are known to +-30 % at best (tables for common "
+                        "material pairs spread that much)"),
+    "floor_friction": (distributions.Uniform, (0.7, 1.3), "the same, for the table top"),
+    "gripper_gain": (distributions.Uniform, (0.8, 1.2),
+                     "a real gripper's grip force varies with its firmware and wear"),
+    "joint_damping": (distributions.Uniform, (0.5, 1.5),
+                      "Menagerie's 1 N m s is nominal; identified joint friction differs "
+                      "joint to joint by about this much"),
+    "controller_gain": (distributions.Uniform, (0.8, 1.2),
+                        "the real controller tracks differently from the simulated one: "
+                        "+-20 % stiffness is +-10 % bandwidth"),
+    "object_rgb": (distributions.Uniform, (0.05, 0.95),
+                   "any colour: a pixel policy must find the object by shape, not hue"),
+    "floor_tint": (distributions.Uniform, (0.6, 1.0), "table tops differ in shade and hue"),
+    "robot_tint": (distributions.Uniform, (0.7, 1.0),
+                   "the arm's paint and lighting make it look different on every camera"),
+    "light_direction": (distributions.Uniform, (-0.3, 0.3),
+                        "room lights come from anywhere within ~17 degrees of the nominal"),
+    "light_intensity": (distributions.Uniform, (0.6, 1.4),
+                        "brightness changes with the room and the time of day"),
+    "camera_position": (distributions.Uniform, (-0.01, 0.01),
+                        "a camera mount is calibrated to about 1 cm"),
+    "camera_rotation": (distributions.Uniform, (-0.035, 0.035),
+                        "and to about 2 degrees in orientation"),
+    "position_noise": (distributions.Normal, (0.0, 0.001),
+                       "pose estimates (motion capture, fiducials) are good to ~1 mm"),
+    "angle_noise": (distributions.Normal, (0.0, 0.01),
+                    "and to ~0.6 degrees in orientation"),
+    "velocity_noise": (distributions.Normal, (0.0, 0.01),
+                       "velocities are differences of noisy positions: ~1 cm/s"),
+    "observation_delay": (distributions.UniformInteger, (0, 2),
+                          "a camera-based estimate often arrives one 50 ms step late: 0 or 1 "
+                          "(numpy's high end is exclusive)"),
+    "action_noise": (distributions.Normal, (0.0, 0.05),
+                     "commands are not executed exactly: 5 % of a full command"),
+}}
+
+#: The presets, as mappings the option takes.
+PRESETS: dict[str, dict[str, Any]] = {
+    name: {parameter: kind(*arguments) for parameter, (kind, arguments, _) in reasons.items()}
+    for name, reasons in PRESET_REASONS.items()}
+
+#: Draws taken from each distribution when the option is set, to refuse a range that can
+#: leave its parameter's domain (e.g. a negative mass factor) before any episode.
+PROBE_DRAWS = 64
+
+
+@dataclasses.dataclass(frozen=True)
+class RandomizationSettings:
+    """Which parameters are randomised, and how: (name, distribution) pairs in `PARAMETERS`
+    order; `name` is the preset's name, or "custom"."""
+
+    ranges: tuple[tuple[str, Any], ...] = ()
+    name: str = "off"
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self.ranges)
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.ranges)
+
+    def distribution(self, parameter: str):
+        return dict(self.ranges).get(parameter)
+
+    def __hash__(self) -> int:
+        # Composer's distributions compare by value but are not hashable.
+        return hash((self.name, self.parameters))
+
+    def __repr__(self) -> str:
+        """What the option was given: None, a preset's name, or the mapping."""
+        if not self.ranges:
+            return "None"
+        return repr(self.name) if self.name in PRESETS else repr(dict(self.ranges))
+
+
+def markdown_table(preset: str = "default") -> str:
+    """The README's table: every parameter, what a sample is and does, the preset's range
+    and why."""
+    reasons = PRESET_REASONS[preset]
+    lines = [f"| parameter | group | sample | unit | what it does | `{preset}` | why |",
+             "|---|---|---|---|---|---|---|"]
+    for name, parameter in PARAMETERS.items():
+        kind, arguments, reason = reasons.get(name, (None, (), "–"))
+        drawn = (f"`{kind.__name__}{arguments}`" if kind else "off")
+        each = ", per object" if parameter.per_object else ""
+        lines.append(f"| `{name}` | {parameter.group} | {parameter.kind}{each} | "
+                     f"{parameter.unit} | {parameter.meaning} | {drawn} | {reason} |")
+    return "\n".join(lines)
+
+
+def randomization_settings(name: str, value) -> RandomizationSettings:
+    """The option's value as settings: None, a preset's name, a mapping or settings."""
+    if isinstance(value, RandomizationSettings):
+        return value
+    if value is None:
+        return RandomizationSettings()
+    if isinstance(value, str):
+        check_choice(name, value, tuple(PRESETS), also="None or a mapping")
+        return _settings(name, PRESETS[value], value)
+    if isinstance(value, Mapping):
+        return _settings(name, value, "custom")
+    raise ValueError(f"{name} must be None, a preset ({', '.join(PRESETS)}) or a mapping from "
+                     f"parameter names to composer.variation distributions, got {value!r}")
+
+
+def _settings(name: str, mapping: Mapping, label: str) -> RandomizationSettings:
+    check_names(f"{name} parameter", mapping, PARAMETERS)
+    ranges = tuple((parameter, mapping[parameter]) for parameter in PARAMETERS
+                   if mapping.get(parameter) is not None)
+    probe = np.random.RandomState(0)
+    for parameter, distribution in ranges:
+        spec = PARAMETERS[parameter]
+        if not (callable(distribution) or _constant(distribution)):
+            raise ValueError(f"{name} {parameter!r} must be a composer.variation distribution "
+                             f"or a constant, got {distribution!r}")
+        for _ in range(PROBE_DRAWS):
+            if spec.episode:
+                spec.check(parameter, variation_values.evaluate(
+                    distribution, spec.nominal(), spec.nominal(), probe))
+            else:
+                _check_noise(parameter, variation_values.evaluate(
+                    distribution, np.zeros(3), np.zeros(3), probe))
+    return RandomizationSettings(ranges, label)
+
+
+def _constant(value) -> bool:
+    return isinstance(value, (int, float, np.ndarray, tuple, list)) and not isinstance(value,
+                                                                                      bool)
+
+
+def _check_noise(parameter: str, sample) -> None:
+    array = np.asarray(sample)
+    if array.dtype.kind not in "iuf" or not np.isfinite(array).all() or array.ndim > 1:
+        raise ValueError(f"randomization {parameter!r} is noise added to each reading and "
+                         f"must draw finite numbers, drew {sample!r}")

@@ -1,0 +1,274 @@
+"""Domain randomisation (`randomization` option): drawn per episode from the seed, written into
+the compiled model without recompiling, reported, and never touching the goals, so rewards and
+HER relabelling stay exact (franka_composer/randomization/, tasks/goal_task.py)."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from dm_control.composer.variation import distributions
+from gymnasium.utils.env_checker import check_env
+
+import franka_composer
+from franka_composer import fast_path
+from franka_composer.adapters.registration import env_id
+from franka_composer.controllers import CONTROLS
+from franka_composer.environment import GoalEnvironment
+from franka_composer.randomization import PARAMETERS, PRESETS
+from conftest import SPEC, her_samples
+
+DEFAULT = PRESETS["default"]
+VISUAL = {name: d for name, d in DEFAULT.items() if PARAMETERS[name].group == "visual"}
+PHYSICS = {name: d for name, d in DEFAULT.items() if PARAMETERS[name].group == "physics"}
+
+
+def _make(task="push", control="mocap", **options):
+    return gym.make(env_id(task, "sparse", control), **options)
+
+
+def _rollout(env, seed: int, steps: int, actions=None):
+    """Observations, rewards and infos of `steps` steps from `reset(seed)`, with the given
+    actions (or the action space's, seeded), resetting without a seed when an episode ends."""
+    obs, info = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    records = [(obs, None, info)]
+    for step in range(steps):
+        action = env.action_space.sample() if actions is None else actions[step]
+        obs, reward, terminated, truncated, info = env.step(action)
+        records.append((obs, reward, info))
+        if terminated or truncated:
+            obs, info = env.reset()
+            records.append((obs, None, info))
+    return records
+
+
+@pytest.mark.parametrize("control", CONTROLS)
+def test_every_task_and_controller_keeps_the_goal_contract_under_the_default_preset(
+        task_name, control):
+    env = _make(task_name, control, randomization="default", terminate_on_success=False)
+    check_env(env.unwrapped, skip_render_check=True)
+    records = _rollout(env, seed=1, steps=SPEC[task_name]["steps"] + 5)
+    for obs, reward, info in records:
+        assert env.observation_space.contains(obs)
+        assert set(info["randomization"]) == {n for n in DEFAULT if PARAMETERS[n].episode}
+        if reward is not None:
+            assert reward == env.unwrapped.compute_reward(obs["achieved_goal"],
+                                                          obs["desired_goal"], info)
+    clone = pickle.loads(pickle.dumps(env))
+    for key, value in clone.reset(seed=4)[0].items():
+        np.testing.assert_array_equal(value, env.reset(seed=4)[0][key])
+    env.close()
+
+
+def test_drawn_parameters_stay_in_their_ranges_and_differ_across_episodes():
+    env = _make("stack", randomization="default")
+    draws = [env.reset(seed=0)[1]["randomization"]] + [
+        env.reset()[1]["randomization"] for _ in range(29)]
+    for name, low, high in (("object_mass", 0.5, 1.5), ("object_friction", 0.7, 1.3),
+                            ("floor_friction", 0.7, 1.3), ("gripper_gain", 0.8, 1.2),
+                            ("joint_damping", 0.5, 1.5), ("controller_gain", 0.8, 1.2),
+                            ("object_rgb", 0.05, 0.95), ("floor_tint", 0.6, 1.0),
+                            ("robot_tint", 0.7, 1.0), ("light_direction", -0.3, 0.3),
+                            ("light_intensity", 0.6, 1.4), ("camera_position", -0.01, 0.01),
+                            ("camera_rotation", -0.035, 0.035)):
+        values = np.array([draw[name] for draw in draws], dtype=np.float64)
+        assert values.min() >= low and values.max() <= high, name
+        assert len(np.unique(values)) == values.size, name  # Continuous: all different.
+    assert np.array([d["object_mass"] for d in draws]).shape == (30, 2)  # One per block.
+    delays = [draw["observation_delay"] for draw in draws]
+    assert set(delays) == {0, 1} and all(type(d) is int for d in delays)
+
+
+def test_parameters_are_written_into_the_compiled_model_without_recompiling():
+    env = franka_composer.load("push", seed=0, randomization="default",
+                               observation_mode="state+pixels")
+    env.reset()
+    physics, task = env.physics, env.task
+    model = physics.model.ptr
+    nominal_mass = task.config.objects[0].mass
+    first_model = model
+    for _ in range(3):
+        env.reset()
+        drawn = task.randomization
+        assert physics.model.ptr is first_model  # The same compiled model, every episode.
+        body = physics.bind(task.prop.geom).bodyid
+        assert model.body_mass[body] == pytest.approx(nominal_mass * drawn["object_mass"][0],
+                                                      rel=1e-12)
+        floor = physics.bind(env.task.root_entity.floor)
+        assert floor.friction[0] == pytest.approx(1.0 * drawn["floor_friction"], rel=1e-12)
+        np.testing.assert_array_equal(physics.bind(task.prop.geom).rgba[:3],  # float32
+                                      np.float32(drawn["object_rgb"][0]))
+        damping = physics.bind(task.panda.joints).damping
+        np.testing.assert_allclose(damping, drawn["joint_damping"], rtol=1e-12)
+        weld = physics.named.model.eq_solref["tcp_weld"]
+        assert weld[0] == pytest.approx(0.01 / np.sqrt(drawn["controller_gain"]), rel=1e-12)
+        gripper = physics.bind(task.panda.gripper_actuator)
+        assert -gripper.biasprm[1] == pytest.approx(1000.0 * drawn["gripper_gain"], rel=1e-12)
+
+
+def test_controller_gains_scale_under_every_controller():
+    gain = {"controller_gain": 1.44}
+    osc = franka_composer.load("push", seed=0, control="osc", randomization=gain)
+    osc.reset()
+    assert osc.task.controller.law._gains[0] == pytest.approx(4900.0 * 1.44)
+    assert osc.task.controller.law._gains[1] == pytest.approx(2 * np.sqrt(4900.0 * 1.44))
+    joints = franka_composer.load("push", seed=0, control="joints", randomization=gain)
+    joints.reset()
+    servos = joints.physics.bind(joints.task.panda.arm_actuators)
+    nominal = franka_composer.load("push", seed=0, control="joints")
+    nominal.reset()
+    reference = nominal.physics.bind(nominal.task.panda.arm_actuators)
+    np.testing.assert_allclose(servos.gainprm[:, 0], 1.44 * reference.gainprm[:, 0])
+    np.testing.assert_allclose(servos.biasprm[:, 1:3], 1.44 * reference.biasprm[:, 1:3])
+
+
+def test_identity_randomisation_reproduces_the_unrandomised_trajectory_bit_for_bit():
+    """Factors of exactly 1 written every episode (with `mj_setConst`) change nothing."""
+    ones = {name: 1.0 for name in PHYSICS}
+    plain = _rollout(_make("pick_and_place"), seed=2, steps=60)
+    identity = _rollout(_make("pick_and_place", randomization=ones), seed=2, steps=60)
+    for (a, reward_a, _), (b, reward_b, _) in zip(plain, identity):
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+        assert reward_a == reward_b
+
+
+def test_the_same_seed_gives_the_same_parameters_pixels_and_trajectory():
+    options = dict(randomization="default", observation_mode="state+pixels")
+    first = _rollout(_make(**options), seed=7, steps=60)
+    second = _rollout(_make(**options), seed=7, steps=60)
+    for (a, reward_a, info_a), (b, reward_b, info_b) in zip(first, second):
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+        assert reward_a == reward_b and info_a == info_b
+    other = _rollout(_make(**options), seed=8, steps=0)
+    assert other[0][2]["randomization"] != first[0][2]["randomization"]
+
+
+def test_randomisation_keeps_the_seeds_episodes():
+    """The draws come from streams of their own: the same seed starts the same episodes
+    (object placements, goals) with or without randomisation."""
+    plain, randomised = _make("slide"), _make("slide", randomization="default")
+    for seed in range(4):
+        a, b = plain.reset(seed=seed)[0], randomised.reset(seed=seed)[0]
+        np.testing.assert_array_equal(a["desired_goal"], b["desired_goal"])
+        np.testing.assert_array_equal(a["achieved_goal"], b["achieved_goal"])
+
+
+def test_visual_randomisation_changes_the_images_and_nothing_in_the_state_trajectory():
+    plain = _make("pick_and_place", observation_mode="state+pixels", cameras=("workspace",
+                                                                               "wrist"))
+    visual = _make("pick_and_place", observation_mode="state+pixels",
+                   cameras=("workspace", "wrist"), randomization=VISUAL)
+    actions = np.random.default_rng(0).uniform(-1, 1, (40, 4)).astype(np.float32)
+    changed = []
+    for (a, reward_a, _), (b, reward_b, _) in zip(_rollout(plain, 3, 40, actions),
+                                                  _rollout(visual, 3, 40, actions)):
+        for key in ("observation", "achieved_goal", "desired_goal"):
+            np.testing.assert_array_equal(a[key], b[key])
+        assert reward_a == reward_b
+        for key in ("workspace_pixels", "wrist_pixels"):
+            changed.append(np.mean(np.any(a[key] != b[key], axis=-1)))
+    assert min(changed) > 0.2  # Every image differs in more than a fifth of its pixels.
+
+
+@pytest.mark.parametrize("path", ["fast", "stock"])
+@pytest.mark.parametrize("steps_late", [1, 3])
+def test_an_observation_delay_returns_the_reading_of_k_steps_before(monkeypatch, path,
+                                                                    steps_late):
+    monkeypatch.setenv(fast_path.ENV_VARIABLE, "1" if path == "fast" else "0")
+    options = dict(observation_mode="state+pixels", terminate_on_success=False)
+    plain = _make(**options)
+    delayed = _make(randomization={"observation_delay": steps_late}, **options)
+    actions = np.random.default_rng(1).uniform(-1, 1, (30, 3)).astype(np.float32)
+    now = _rollout(plain, 5, 30, actions)
+    late = _rollout(delayed, 5, 30, actions)
+    for step, (obs, reward, _) in enumerate(late):
+        then = now[max(step - steps_late, 0)][0]
+        for key in ("observation", "workspace_pixels"):
+            np.testing.assert_array_equal(obs[key], then[key])
+        # The goals, and with them the reward, are never late.
+        for key in ("achieved_goal", "desired_goal"):
+            np.testing.assert_array_equal(obs[key], now[step][0][key])
+        assert reward == now[step][1]
+    assert not np.array_equal(late[10][0]["observation"], now[10][0]["observation"])
+
+
+def test_observation_noise_has_its_spread_per_field_and_leaves_the_goals_exact():
+    noise = {"position_noise": distributions.Normal(0.0, 0.002),
+             "velocity_noise": distributions.Normal(0.0, 0.01)}
+    plain, noisy = _make(terminate_on_success=False), _make(randomization=noise,
+                                                          terminate_on_success=False)
+    layout = plain.unwrapped.observation_layout
+    actions = np.random.default_rng(2).uniform(-1, 1, (200, 3)).astype(np.float32)
+    a_records, b_records = _rollout(plain, 0, 200, actions), _rollout(noisy, 0, 200, actions)
+    errors = np.array([b[0]["observation"] - a[0]["observation"]
+                       for a, b in zip(a_records, b_records)])
+    for a, b in zip(a_records, b_records):
+        for key in ("achieved_goal", "desired_goal"):
+            np.testing.assert_array_equal(a[0][key], b[0][key])
+    for field, spread in (("tcp_position", 0.002), ("object_position", 0.002),
+                          ("tcp_velocity", 0.01 * 0.05), ("object_linear_velocity", 0.01 * 0.05)):
+        assert layout.read(errors, field).std() == pytest.approx(spread, rel=0.1), field
+    np.testing.assert_array_equal(layout.read(errors, "object_orientation"), 0.0)
+
+
+def test_action_noise_moves_the_target_by_the_noise():
+    env = franka_composer.load("push", seed=0, randomization={
+        "action_noise": distributions.Normal(0.0, 0.1)})
+    env.reset()
+    moves = []
+    for _ in range(100):
+        tcp = env.physics.bind(env.task.panda.tcp_site).xpos.copy()
+        env.step(np.zeros(3))
+        moves.append(env.physics.bind(env.task.controller.target).mocap_pos - tcp)
+    moves = np.array(moves) / 0.05  # In units of a full action.
+    assert moves.std() == pytest.approx(0.1, rel=0.15)
+    assert abs(moves.mean()) < 0.03
+
+
+def test_fast_and_stock_paths_agree_under_the_default_preset(monkeypatch):
+    records = {}
+    for path in ("fast", "stock"):
+        monkeypatch.setenv(fast_path.ENV_VARIABLE, "1" if path == "fast" else "0")
+        env = _make("pick_and_place", randomization="default")
+        assert type(env.unwrapped.composer_env) is (fast_path.FastEnvironment if path == "fast"
+                                                     else GoalEnvironment)
+        records[path] = _rollout(env, 11, 120)
+    for (a, reward_a, info_a), (b, reward_b, info_b) in zip(records["fast"], records["stock"]):
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+        assert reward_a == reward_b and info_a == info_b
+
+
+def test_her_relabelled_rewards_are_exact_under_randomisation():
+    env = _make("push", randomization="default", terminate_on_success=False)
+    achieved, desired, rewards = her_samples(env, 200)
+    np.testing.assert_array_equal(
+        rewards, env.unwrapped.compute_reward(achieved, desired, None).astype(np.float32))
+    assert 0.1 < (rewards == 0).mean() < 1
+
+
+@pytest.mark.parametrize("value, message", [
+    ("defaults", "unknown randomization 'defaults'; valid randomizations: None or a mapping, "
+                 "default"),
+    ({"object_weight": 1.0}, "unknown randomization parameter(s) 'object_weight'; valid "
+                             "randomization parameters: action_noise, angle_noise"),
+    ({"object_mass": "heavy"}, "'object_mass' must be a composer.variation distribution"),
+    ({"object_mass": distributions.Uniform(-1.0, 1.0)},
+     "'object_mass' is a factor and must draw > 0"),
+    ({"object_rgb": distributions.Uniform(0.0, 2.0)},
+     "'object_rgb' is a colour and must draw numbers in [0, 1]"),
+    ({"observation_delay": distributions.Uniform(0.0, 2.0)},
+     "'observation_delay' must draw a whole number of control steps in [0, 50]"),
+    ({"camera_position": 0.01}, "'camera_position' must draw 3 finite numbers"),
+    ({"position_noise": float("nan")}, "'position_noise' is noise added to each reading"),
+    (3, "randomization must be None, a preset (default) or a mapping"),
+])
+def test_bad_randomisations_are_refused_before_anything_is_built(value, message):
+    with pytest.raises(ValueError) as error:
+        _make(randomization=value)
+    assert message in str(error.value)
