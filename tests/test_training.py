@@ -382,3 +382,56 @@ def test_a_seed_sb3_cannot_take_is_refused_before_the_run_exists(tmp_path, capsy
     assert "argument --seed: must be an integer from 0 to 2147483647" in \
         capsys.readouterr().err
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("algo, format", [("ddpg", "npz"), ("sac", "minari"),
+                                          ("tqc", "rlds")])
+def test_demonstrations_fill_the_replay_buffer_before_learning(tmp_path, algo, format):
+    """Every algorithm, every format: the buffer starts with the demonstrations, whole
+    episodes, in order, and keeps them (the run writes its checkpoint's buffer)."""
+    from stable_baselines3.common.save_util import load_from_pkl
+
+    from franka_composer.datasets import record
+    from franka_composer.training import demos
+
+    path = tmp_path / ("demos.npz" if format == "npz" else "demos")
+    record("push", 3, path, format=format, seed=7)
+    if format == "minari":
+        path = path / "franka_composer" / "push" / "expert-v0"
+    env = make_env("push")
+    episodes = demos.load_episodes(path, env)
+    env.close()
+    out = tmp_path / "run"
+    assert _train(out, algo, 100, "--demos", str(path), "--demo-episodes", "2",
+                  "--checkpoint-every", "100") == 0
+    config = RunDir(out).read_config()
+    assert (config.demos, config.demo_episodes) == (str(path.resolve()), 2)
+    buffer = load_from_pkl(RunDir(out).checkpoint_buffer)
+    count = sum(len(e["action"]) for e in episodes[:2])
+    stored = buffer.observations["observation"][:count, 0]
+    np.testing.assert_array_equal(stored, np.concatenate(
+        [e["observation"][:-1] for e in episodes[:2]]))
+    np.testing.assert_array_equal(buffer.actions[:count, 0],
+                                  np.concatenate([e["action"] for e in episodes[:2]]))
+    assert buffer.ep_length[0, 0] == len(episodes[0]["action"])  # Whole episodes for HER.
+    assert buffer.pos == count + 100  # Then the run's own 100 steps.
+
+
+def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
+    from franka_composer.datasets import record
+
+    record("pick_and_place", 2, tmp_path / "pnp.npz", seed=0)
+    record("push", 2, tmp_path / "push.npz", seed=0)
+    for extra, message in (
+            (["--demos", str(tmp_path / "pnp.npz")], "holds observation of shape (19,), but "
+                                                     "this task's is (18,)"),
+            (["--demos", str(tmp_path / "push.npz"), "--demo-episodes", "3"],
+             "--demo-episodes 3, but"),
+            (["--demo-episodes", "2"], "--demo-episodes takes the first episodes of --demos"),
+            (["--demos", str(tmp_path)], "is not a dataset")):
+        with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+            _train(tmp_path / "run", "sac", 100, *extra)
+        assert not (tmp_path / "run").exists()
+    with pytest.raises(ValueError, match="would overwrite demonstrations"):
+        _train(tmp_path / "small", "sac", 2000, "--demos", str(tmp_path / "push.npz"))
+    assert not (tmp_path / "small").exists()

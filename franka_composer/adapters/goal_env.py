@@ -134,7 +134,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._timestep = self._env.reset()
         self._randomization = (self._task.randomization
                                if self._task.config.randomization.enabled else None)
-        obs = self._observation(self._timestep.observation)
+        obs = self.goal_observation(self._timestep.observation)
         if self.render_mode == "human":
             self.render()
         return obs, self._info()
@@ -144,7 +144,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         if self._timestep is None:
             raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
         self._timestep = self._env.step(action)
-        obs = self._observation(self._timestep.observation)
+        obs = self.goal_observation(self._timestep.observation)
         info = self._info()
         reward = REWARD_DTYPE(self._timestep.reward)
         terminated = bool(self._timestep.last())
@@ -218,7 +218,9 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             return {"is_success": self._task.success}
         return {"is_success": self._task.success, "randomization": dict(self._randomization)}
 
-    def _observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
+    def goal_observation(self, composer_obs: dict) -> dict[str, np.ndarray]:
+        """The goal dict this env returns for a Composer observation (e.g. one read from
+        an RLDS dataset, or from the dm_env under this env)."""
         obs = {"observation": self._layout.flatten(composer_obs)} if self._state else {}
         obs["achieved_goal"] = np.array(composer_obs[self._task.achieved_goal_key],
                                         dtype=OBSERVATION_DTYPE)

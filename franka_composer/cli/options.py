@@ -44,3 +44,22 @@ def positive_seconds(text: str) -> float:
     if not 0.0 < value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text!r}")
     return value
+
+
+def episode_seed(text: str) -> int:
+    """The first episode's seed: any integer >= 0 (Gymnasium's seeds)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
+    return value
+
+
+def standard_deviation(text: str) -> float:
+    """A finite number >= 0."""
+    value = number(text)
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a standard deviation >= 0, got {text!r}")
+    return value

@@ -1,8 +1,10 @@
-"""`franka-composer rollout`: record a task's scripted expert as demonstrations in `.npz`.
+"""`franka-composer rollout`: record demonstrations of a task, by its scripted expert or a
+trained policy, as `.npz`, a Minari dataset or an RLDS dataset (`franka_composer.datasets`).
 
-The file holds every episode concatenated (`observation`, `achieved_goal`, `desired_goal`
-with one more row per episode than `action`, `reward`, `is_success`, `terminated`,
-`truncated`) and `episode_length`; `franka_composer.policies.Trajectories.load` splits it.
+The `.npz` file holds every episode concatenated (`observation`, `achieved_goal`,
+`desired_goal` with one more row per episode than `action`, `reward`, `is_success`,
+`terminated`, `truncated`) and `episode_length`; `franka_composer.policies.Trajectories.load`
+splits it. Minari and RLDS need the `[data]` extra (README, Datasets).
 """
 
 from __future__ import annotations
@@ -10,39 +12,52 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-import gymnasium as gym
-
 import franka_composer
-from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import positive_int
-from franka_composer.policies import make_expert, rollout
+from franka_composer.cli.options import episode_seed, positive_int, standard_deviation
+from franka_composer.controllers import CONTROLS
 
 
 def add_parser(subparsers) -> None:
+    from franka_composer.datasets import FORMATS
+
     parser = subparsers.add_parser(
-        "rollout", help="save scripted-expert demonstrations of one task to a .npz file",
-        description="Runs the scripted expert of a task through gym.make and saves every "
-                    "episode's observations, actions, rewards and success flags to .npz.",
+        "rollout", help="record demonstrations of one task (npz, Minari or RLDS)",
+        description="Runs a task's scripted expert (or a trained policy) through gym.make and "
+                    "records every episode: observations, actions, rewards, terminations, "
+                    "truncations and success flags, with each episode's reset seed.",
     )
     parser.add_argument("--task", required=True, choices=franka_composer.ALL_TASKS,
                         help="the task to demonstrate")
     parser.add_argument("--episodes", type=positive_int, default=100,
                         help="number of episodes (default: 100)")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=episode_seed, default=0,
                         help="episode i is reset with seed + i (default: 0)")
+    parser.add_argument("--format", choices=FORMATS, default="npz",
+                        help="npz (default), minari or rlds")
+    parser.add_argument("--control", choices=CONTROLS, default="mocap",
+                        help="the controller (default: mocap; the experts take mocap and osc)")
+    parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
+                        help="act with the policy trained in this run directory instead of "
+                             "the scripted expert")
+    parser.add_argument("--action-noise", type=standard_deviation, default=0.0, metavar="STD",
+                        help="Gaussian noise added to each action component (default: 0)")
     parser.add_argument("--reward-type", choices=("sparse", "dense"), default="sparse",
                         help="reward stored with each step (default: sparse)")
+    parser.add_argument("--dataset-id", default=None,
+                        help="Minari dataset id (default: franka_composer/<task>/expert-v0)")
     parser.add_argument("--out", type=pathlib.Path, required=True,
-                        help="the .npz file to write (its folder is created)")
+                        help="the .npz file, or the folder of a Minari or RLDS dataset")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    env = gym.make(env_id(args.task, args.reward_type))
-    trajectories = rollout(env, make_expert(env), args.episodes, seed=args.seed)
-    env.close()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    trajectories.save(args.out)
-    print(f"{args.task}: {len(trajectories)} episodes, {int(trajectories.lengths.sum())} steps, "
-          f"success rate {trajectories.success_rate:.0%} -> {args.out}")
+    from franka_composer.datasets import record
+
+    summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
+                     control=args.control, reward_type=args.reward_type,
+                     policy_dir=args.policy, action_noise=args.action_noise,
+                     dataset_id=args.dataset_id)
+    name = f" ({summary['dataset_id']})" if "dataset_id" in summary else ""
+    print(f"{args.task}: {summary['episodes']} episodes, {summary['steps']} steps, "
+          f"success rate {summary['success_rate']:.0%} -> {summary['path']}{name}")
     return 0

@@ -33,6 +33,29 @@ def _rate(text: str) -> float:
     return value
 
 
+def _demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -> str | None:
+    """The demonstrations' path, absolute (the run may resume from elsewhere), checked
+    before the run directory exists: they load as the task's, and the buffer keeps them."""
+    if args.demos is None:
+        if args.demo_episodes is not None:
+            raise ValueError("--demo-episodes takes the first episodes of --demos DATASET, "
+                             "and no --demos was given")
+        return None
+    from franka_composer.training import demos
+    from franka_composer.training.models import make_env
+
+    env = make_env(args.task, control=args.control)
+    try:
+        episodes = demos.load_episodes(args.demos, env)
+    finally:
+        env.close()
+    if args.demo_episodes is not None and args.demo_episodes > len(episodes):
+        raise ValueError(f"--demo-episodes {args.demo_episodes}, but {args.demos} holds "
+                         f"{len(episodes)} episodes")
+    demos.check_capacity(episodes[:args.demo_episodes], buffer_size, total_steps)
+    return str(args.demos.resolve())
+
+
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "train", help="train DDPG, SAC or TQC with HER on a sparse task (paper Table I)",
@@ -47,6 +70,12 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
                              "(default: none); README, Domain randomisation")
+    parser.add_argument("--demos", type=pathlib.Path, default=None, metavar="DATASET",
+                        help="fill the replay buffer with these demonstrations before "
+                             "learning: a .npz, Minari or RLDS dataset of the same task "
+                             "(franka-composer rollout)")
+    parser.add_argument("--demo-episodes", type=positive_int, default=None, metavar="K",
+                        help="take the dataset's first K episodes (default: all)")
     parser.add_argument("--backend", choices=BACKENDS, default="sb3",
                         help="'sb3' (default, the paper's): Stable-Baselines3 on PyTorch; "
                              "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
@@ -152,10 +181,12 @@ def run(args: argparse.Namespace) -> int:
             learning_starts=args.learning_starts, eval_every=args.eval_every,
             eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
             stop_after_evaluations=args.stop_after)
+        demo_path = _demos(args, hp.buffer_size, args.total_steps or hp.total_steps)
         run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
                                             args.terminate_on_success, args.backend,
                                             args.control, args.precision,
-                                            args.randomization))
+                                            args.randomization, demo_path,
+                                            args.demo_episodes))
     try:
         with _limit_threads(args.threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,

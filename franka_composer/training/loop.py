@@ -15,6 +15,7 @@ import signal
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv
 
+from franka_composer.training import demos
 from franka_composer.training.callbacks import Evaluation, LatestCheckpoint, WallClock
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.precision import GradientStepPrecision
@@ -91,6 +92,9 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         model = build_model(config.task, config.algo, hp, env, seed=config.seed,
                             device=device, tensorboard_log=tensorboard,
                             backend=config.backend)
+        if config.demos is not None:
+            episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
+            demos.prefill(model, episodes, hp.total_steps)
     clock = WallClock(state.get("wall_time_s", 0.0) if resume else 0.0)
     if tensorboard:
         model.tensorboard_log = tensorboard

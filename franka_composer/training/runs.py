@@ -26,6 +26,9 @@ EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 class RunConfig:
     """What a run trains: enough to rebuild its model and environments on resume.
 
+    `demos` is the dataset the replay buffer was filled from before learning (its first
+    `demo_episodes` episodes, or all), or None.
+
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
     wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
     is how the networks' passes are computed while training; the weights are fp32 either
@@ -41,6 +44,8 @@ class RunConfig:
     control: str = "mocap"
     precision: str = "fp32"
     randomization: str | None = None
+    demos: str | None = None
+    demo_episodes: int | None = None
 
     def __post_init__(self) -> None:
         check_choice("backend", self.backend, BACKENDS)
@@ -57,7 +62,8 @@ class RunConfig:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
                 "terminate_on_success": self.terminate_on_success, "backend": self.backend,
                 "control": self.control, "precision": self.precision,
-                "randomization": self.randomization,
+                "randomization": self.randomization, "demos": self.demos,
+                "demo_episodes": self.demo_episodes,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
@@ -75,7 +81,8 @@ class RunConfig:
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
                    precision=data.get("precision", "fp32"),
-                   randomization=data.get("randomization"),
+                   randomization=data.get("randomization"), demos=data.get("demos"),
+                   demo_episodes=data.get("demo_episodes"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
 
 

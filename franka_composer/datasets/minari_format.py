@@ -1,0 +1,76 @@
+"""Minari datasets (Gymnasium's offline-RL format), written through `minari.DataCollector`.
+
+Each episode holds the full goal-dict observations, actions, rewards, terminations,
+truncations and the `is_success` infos, with its reset seed in the episode metadata; the
+dataset holds the env spec with the options it was made with, so
+`minari.load_dataset(id).recover_environment()` gives back the same env.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib.metadata
+import os
+import pathlib
+import warnings
+
+#: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
+DATASETS_PATH_VARIABLE = "MINARI_DATASETS_PATH"
+
+
+@contextlib.contextmanager
+def datasets_root(root: pathlib.Path):
+    """Minari reads and writes datasets under `root` inside the block."""
+    previous = os.environ.get(DATASETS_PATH_VARIABLE)
+    os.environ[DATASETS_PATH_VARIABLE] = str(pathlib.Path(root).resolve())
+    try:
+        yield
+    finally:
+        if previous is None:
+            del os.environ[DATASETS_PATH_VARIABLE]
+        else:
+            os.environ[DATASETS_PATH_VARIABLE] = previous
+
+
+def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id: str,
+          description: str) -> dict:
+    """Records `episodes` episodes of `policy` in `env` (episode i reset with seed + i) as
+    the Minari dataset `dataset_id` under `root`; returns its size and success rate."""
+    import minari
+
+    collector = minari.DataCollector(env, record_infos=True)
+    successes = 0
+    for index in range(episodes):
+        if hasattr(policy, "reset"):
+            policy.reset()
+        obs, _ = collector.reset(seed=seed + index)
+        done, info = False, {"is_success": False}
+        while not done:
+            obs, _, terminated, truncated, info = collector.step(policy(obs))
+            done = terminated or truncated
+        successes += bool(info["is_success"])
+    with datasets_root(root), warnings.catch_warnings():
+        # Minari recommends a contact e-mail and a link to versioned code; a dataset made
+        # on a user's machine has neither, and says which package version made it instead.
+        warnings.filterwarnings("ignore", message="`(author_email|code_permalink)` is set",
+                                category=UserWarning)
+        dataset = collector.create_dataset(
+            dataset_id=dataset_id, eval_env=env.spec, algorithm_name=description,
+            description=f"{description}; made by franka_composer {_version()}",
+            author="franka_composer")
+    collector.close()
+    return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
+            "success_rate": successes / episodes}
+
+
+def _version() -> str:
+    try:
+        return importlib.metadata.version("franka_composer")
+    except importlib.metadata.PackageNotFoundError:
+        return "(not installed)"
+
+
+def episode_seeds(dataset) -> list[int]:
+    """Each episode's reset seed, in episode order."""
+    ids = list(range(dataset.total_episodes))
+    return [int(meta["seed"]) for meta in dataset.storage.get_episode_metadata(ids)]

@@ -1,0 +1,77 @@
+"""RLDS datasets through `envlogger` wrapped around the Composer (dm_env) environment, as
+acme-style agents log them; `envlogger.Reader` reads them without TensorFlow.
+
+Every step holds the dm_env timestep (the Composer observation dict: the state vector's
+observables, the task's `achieved_goal` and `goal`, images in the pixel modes; reward,
+discount, step type) and the action; each episode's metadata holds its reset seed, the
+dataset's metadata the task, its options and who acted. An episode cut by the time limit
+has no LAST step (RLDS's truncation).
+
+envlogger: 1.3 needs glibc >= 2.38 and protobuf < 7 (dm_control's tested set has 7), so the
+extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unicode_`
+(removed in NumPy 2) when it encodes arrays, which `_envlogger()` restores as `np.str_`.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from franka_composer import seeding
+
+
+def _envlogger():
+    """envlogger, with the one NumPy 1 name it uses put back under NumPy 2."""
+    if "unicode_" not in np.__dict__:
+        np.unicode_ = np.str_  # What NumPy 1 had under that name.
+    import envlogger
+
+    return envlogger
+
+
+def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: dict) -> dict:
+    """Records `episodes` episodes of `policy` (acting on goal observations) in the Composer
+    environment under the Gymnasium `env`, episode i reset with seed + i and cut at the
+    env's time limit, into the RLDS directory `root`; returns its size and success rate."""
+    envlogger = _envlogger()
+    adapter = env.unwrapped
+    composer_env, task = adapter.composer_env, adapter.task
+    limit = env.spec.max_episode_steps
+    root.mkdir(parents=True, exist_ok=True)
+    episode = {"seed": None}
+    steps = successes = 0
+    with envlogger.EnvLogger(composer_env, data_directory=str(root), metadata=metadata,
+                             episode_fn=lambda timestep, action, env: dict(episode)) as logged:
+        for index in range(episodes):
+            episode["seed"] = seed + index
+            if hasattr(policy, "reset"):
+                policy.reset()
+            seeding.reseed(composer_env.random_state, seed + index)  # As env.reset(seed=...).
+            timestep = logged.reset()
+            for _ in range(limit):
+                timestep = logged.step(policy(adapter.goal_observation(timestep.observation)))
+                steps += 1
+                if timestep.last():
+                    break
+            successes += bool(task.success)
+    return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
+
+
+def read(root: pathlib.Path) -> dict:
+    """The dataset under `root`: its metadata, and per episode its seed, observations (the
+    reset's first), actions, rewards and whether it ended on a LAST step."""
+    envlogger = _envlogger()
+    with envlogger.Reader(data_directory=str(root)) as reader:
+        metadata = reader.metadata()
+        episodes = []
+        for steps, info in zip(reader.episodes, reader.episode_metadata()):
+            steps = list(steps)
+            episodes.append({
+                "seed": int(info["seed"]),
+                "observations": [step.timestep.observation for step in steps],
+                "actions": [step.action for step in steps[1:]],
+                "rewards": [step.timestep.reward for step in steps[1:]],
+                "last": bool(steps[-1].timestep.last()),
+            })
+    return {"metadata": metadata, "episodes": episodes}

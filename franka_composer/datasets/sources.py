@@ -1,0 +1,68 @@
+"""Who acts in a recorded episode: a task's scripted expert or a trained policy (a run
+directory of `franka-composer train`), optionally with Gaussian action noise for more
+diverse data."""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from franka_composer.policies import make_expert
+from franka_composer.validation import check_number
+
+
+class NoisyPolicy:
+    """`policy`'s action plus N(0, `scale`) noise per component, clipped to [-1, 1]; the
+    noise stream restarts from `seed` + the episode index at each `reset`, so a recorded
+    episode is a function of its seed."""
+
+    def __init__(self, policy, scale: float, seed: int) -> None:
+        self._policy, self._scale, self._seed = policy, scale, seed
+        self._episode = -1
+        self._rng = np.random.default_rng(seed)
+
+    def reset(self) -> None:
+        self._episode += 1
+        self._rng = np.random.default_rng([self._seed, self._episode])
+        if hasattr(self._policy, "reset"):
+            self._policy.reset()
+
+    def __call__(self, obs) -> np.ndarray:
+        action = np.asarray(self._policy(obs), dtype=np.float32)
+        noise = self._rng.normal(0.0, self._scale, size=action.shape)
+        return np.clip(action + noise, -1.0, 1.0).astype(np.float32)
+
+
+class TrainedPolicy:
+    """The best model of a training run, acting deterministically on goal observations."""
+
+    def __init__(self, run_dir: pathlib.Path, env) -> None:
+        from franka_composer.training.models import load_model
+        from franka_composer.training.runs import RunDir
+
+        run = RunDir(pathlib.Path(run_dir))
+        config = run.read_config()
+        task = env.unwrapped.task.config.name
+        if config.task != task:
+            raise ValueError(f"{run_dir} trained {config.task}, not {task}")
+        self._model = load_model(config.algo, run.best_model(), env=env, device="cpu",
+                                 backend=config.backend)
+
+    def __call__(self, obs) -> np.ndarray:
+        action, _ = self._model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float32)
+
+
+def make_policy(env, *, policy_dir=None, action_noise: float = 0.0, seed: int = 0):
+    """The expert of `env`'s task (or the policy trained in `policy_dir`), with action
+    noise of standard deviation `action_noise` (0: none)."""
+    action_noise = check_number("action_noise", action_noise, minimum=0.0)
+    policy = make_expert(env) if policy_dir is None else TrainedPolicy(policy_dir, env)
+    return NoisyPolicy(policy, action_noise, seed) if action_noise > 0 else policy
+
+
+def source_name(policy_dir, action_noise: float) -> str:
+    """How a dataset names who acted: "expert", "policy", with "-noisy" for action noise."""
+    name = "expert" if policy_dir is None else "policy"
+    return f"{name}-noisy" if action_noise > 0 else name

@@ -1,0 +1,106 @@
+"""Demonstrations in the replay buffer before learning (`train --demos`), as Nair et al.
+(2018) seed HER: the recorded episodes are added transition by transition, each episode
+whole, so HER relabels their goals like the agent's own.
+
+A dataset is any of `franka_composer.datasets`' formats: a `.npz` file, a Minari dataset
+folder (the one holding `data/`), or an RLDS folder (holding `metadata.riegeli`). Its
+episodes must be of the task being trained (the same observation shapes). They are kept:
+a run whose buffer cannot hold them and every step it will take is refused, since SB3's
+buffer would otherwise overwrite them first.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from franka_composer.policies.rollout import OBSERVATION_KEYS, Trajectories
+
+
+def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
+    """The episodes of the dataset at `path` as goal-dict arrays (observation keys with one
+    more row than `action`, `reward`, `terminated`, `truncated`, `is_success`), checked
+    against `env`'s observation space."""
+    path = pathlib.Path(path)
+    if path.is_file() and path.suffix == ".npz":
+        episodes = Trajectories.load(path).episodes
+    elif (path / "metadata.riegeli").is_file():
+        episodes = _rlds_episodes(path, env)
+    elif (path / "data").is_dir() or (path / "metadata.json").is_file():
+        episodes = _minari_episodes(path)
+    else:
+        raise ValueError(f"{path} is not a dataset: expected a .npz file, a Minari dataset "
+                         f"folder (holding data/) or an RLDS folder (holding metadata.riegeli)")
+    spaces = env.observation_space.spaces
+    for key in OBSERVATION_KEYS:
+        shape = episodes[0][key].shape[1:] if episodes else spaces[key].shape
+        if shape != spaces[key].shape:
+            raise ValueError(f"{path} holds {key} of shape {shape}, but this task's is "
+                             f"{spaces[key].shape}: demonstrations of another task?")
+    return episodes
+
+
+def _minari_episodes(path: pathlib.Path) -> list[dict]:
+    import minari
+
+    data = path / "data" if (path / "data").is_dir() else path
+    episodes = []
+    for episode in minari.MinariDataset(data).iterate_episodes():
+        episodes.append({**{key: np.asarray(episode.observations[key])
+                            for key in OBSERVATION_KEYS},
+                         "action": np.asarray(episode.actions, dtype=np.float32),
+                         "reward": np.asarray(episode.rewards, dtype=np.float64),
+                         "terminated": np.asarray(episode.terminations, dtype=bool),
+                         "truncated": np.asarray(episode.truncations, dtype=bool),
+                         "is_success": np.asarray(episode.infos["is_success"][1:],
+                                                  dtype=bool)})
+    return episodes
+
+
+def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
+    from franka_composer.datasets import rlds_format
+
+    adapter = env.unwrapped
+    task, episodes = adapter.task, []
+    for episode in rlds_format.read(path)["episodes"]:
+        observations = [adapter.goal_observation(o) for o in episode["observations"]]
+        steps = len(episode["actions"])
+        goals = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
+        success = task.is_success(goals["achieved_goal"][1:], goals["desired_goal"][1:])
+        terminated = np.zeros(steps, dtype=bool)
+        terminated[-1] = episode["last"]
+        episodes.append({**goals, "action": np.array(episode["actions"], dtype=np.float32),
+                         "reward": np.array(episode["rewards"], dtype=np.float64),
+                         "terminated": terminated, "truncated": ~terminated & (
+                             np.arange(steps) == steps - 1),
+                         "is_success": np.asarray(success, dtype=bool)})
+    return episodes
+
+
+def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> int:
+    """How many transitions `episodes` hold; a ValueError if a buffer of `buffer_size`
+    cannot keep them through `total_steps` steps of training."""
+    transitions = int(sum(len(e["action"]) for e in episodes))
+    if transitions + total_steps > buffer_size:
+        raise ValueError(f"the replay buffer holds {buffer_size} transitions: {transitions} "
+                         f"of demonstrations and {total_steps} steps would overwrite "
+                         f"demonstrations; raise --buffer-size or take fewer --demo-episodes")
+    return transitions
+
+
+def prefill(model, episodes: list[dict], total_steps: int) -> int:
+    """Adds `episodes` to `model`'s replay buffer, transition by transition; returns how many
+    (`check_capacity` first)."""
+    buffer = model.replay_buffer
+    transitions = check_capacity(episodes, buffer.buffer_size, total_steps)
+    for episode in episodes:
+        for t in range(len(episode["action"])):
+            obs = {key: episode[key][t][None] for key in OBSERVATION_KEYS}
+            next_obs = {key: episode[key][t + 1][None] for key in OBSERVATION_KEYS}
+            terminated, truncated = bool(episode["terminated"][t]), bool(episode["truncated"][t])
+            buffer.add(obs, next_obs, episode["action"][t][None],
+                       np.array([episode["reward"][t]]), np.array([terminated or truncated]),
+                       [{"is_success": bool(episode["is_success"][t]),
+                         "TimeLimit.truncated": truncated and not terminated}])
+    return transitions

@@ -1,0 +1,140 @@
+"""Demonstration datasets (franka_composer/datasets/): Minari and RLDS load with the
+ecosystem's own readers and round-trip, an episode replayed from its seed and actions giving
+back the stored observations exactly."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import franka_composer
+from franka_composer import seeding
+from franka_composer.cli import main
+from franka_composer.datasets import record
+
+minari = pytest.importorskip("minari")
+pytest.importorskip("envlogger")
+
+from franka_composer.datasets import minari_format, rlds_format  # noqa: E402
+
+
+def _replay_goal_env(env, seed, actions):
+    """The observations, rewards and flags of `actions` from `env.reset(seed=seed)`."""
+    obs, _ = env.reset(seed=seed)
+    observations, rewards, terminated, truncated = [obs], [], [], []
+    for action in actions:
+        obs, reward, term, trunc, _ = env.step(action)
+        observations.append(obs)
+        rewards.append(reward)
+        terminated.append(term)
+        truncated.append(trunc)
+    return observations, rewards, terminated, truncated
+
+
+@pytest.mark.parametrize("control, options", [("mocap", {}),
+                                              ("osc", {"terminate_on_success": False})])
+def test_a_minari_dataset_loads_recovers_its_env_and_replays_exactly(tmp_path, control, options):
+    summary = record("push", 3, tmp_path, format="minari", seed=20, control=control, **options)
+    dataset_id = "franka_composer/push/expert-v0" if control == "mocap" else \
+        "franka_composer/push-osc/expert-v0"
+    assert summary["dataset_id"] == dataset_id and summary["episodes"] == 3
+    with minari_format.datasets_root(tmp_path):
+        dataset = minari.load_dataset(dataset_id)  # Minari's own reader.
+    assert dataset.total_episodes == 3 and minari_format.episode_seeds(dataset) == [20, 21, 22]
+    env = dataset.recover_environment()
+    assert env.unwrapped.task.config.control.kind == control
+    assert env.unwrapped.task.terminate_on_success is options.get("terminate_on_success", True)
+    for seed, episode in zip(minari_format.episode_seeds(dataset), dataset.iterate_episodes()):
+        assert set(episode.observations) == {"observation", "achieved_goal", "desired_goal"}
+        assert episode.actions.shape == (len(episode.rewards), 3)
+        observations, rewards, terminated, truncated = _replay_goal_env(env, seed,
+                                                                        episode.actions)
+        for key, stored in episode.observations.items():
+            np.testing.assert_array_equal(np.array([o[key] for o in observations]), stored)
+        np.testing.assert_array_equal(rewards, episode.rewards)
+        np.testing.assert_array_equal(terminated, episode.terminations)
+        np.testing.assert_array_equal(truncated, episode.truncations)
+        assert episode.infos["is_success"][-1] == (episode.rewards[-1] == 0.0)
+    if control == "osc":  # Fetch semantics: every episode runs to the time limit.
+        assert all(len(e.rewards) == 50 and e.truncations[-1]
+                   for e in dataset.iterate_episodes())
+
+
+def test_an_rlds_dataset_reads_with_envlogger_and_replays_exactly(tmp_path):
+    summary = record("pick_and_place", 3, tmp_path / "rlds", format="rlds", seed=5,
+                     action_noise=0.2, terminate_on_success=False)
+    assert summary["steps"] == 150  # Three episodes cut at the time limit.
+    envlogger = rlds_format._envlogger()
+    with envlogger.Reader(data_directory=str(tmp_path / "rlds")) as reader:  # Its own reader.
+        assert reader.metadata()["task"] == "pick_and_place"
+        assert len(reader.episodes) == 3
+    dataset = rlds_format.read(tmp_path / "rlds")
+    assert dataset["metadata"]["action_noise"] == 0.2
+    assert dataset["metadata"]["options"] == {"terminate_on_success": False}
+    env = franka_composer.load("pick_and_place", terminate_on_success=False)
+    for index, episode in enumerate(dataset["episodes"]):
+        assert episode["seed"] == 5 + index and not episode["last"]  # Truncated.
+        seeding.reseed(env.random_state, episode["seed"])
+        replayed = [env.reset().observation]
+        rewards = []
+        for action in episode["actions"]:
+            timestep = env.step(action)
+            replayed.append(timestep.observation)
+            rewards.append(timestep.reward)
+        assert len(replayed) == len(episode["observations"]) == 51
+        for stored, again in zip(episode["observations"], replayed):
+            assert set(stored) == set(again) >= {"achieved_goal", "goal", "block/position"}
+            for key in stored:
+                np.testing.assert_array_equal(stored[key], again[key])
+        np.testing.assert_array_equal(episode["rewards"], rewards)
+    # The noise is drawn per episode from the seed: the episodes differ from the expert's.
+    assert np.abs(np.diff(np.array(dataset["episodes"][0]["actions"])[:, 3])).max() > 0.05
+
+
+def test_action_noise_is_a_function_of_the_seed_and_the_command_line_records(tmp_path, capsys):
+    for name in ("a", "b"):
+        assert main(["rollout", "--task", "push", "--episodes", "2", "--seed", "3",
+                     "--action-noise", "0.3", "--format", "npz",
+                     "--out", str(tmp_path / f"{name}.npz")]) == 0
+    assert "push: 2 episodes" in capsys.readouterr().out
+    with np.load(tmp_path / "a.npz") as a, np.load(tmp_path / "b.npz") as b:
+        np.testing.assert_array_equal(a["action"], b["action"])
+        assert np.abs(a["action"]).max() <= 1.0
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--format", "parquet"], "invalid choice: 'parquet'"),
+    (["--action-noise", "-0.1"], "must be a standard deviation >= 0, got '-0.1'"),
+    (["--seed", "-1"], "must be an integer >= 0, got '-1'"),
+])
+def test_bad_rollout_options_are_refused_before_anything_is_written(tmp_path, capsys, argv,
+                                                                    message):
+    with pytest.raises(SystemExit):
+        main(["rollout", "--task", "push", "--out", str(tmp_path / "x"), *argv])
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_joint_control_needs_a_trained_policy(tmp_path):
+    with pytest.raises(ValueError, match="the scripted experts act on dx, dy, dz"):
+        record("push", 1, tmp_path / "x", format="minari", control="joints")
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.slow
+def test_a_trained_policy_records_deterministically(tmp_path):
+    assert main(["train", "--task", "push", "--algo", "sac", "--seed", "0", "--out",
+                 str(tmp_path / "run"), "--total-steps", "100", "--net-arch", "16,16",
+                 "--batch-size", "32", "--buffer-size", "2000", "--learning-starts", "50",
+                 "--eval-every", "100", "--eval-episodes", "1", "--threads", "1",
+                 "--no-progress", "--device", "cpu"]) == 0
+    for name in ("a", "b"):
+        summary = record("push", 2, tmp_path / name, format="rlds", seed=1,
+                         policy_dir=tmp_path / "run")
+        assert summary["episodes"] == 2
+    first, second = rlds_format.read(tmp_path / "a"), rlds_format.read(tmp_path / "b")
+    assert first["metadata"]["source"] == "policy"
+    for a, b in zip(first["episodes"], second["episodes"]):
+        np.testing.assert_array_equal(np.array(a["actions"]), np.array(b["actions"]))
+    with pytest.raises(ValueError, match="trained push, not slide"):
+        record("slide", 1, tmp_path / "c", policy_dir=tmp_path / "run")
