@@ -7,9 +7,12 @@ learning curve must rise above.
 which episodes an evaluation sees does not depend on the policy (goals and objects are
 drawn at reset), so an untrained policy scores exactly the episodes that start solved and
 stay so (push: the block already within 5 cm of the goal). This replays those evaluations
-with a zero action, in the order `train` runs them from its start (a resumed run's eval
-env starts its stream again: compare its evaluations after the resume with this list from
-its beginning). Prints one JSON list, a rate per evaluation.
+with a zero action, in the order `train` runs them from its start (a resumed run goes on
+with the episodes an uninterrupted one would see; on trees before commit 6cabf21 its eval
+env started its stream again: compare such a run's evaluations after a resume with this
+list from its beginning, computed with that tree on PYTHONPATH). The same seed draws the
+same episodes with domain randomisation (`randomization`) as without, so this is also the
+floor of a randomised run. Prints one JSON list, a rate per evaluation.
 """
 
 from __future__ import annotations
