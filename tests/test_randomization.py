@@ -45,10 +45,12 @@ def _rollout(env, seed: int, steps: int, actions=None):
     return records
 
 
-@pytest.mark.parametrize("control", CONTROLS)
-def test_every_task_and_controller_keeps_the_goal_contract_under_the_default_preset(
-        task_name, control):
-    env = _make(task_name, control, randomization="default", terminate_on_success=False)
+@pytest.mark.parametrize("control, mode", [(control, "state") for control in CONTROLS]
+                         + [("mocap", "pixels"), ("mocap", "state+pixels")])
+def test_every_task_controller_and_mode_keeps_the_goal_contract_under_the_default_preset(
+        task_name, control, mode):
+    env = _make(task_name, control, randomization="default", terminate_on_success=False,
+                observation_mode=mode)
     check_env(env.unwrapped, skip_render_check=True)
     records = _rollout(env, seed=1, steps=SPEC[task_name]["steps"] + 5)
     for obs, reward, info in records:
@@ -107,6 +109,17 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
         assert weld[0] == pytest.approx(0.01 / np.sqrt(drawn["controller_gain"]), rel=1e-12)
         gripper = physics.bind(task.panda.gripper_actuator)
         assert -gripper.biasprm[1] == pytest.approx(1000.0 * drawn["gripper_gain"], rel=1e-12)
+
+
+def test_a_drawn_light_renders_the_same_with_or_without_mass_randomisation():
+    """`mj_setConst` (run for new masses) takes a tracking light's direction from the model:
+    the light (Menagerie's trackcom "top" among them) must be written so that it does not
+    matter, and an episode's images depend on its draws alone."""
+    light = {"light_direction": DEFAULT["light_direction"]}
+    images = [_make(observation_mode="pixels", randomization=options).reset(seed=3)[0]
+              ["workspace_pixels"] for options in (None, light, {**light, "object_mass": 1.0})]
+    assert np.any(images[0] != images[1], axis=-1).sum() > 100  # The light moved.
+    np.testing.assert_array_equal(images[1], images[2])
 
 
 def test_controller_gains_scale_under_every_controller():

@@ -81,6 +81,9 @@ class Randomizer:
         panda_geoms = ids(self._panda.mjcf_model.find_all("geom"))
         panda_materials = ids(self._panda.mjcf_model.find_all("material"))
         lights = ids(self._arena.mjcf_model.find_all("light"))
+        if not np.allclose(model.light_dir0[lights], model.light_dir[lights]):
+            raise ValueError("light_direction assumes every light hangs from a body aligned "
+                             "with the world at qpos0 (light_dir0 == light_dir)")
         cameras = ids(self._cameras) if self._cameras else np.zeros(0, dtype=int)
         arm_dofs = np.asarray(physics.bind(self._panda.joints).dofadr, dtype=int)
         floor = int(physics.bind(self._arena.floor).element_id)
@@ -164,8 +167,6 @@ class Randomizer:
             factors = np.asarray(values["object_mass"])
             ptr.body_mass[nominal["bodies"]] = nominal["mass"] * factors
             ptr.body_inertia[nominal["bodies"]] = nominal["inertia"] * factors[:, None]
-            # Subtree masses and the inverse weights contacts are regularised with.
-            mujoco.mj_setConst(ptr, physics.data.ptr)
         if values.get("object_friction"):
             ptr.geom_friction[nominal["object_geoms"], 0] = (
                 nominal["object_friction"] * np.asarray(values["object_friction"]))
@@ -179,6 +180,10 @@ class Randomizer:
         if "controller_gain" in values:
             self._controller.scale_gains(physics, values["controller_gain"])
         self._write_visual(ptr, values)
+        if values.get("object_mass"):
+            # Subtree masses and the inverse weights contacts are regularised with; last,
+            # as it also takes the cameras' and lights' reference poses from the model.
+            mujoco.mj_setConst(ptr, physics.data.ptr)
         if "observation_delay" in values:
             steps = values["observation_delay"]
             for observable in self._sensed:
@@ -200,8 +205,11 @@ class Randomizer:
                 nominal["panda_material_rgba"][:, :3] * tint)
         if "light_direction" in values:
             direction = nominal["light_dir"] + values["light_direction"]
-            ptr.light_dir[nominal["lights"]] = direction / np.linalg.norm(
-                direction, axis=1, keepdims=True)
+            direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+            ptr.light_dir[nominal["lights"]] = direction
+            # A tracking light (Menagerie's "top", trackcom) keeps the world direction it has
+            # at qpos0, light_dir0: the same here, its body being aligned with the world.
+            ptr.light_dir0[nominal["lights"]] = direction
         if "light_intensity" in values:
             ptr.light_diffuse[nominal["lights"]] = (nominal["light_diffuse"]
                                                     * values["light_intensity"])
