@@ -42,7 +42,7 @@ class Randomizer:
 
     def __init__(self, settings: RandomizationSettings, *, arena, panda, props, controller,
                  sensed: list, cameras: list, substeps: int) -> None:
-        self._settings, self._ranges = settings, dict(settings.ranges)
+        self._ranges = dict(settings.ranges)
         self._arena, self._panda, self._props = arena, panda, list(props)
         self._controller, self._cameras, self._substeps = controller, list(cameras), substeps
         self._streams = {group: np.random.RandomState(0) for group in GROUPS}
@@ -56,10 +56,6 @@ class Randomizer:
                 observable.corruptor = _StepNoise(self._ranges[noise], self)
         action_noise = self._ranges.get("action_noise")
         self._action_noise = None if action_noise is None else noises.Additive(action_noise)
-
-    @property
-    def settings(self) -> RandomizationSettings:
-        return self._settings
 
     @property
     def values(self) -> dict:

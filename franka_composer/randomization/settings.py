@@ -85,9 +85,6 @@ class RandomizationSettings:
     def parameters(self) -> tuple[str, ...]:
         return tuple(name for name, _ in self.ranges)
 
-    def distribution(self, parameter: str):
-        return dict(self.ranges).get(parameter)
-
     def __hash__(self) -> int:
         # Composer's distributions compare by value but are not hashable.
         return hash((self.name, self.parameters))
