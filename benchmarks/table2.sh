@@ -6,8 +6,10 @@
 #   benchmarks/table2.sh run      train the cells, WORKERS at a time (default 1), each
 #                                 resumed from its checkpoint if it has one, skipped if done
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
-#   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv and outcome.json
-#                                 into results/table2/<cell>/
+#   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv, outcome.json and
+#                                 (once it has finished) policy.pt into results/table2/<cell>/,
+#                                 from which `franka-composer evaluate results/table2` and
+#                                 `franka-composer demo --policy results/table2/<cell>` run
 #
 # Runs live in $RUNS (default ~/franka_runs/table2), so an interrupted cell resumes in a
 # later session.
@@ -28,7 +30,7 @@ case "${1:-}" in
     for dir in "$RUNS"/*/; do
       cell=$(basename "$dir")
       mkdir -p "results/table2/$cell"
-      for file in config.json eval.csv outcome.json; do
+      for file in config.json eval.csv outcome.json policy.pt; do
         if [ -f "$dir/$file" ]; then cp "$dir/$file" "results/table2/$cell/"; fi
       done
     done

@@ -102,6 +102,90 @@ def test_tiny_run_logs_evaluations_and_saves_model(runs, algo):
     env = make_env("push")
     assert load_model(algo, run.final_model, env=env, device="cpu").num_timesteps == 300
     env.close()
+    assert 0 < run.policy_file.stat().st_size < run.final_model.stat().st_size / 2
+
+
+def _committed_copy(run_root, to):
+    """A run as the repository keeps it: config.json and policy.pt, nothing else."""
+    to.mkdir()
+    for name in ("config.json", "policy.pt"):
+        (to / name).write_bytes((run_root / name).read_bytes())
+    return to
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_a_policy_file_acts_as_the_trained_model_to_the_bit(runs, tmp_path, algo, capsys):
+    from franka_composer.training.evaluation import measure_success
+    from franka_composer.training.policy_file import ActorPolicy, load_trained
+
+    committed = _committed_copy(runs[algo], tmp_path / "committed")
+    env = make_env("push")
+    full = load_trained(RunDir(runs[algo]), env, device="cpu")
+    small = load_trained(RunDir(committed), env, device="cpu")
+    assert isinstance(small, ActorPolicy) and small.num_timesteps == full.num_timesteps == 300
+    obs, _ = env.reset(seed=3)
+    for _ in range(20):
+        action, _ = full.predict(obs, deterministic=True)
+        np.testing.assert_array_equal(small.predict(obs, deterministic=True)[0], action)
+        obs = env.step(env.action_space.sample())[0]
+    assert measure_success(small, env, 3, seed=5) == measure_success(full, env, 3, seed=5)
+    env.close()
+    capsys.readouterr()
+    reports = []  # The same final test: the same per-run line after the path, the same table.
+    for root in (runs[algo], committed):
+        assert cli.main(["evaluate", str(root), "--episodes", "2", "--device", "cpu"]) == 0
+        reports.append(capsys.readouterr().out.replace(str(root), "RUN"))
+    assert "300 steps" in reports[0] and reports[0] == reports[1]
+
+
+def test_a_table_i_policy_file_is_the_actor_alone(tmp_path):
+    """Table I's push SAC: its policy file is the actor's fp32 weights (under 1 MB) and a
+    fraction of SB3's model.zip, so a policy per Table II cell stays far under 20 MB."""
+    from franka_composer.training.policy_file import save_policy
+
+    env = make_env("push")
+    model = build_model("push", "sac", hyperparameters("push", "sac").replace(
+        buffer_size=1000), env, seed=0, device="cpu")
+    save_policy(model, tmp_path / "policy.pt")
+    model.save(tmp_path / "model.zip")
+    env.close()
+    actor_bytes = 4 * sum(p.numel() for p in model.actor.parameters())
+    assert actor_bytes < (tmp_path / "policy.pt").stat().st_size < actor_bytes + 20_000 < 10**6
+    assert (tmp_path / "model.zip").stat().st_size > 4 * actor_bytes
+
+
+def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
+    import torch
+
+    from franka_composer.training.policy_file import load_trained
+
+    env = make_env("push")
+    committed = _committed_copy(runs["sac"], tmp_path / "committed")
+    state = torch.load(committed / "policy.pt", weights_only=True)
+    torch.save({**state, "format": 99}, committed / "policy.pt")
+    with pytest.raises(ValueError, match="a policy file of format 99; this version of "
+                                         "franka_composer reads format 1"):
+        load_trained(RunDir(committed), env, device="cpu")
+    (committed / "policy.pt").unlink()
+    with pytest.raises(ValueError, match="has no model yet \\(no model.zip, no checkpoint, "
+                                         "no policy.pt\\)"):
+        load_trained(RunDir(committed), env, device="cpu")
+    env.close()
+
+
+def test_demo_plays_a_trained_policy_on_its_task(runs, tmp_path, capsys):
+    committed = _committed_copy(runs["tqc"], tmp_path / "committed")
+    videos = tmp_path / "videos"
+    assert cli.main(["demo", "--policy", str(committed), "--episodes", "2", "--out",
+                     str(videos), "--width", "64", "--height", "48", "--video-episodes",
+                     "1"]) == 0
+    assert sorted(path.name for path in videos.iterdir()) == ["push.mp4", "push.png"]
+    table = capsys.readouterr().out.splitlines()
+    assert table[0].split()[:2] == ["task", "episodes"] and table[2].split()[:2] == ["push", "2"]
+    with pytest.raises(ValueError, match="was trained on push; --tasks slide asks for others"):
+        cli.main(["demo", "--policy", str(committed), "--tasks", "slide", "--no-video"])
+    with pytest.raises(ValueError, match="acts through mocap control, not --control osc"):
+        cli.main(["demo", "--policy", str(committed), "--control", "osc", "--no-video"])
 
 
 def test_resume_continues_step_count_buffer_and_csv(tmp_path):
@@ -141,18 +225,42 @@ def test_no_terminate_on_success_reaches_the_env(tmp_path):
 
 def test_a_randomised_run_trains_resumes_and_evaluates_on_randomised_envs(tmp_path, capsys,
                                                                           monkeypatch):
+    import gymnasium as gym
+
     from franka_composer.training import loop
 
-    made = []
+    made, played = [], []  # make_env's options; the randomised parameters of each episode.
+
+    class RecordPlayedDraws(gym.Wrapper):
+        """Records an episode's draw at its first step: resets nothing steps after (the
+        skipping of evaluated episodes on resume, a vector env's reset after its last
+        episode) play no episode."""
+
+        def reset(self, **kwargs):
+            obs, info = self.env.reset(**kwargs)
+            self._draw = info["randomization"]
+            return obs, info
+
+        def step(self, action):
+            if self._draw is not None:
+                played.append(json.dumps(self._draw, sort_keys=True, default=repr))
+                self._draw = None
+            return self.env.step(action)
+
     real_make_env = loop.make_env
     monkeypatch.setattr(loop, "make_env", lambda task, **options: made.append(options)
-                        or real_make_env(task, **options))
+                        or RecordPlayedDraws(real_make_env(task, **options)))
     out = tmp_path / "randomised"
     assert _train(out, "sac", 100, "--randomization", "default",
                   "--checkpoint-every", "100") == 0
     assert json.loads(RunDir(out).config_path.read_text())["randomization"] == "default"
     assert _train(out, "sac", 200, "--resume") == 0
     assert [options["randomization"] for options in made] == ["default"] * 4  # Train, eval.
+    # Every episode played, trained on or evaluated, before and after the resume, had its
+    # own draw: at least 4 training episodes (200 steps in episodes of 50) and 2 evaluation
+    # episodes at each of the 3 evaluations (steps 0, 100, 200).
+    assert len(played) >= 4 + 2 * 3
+    assert len(set(played)) == len(played)
     assert cli.main(["evaluate", str(out), "--episodes", "2"]) == 0
     assert "push" in capsys.readouterr().out
     with pytest.raises(SystemExit):
@@ -251,6 +359,7 @@ def test_sbx_run_trains_resumes_and_evaluates(tmp_path, algo, capsys):
     env = make_env("push")
     model = load_model(algo, RunDir(out).final_model, env=env, device="cpu", backend="sbx")
     assert isinstance(model, getattr(sbx, algo.upper())) and model.num_timesteps == 300
+    assert not RunDir(out).policy_file.exists()  # JAX actors: the run keeps its model.zip.
     model.load_replay_buffer(RunDir(out).checkpoint_buffer)
     assert model.replay_buffer.size() == 300  # The first 200 came back from the checkpoint.
     env.close()
@@ -324,11 +433,18 @@ def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):
     assert "must be a success rate in (0, 1], got '1.5'" in capsys.readouterr().err
 
 
+#: CUDA only where torch sees a GPU (CI has none; a GPU machine runs this file as it is).
+DEVICES_HERE = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(
+    not __import__("torch").cuda.is_available(), reason="torch sees no CUDA GPU"))]
+
+
+@pytest.mark.parametrize("device", DEVICES_HERE)
 @pytest.mark.parametrize("precision", ["fp32", "bf16"])
-def test_precision_sets_the_gradient_steps_and_nothing_else(tmp_path, monkeypatch, precision):
+def test_precision_sets_the_gradient_steps_and_nothing_else(tmp_path, monkeypatch, precision,
+                                                           device):
     """bf16: every network pass of the gradient steps (batches of 32) in bfloat16, the
     rollouts' and evaluations' (one observation) in float32, the saved weights float32, and
-    autocast off again afterwards; fp32: float32 throughout."""
+    autocast off again afterwards; fp32: float32 throughout. The same on either device."""
     import torch
 
     from franka_composer.training import loop
@@ -347,8 +463,8 @@ def test_precision_sets_the_gradient_steps_and_nothing_else(tmp_path, monkeypatc
 
     monkeypatch.setattr(loop, "build_model", build_and_watch)
     out = tmp_path / precision
-    assert _train(out, "sac", 300, "--precision", precision) == 0
-    assert not torch.is_autocast_enabled("cpu")
+    assert _train(out, "sac", 300, "--precision", precision, "--device", device) == 0
+    assert not torch.is_autocast_enabled(device)
     assert RunDir(out).read_config().precision == precision
     assert json.loads(RunDir(out).config_path.read_text())["precision"] == precision
     trained = torch.bfloat16 if precision == "bf16" else torch.float32

@@ -1,4 +1,5 @@
-"""`franka-composer demo`: the scripted experts solving every task, with videos and a table.
+"""`franka-composer demo`: the scripted experts solving every task, with videos and a table;
+with `--policy`, a trained run's policy on its task instead.
 
 Steps per second count only the time inside `env.reset` and `env.step` (no rendering, no
 policy), so the figure is the simulator's speed whether or not videos are written.
@@ -26,16 +27,21 @@ def add_parser(subparsers) -> None:
         description="Runs the scripted expert of each task headless through gym.make (sparse "
                     "reward), prints a table of success rate, mean episode length and "
                     "simulator speed, and writes <task>.mp4 and <task>.png (its first frame) "
-                    "per task into the output folder.",
+                    "per task into the output folder. With --policy RUN_DIR, the policy "
+                    "trained in RUN_DIR plays instead, on that run's task, controller and "
+                    "environment options.",
     )
     parser.add_argument("--tasks", type=parse_tasks, default=franka_composer.ALL_TASKS,
                         help="comma-separated tasks to run (default: all of "
                              f"{','.join(franka_composer.ALL_TASKS)})")
     parser.add_argument("--episodes", type=positive_int, default=10,
                         help="episodes per task (default: 10)")
-    parser.add_argument("--control", choices=("mocap", "osc"), default="mocap",
+    parser.add_argument("--control", choices=("mocap", "osc"), default=None,
                         help="controller the experts act through (they act on dx, dy, dz, "
-                             "so not joints; default: mocap)")
+                             "so not joints; default: mocap, or the --policy run's)")
+    parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
+                        help="play the policy trained in RUN_DIR (a `train` run, or one as "
+                             "committed with config.json and policy.pt) instead of the experts")
     parser.add_argument("--seed", type=int, default=0,
                         help="episode i of each task is reset with seed + i (default: 0)")
     parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path(DEFAULT_OUT),
@@ -55,31 +61,57 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    trained = None if args.policy is None else _adopt_the_runs_task(args)
     if not args.no_video:
         args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode") as bar:
         for task in args.tasks:
             bar.set_postfix_str(task)
-            rows.append(_run_task(task, args, lambda _: bar.update()))
+            rows.append(_run_task(task, args, trained, lambda _: bar.update()))
     print(format_table(rows))
     if not args.no_video:
         print(f"Videos (<task>.mp4) and first frames (<task>.png): {args.out.resolve()}")
     return 0
 
 
-def _run_task(task: str, args: argparse.Namespace, on_episode_end) -> tuple:
-    """Runs the expert on `task`; writes its video and first frame; returns a table row."""
-    render_mode = None if args.no_video else "rgb_array"
-    env = gym.make(env_id(task, "sparse", args.control), render_mode=render_mode,
-                   width=args.width, height=args.height)
+def _adopt_the_runs_task(args: argparse.Namespace):
+    """The --policy run's config, with `args` set to its task and controller; a --tasks or
+    --control that names others is an error (before anything is built)."""
+    from franka_composer.training.runs import RunDir
+
+    config = RunDir(args.policy).read_config()
+    if args.tasks not in (franka_composer.ALL_TASKS, (config.task,)):
+        raise ValueError(f"--policy {args.policy} was trained on {config.task}; --tasks "
+                         f"{','.join(args.tasks)} asks for others")
+    if args.control not in (None, config.control):
+        raise ValueError(f"--policy {args.policy} acts through {config.control} control, "
+                         f"not --control {args.control}")
+    args.tasks, args.control = (config.task,), config.control
+    return config
+
+
+def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> tuple:
+    """Runs the expert (or, given the --policy run's config `trained`, its policy, in that
+    run's environment) on `task`; writes its video and first frame; returns a table row."""
+    render = dict(render_mode=None if args.no_video else "rgb_array", width=args.width,
+                  height=args.height)
+    if trained is None:
+        env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render)
+        policy = make_expert(env)
+    else:
+        from franka_composer.datasets.sources import TrainedPolicy
+        from franka_composer.training.models import make_env
+
+        env = make_env(task, **trained.env_options, **render)
+        policy = TrainedPolicy(args.policy, env)
     frames: list = []
 
     def record(environment, episode: int) -> None:
         if episode < args.video_episodes:
             frames.append(environment.render())
 
-    trajectories = rollout(env, make_expert(env), args.episodes, seed=args.seed,
+    trajectories = rollout(env, policy, args.episodes, seed=args.seed,
                            on_step=None if args.no_video else record,
                            on_episode_end=on_episode_end)
     fps = env.metadata["render_fps"]

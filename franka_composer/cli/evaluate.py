@@ -13,7 +13,8 @@ from franka_composer.training.models import DEVICES
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "evaluate", help="success rate of trained runs, and a Table II-style Markdown table",
-        description="Run each trained model (RUN_DIR/model.zip, else its latest checkpoint) "
+        description="Run each trained model (RUN_DIR/model.zip, else its latest checkpoint, "
+                    "else its policy.pt) "
                     "for --episodes deterministic episodes on its task; print the success "
                     "rate per run, then a Markdown table of mean ± std over seeds per task "
                     "and algorithm, in the layout of the paper's Table II.")
@@ -33,7 +34,8 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.models import load_model, make_env
+    from franka_composer.training.models import make_env
+    from franka_composer.training.policy_file import load_trained
     from franka_composer.training.report import RunResult, markdown_table, seeds_note
     from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import run_directories
@@ -44,8 +46,7 @@ def run(args: argparse.Namespace) -> int:
         config = run_dir.read_config()
         env = make_env(config.task, **config.env_options)
         try:
-            model = load_model(config.algo, run_dir.best_model(), env=env, device=args.device,
-                               backend=config.backend)
+            model = load_trained(run_dir, env, device=args.device)
             outcome = measure_success(model, env, args.episodes, seed=args.seed)
         finally:
             env.close()

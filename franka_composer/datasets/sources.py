@@ -38,7 +38,7 @@ class TrainedPolicy:
     """The best model of a training run, acting deterministically on goal observations."""
 
     def __init__(self, run_dir: pathlib.Path, env) -> None:
-        from franka_composer.training.models import load_model
+        from franka_composer.training.policy_file import load_trained
         from franka_composer.training.runs import RunDir
 
         run = RunDir(pathlib.Path(run_dir))
@@ -46,8 +46,7 @@ class TrainedPolicy:
         task = env.unwrapped.task.config.name
         if config.task != task:
             raise ValueError(f"{run_dir} trained {config.task}, not {task}")
-        self._model = load_model(config.algo, run.best_model(), env=env, device="cpu",
-                                 backend=config.backend)
+        self._model = load_trained(run, env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:
         action, _ = self._model.predict(obs, deterministic=True)

@@ -18,6 +18,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from franka_composer.training import demos
 from franka_composer.training.callbacks import Evaluation, LatestCheckpoint, WallClock
 from franka_composer.training.models import build_model, load_model, make_env
+from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows, write_eval_rows
 
@@ -127,6 +128,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         checkpoint.init_callback(model)
     checkpoint.save()
     model.save(run.final_model)
+    if config.backend == "sb3":
+        save_policy(model, run.policy_file)
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
     run.write_outcome(int(model.num_timesteps), stopped_early, clock())
     return model

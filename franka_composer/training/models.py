@@ -41,16 +41,18 @@ def algorithm_class(algo: str, backend: str = "sb3"):
 
 
 def make_env(task: str, *, terminate_on_success: bool = True,
-             control: str = "mocap", randomization: str | None = None) -> gym.Env:
+             control: str = "mocap", randomization: str | None = None,
+             **render_options) -> gym.Env:
     """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...).
 
     `terminate_on_success=True` is the paper's ids; False gives Fetch semantics (episodes
     always last 50 steps), for which HER's relabelled rewards and `done` flags are exact.
-    `randomization`: a preset's name (`randomization.PRESETS`), or None.
+    `randomization`: a preset's name (`randomization.PRESETS`), or None. `render_options`
+    (`render_mode`, `width`, `height`) go to `gym.make` as they are.
     """
     options = {} if randomization is None else {"randomization": randomization}
     return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success,
-                    **options)
+                    **options, **render_options)
 
 
 def resolve_device(device: str) -> str:
@@ -97,6 +99,17 @@ def _policy(algo_class, backend: str):
     return algo_class.policy_aliases["MlpPolicy"]
 
 
+def policy_kwargs(algo: str, hp: Hyperparameters, backend: str = "sb3") -> dict:
+    """The networks of `algo` with `hp`: what a model is built with, and what a saved actor
+    (`policy_file`) is rebuilt with."""
+    kwargs = dict(net_arch=list(hp.net_arch))
+    if algo == "tqc":
+        kwargs.update(n_critics=hp.n_critics, n_quantiles=hp.n_quantiles)
+    if backend == "sbx":
+        kwargs.update(dropout_rate=0.0, layer_norm=False)
+    return kwargs
+
+
 def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed: int,
                 device: str = "auto", tensorboard_log: str | None = None,
                 backend: str = "sb3"):
@@ -112,7 +125,7 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
         gamma=hp.gamma, replay_buffer_class=HerReplayBuffer,
         replay_buffer_kwargs=dict(n_sampled_goal=hp.her_n_sampled_goal,
                                   goal_selection_strategy=hp.her_goal_selection_strategy),
-        policy_kwargs=dict(net_arch=list(hp.net_arch)), seed=seed,
+        policy_kwargs=policy_kwargs(algo, hp, backend), seed=seed,
         device=resolve_device(device), tensorboard_log=tensorboard_log, verbose=0,
         **_schedule_kwargs(hp),
     )
@@ -122,11 +135,9 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
     if algo in ("sac", "tqc"):
         kwargs["ent_coef"] = hp.ent_coef
     if algo == "tqc":
-        kwargs["policy_kwargs"].update(n_critics=hp.n_critics, n_quantiles=hp.n_quantiles)
         kwargs["top_quantiles_to_drop_per_net"] = hp.top_quantiles_to_drop_per_net
     if backend == "sbx":
         kwargs.update(_sbx_kwargs(algo, hp))
-        kwargs["policy_kwargs"].update(dropout_rate=0.0, layer_norm=False)
     return algo_class(_policy(algo_class, backend), env, **kwargs)
 
 

@@ -120,6 +120,11 @@ class RunDir:
         return self.root / "model.zip"
 
     @property
+    def policy_file(self) -> pathlib.Path:
+        """The final model's actor alone (`policy_file.save_policy`): what is committed."""
+        return self.root / "policy.pt"
+
+    @property
     def checkpoint(self) -> pathlib.Path:
         return self.root / "checkpoint"
 
