@@ -203,6 +203,22 @@ def test_resume_continues_step_count_buffer_and_csv(tmp_path):
     assert model.num_timesteps == 400
     assert model.replay_buffer.size() == 400  # The first 200 came back from the checkpoint.
     env.close()
+    # CPU seconds (the training process's) add up across the resume, as wall seconds do.
+    outcome = RunDir(out).read_outcome()
+    assert 0 < state["cpu_time_s"] < outcome["cpu_time_s"]
+    assert state["wall_time_s"] < outcome["wall_time_s"]
+
+
+def test_cpu_time_stays_unknown_after_a_checkpoint_that_did_not_record_it(tmp_path):
+    out = tmp_path / "run"
+    assert _train(out, "ddpg", 100, "--checkpoint-every", "100") == 0
+    state = RunDir(out).read_state()
+    assert state["cpu_time_s"] > 0 and RunDir(out).read_outcome()["cpu_time_s"] > 0
+    del state["cpu_time_s"]  # As checkpoints written before CPU time was recorded.
+    RunDir(out).checkpoint_state.write_text(json.dumps(state))
+    assert _train(out, "ddpg", 200, "--resume") == 0
+    assert RunDir(out).read_outcome()["cpu_time_s"] is None
+    assert RunDir(out).read_state()["cpu_time_s"] is None
 
 
 def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):

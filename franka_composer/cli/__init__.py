@@ -11,7 +11,8 @@ import importlib
 import sys
 
 #: Subcommand modules, in the order `--help` lists them.
-SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "evaluate", "plot")
+SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "evaluate", "plot",
+               "report")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import add_run_dirs, positive_int
 from franka_composer.training.models import DEVICES
 
 
@@ -18,9 +18,7 @@ def add_parser(subparsers) -> None:
                     "for --episodes deterministic episodes on its task; print the success "
                     "rate per run, then a Markdown table of mean ± std over seeds per task "
                     "and algorithm, in the layout of the paper's Table II.")
-    parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
-                        help="run directories written by `franka-composer train`, or "
-                             "sweep directories (every run in them)")
+    add_run_dirs(parser)
     parser.add_argument("--episodes", type=positive_int, default=20,
                         help="test episodes per model (paper: 20)")
     parser.add_argument("--seed", type=int, default=2024,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import pathlib
 
 
 def number(text: str) -> float:
@@ -63,3 +64,10 @@ def standard_deviation(text: str) -> float:
     if not 0.0 <= value < float("inf"):
         raise argparse.ArgumentTypeError(f"must be a standard deviation >= 0, got {text!r}")
     return value
+
+
+def add_run_dirs(parser: argparse.ArgumentParser) -> None:
+    """The RUN_DIR arguments of the commands that read finished or running runs."""
+    parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
+                        help="run directories written by `franka-composer train`, or "
+                             "sweep directories (every run in them)")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import pathlib
 
+from franka_composer.cli.options import add_run_dirs
+
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -12,9 +14,7 @@ def add_parser(subparsers) -> None:
         description="Read each run's eval.csv and draw the median success rate over seeds "
                     "(runs of the same task and algorithm), with median ± std shaded, one "
                     "panel per task and one line per algorithm, as in the paper's Fig. 4.")
-    parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
-                        help="run directories written by `franka-composer train`, or "
-                             "sweep directories (every run in them)")
+    add_run_dirs(parser)
     parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("curves.png"),
                         help="image file to write (PNG, PDF or SVG by extension)")
     parser.set_defaults(func=run)

@@ -22,14 +22,23 @@ from franka_composer.training.runs import RunDir, append_eval_row, read_eval_row
 
 
 class WallClock:
-    """Training seconds across resumes: the checkpoint's elapsed time plus this session's."""
+    """Training seconds across resumes: the checkpoint's elapsed time plus this session's;
+    called, wall-clock seconds; `cpu()`, the CPU seconds of the training processes (every
+    thread: network passes, simulation, evaluations), what a run costs on a shared machine.
+    """
 
-    def __init__(self, elapsed_before: float = 0.0) -> None:
-        self._before = elapsed_before
-        self._start = time.perf_counter()
+    def __init__(self, elapsed_before: float = 0.0, cpu_before: float | None = 0.0) -> None:
+        self._before, self._cpu_before = elapsed_before, cpu_before
+        self._start, self._cpu_start = time.perf_counter(), time.process_time()
 
     def __call__(self) -> float:
         return self._before + time.perf_counter() - self._start
+
+    def cpu(self) -> float | None:
+        """None when the run resumed from a checkpoint that did not record CPU time."""
+        if self._cpu_before is None:
+            return None
+        return self._cpu_before + time.process_time() - self._cpu_start
 
 
 class RecordEvaluation(BaseCallback):
@@ -138,4 +147,5 @@ class LatestCheckpoint(CheckpointCallback):
         super()._on_step()
         self.n_calls = calls
         run.checkpoint_state.write_text(json.dumps(
-            {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock()}) + "\n")
+            {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
+             "cpu_time_s": self._clock.cpu()}) + "\n")

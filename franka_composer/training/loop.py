@@ -96,7 +96,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         if config.demos is not None:
             episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
             demos.prefill(model, episodes, hp.total_steps)
-    clock = WallClock(state.get("wall_time_s", 0.0) if resume else 0.0)
+    # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
+    clock = WallClock(state["wall_time_s"], state.get("cpu_time_s")) if resume else WallClock()
     if tensorboard:
         model.tensorboard_log = tensorboard
 
@@ -131,5 +132,5 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     if config.backend == "sb3":
         save_policy(model, run.policy_file)
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
-    run.write_outcome(int(model.num_timesteps), stopped_early, clock())
+    run.write_outcome(int(model.num_timesteps), stopped_early, clock(), clock.cpu())
     return model

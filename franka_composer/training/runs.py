@@ -105,15 +105,18 @@ class RunDir:
         return self.root / "outcome.json"
 
     def read_outcome(self) -> dict:
-        """{"steps", "stopped_early", "wall_time_s"} of a finished run; {} before it ends."""
+        """{"steps", "stopped_early", "wall_time_s", "cpu_time_s"} of a finished run (CPU
+        time None or absent where it was not recorded throughout); {} before it ends."""
         if not self.outcome_path.is_file():
             return {}
         return json.loads(self.outcome_path.read_text())
 
-    def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float) -> None:
+    def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
+                      cpu_time_s: float | None = None) -> None:
         self.outcome_path.write_text(json.dumps(
             {"steps": steps, "stopped_early": stopped_early,
-             "wall_time_s": round(wall_time_s, 2)}) + "\n")
+             "wall_time_s": round(wall_time_s, 2),
+             "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2)}) + "\n")
 
     @property
     def final_model(self) -> pathlib.Path:
@@ -154,7 +157,8 @@ class RunDir:
         self.config_path.write_text(json.dumps(config.to_dict(), indent=2) + "\n")
 
     def read_state(self) -> dict:
-        """The latest checkpoint's {"steps", "wall_time_s"}; {} without a checkpoint."""
+        """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s"} (no CPU time in
+        checkpoints written before it was recorded); {} without a checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
         return json.loads(self.checkpoint_state.read_text())

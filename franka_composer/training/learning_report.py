@@ -1,0 +1,123 @@
+"""What each cell (task x algorithm) took to learn and what it cost, from its runs' files
+alone (config.json, eval.csv, outcome.json): the steps each seed reached, how many stopped
+early by the rule, the steps to a success threshold, and wall-clock and CPU hours.
+
+Steps to a threshold are read off the median over seeds, as one reads the paper's Fig. 4,
+of each seed's curve smoothed over `SMOOTHING` evaluations (a trailing mean: 75 episodes at
+Table I's 15 per evaluation, so one lucky evaluation does not count): the first evaluated
+step at which it reaches the threshold. A seed that stopped early (5 evaluations in a row at
+95 % or more) keeps its last smoothed value for the steps the others go on to.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import pathlib
+
+import numpy as np
+
+from franka_composer.training.hyperparams import ALGOS
+from franka_composer.training.report import TASK_ORDER
+from franka_composer.training.runs import RunDir, read_eval_rows
+
+#: Evaluations in the trailing mean of a seed's curve.
+SMOOTHING = 5
+#: Success rates whose first crossing is reported (the paper's curves are read at these).
+THRESHOLDS = (0.8, 0.9)
+
+
+@dataclasses.dataclass(frozen=True)
+class RunRecord:
+    """One run as its files tell it."""
+
+    task: str
+    algo: str
+    seed: int
+    steps: int  # the last evaluated step (a finished run's final step)
+    finished: bool
+    stopped_early: bool
+    wall_s: float
+    cpu_s: float | None  # None: not finished, or not recorded throughout
+    curve: dict[int, float]  # evaluated step -> success rate
+
+
+def read_run(root: pathlib.Path) -> RunRecord:
+    run = RunDir(pathlib.Path(root))
+    config = run.read_config()
+    rows = read_eval_rows(run.eval_csv)
+    if not rows:
+        raise ValueError(f"{root} has no evaluations yet (no eval.csv rows)")
+    outcome = run.read_outcome()
+    return RunRecord(
+        task=config.task, algo=config.algo, seed=config.seed,
+        steps=int(outcome.get("steps", rows[-1]["steps"])), finished=bool(outcome),
+        stopped_early=bool(outcome.get("stopped_early", False)),
+        wall_s=float(outcome.get("wall_time_s", rows[-1]["wall_time_s"])),
+        cpu_s=outcome.get("cpu_time_s"),
+        curve={row["steps"]: row["success_rate"] for row in rows})
+
+
+def smoothed(curve: dict[int, float]) -> dict[int, float]:
+    """The trailing mean over `SMOOTHING` evaluations, from the first full window on."""
+    steps = sorted(curve)
+    values = np.array([curve[step] for step in steps])
+    return {steps[i]: float(values[i + 1 - SMOOTHING:i + 1].mean())
+            for i in range(SMOOTHING - 1, len(steps))}
+
+
+def steps_to(runs: list[RunRecord], threshold: float) -> int | None:
+    """The first step at which the median over seeds of the smoothed curves reaches
+    `threshold`; None if it never does within the steps every seed reached."""
+    curves = [smoothed(run.curve) for run in runs]
+    if not all(curves):
+        return None
+    evaluated = sorted(set().union(*curves))
+    for run, curve in zip(runs, curves):
+        if run.stopped_early:  # It met the rule: it holds its level from there on.
+            last = max(curve)
+            curve.update({step: curve[last] for step in evaluated if step > last})
+    common = sorted(set.intersection(*(set(curve) for curve in curves)))
+    for step in common:
+        if np.median([curve[step] for curve in curves]) >= threshold:
+            return step
+    return None
+
+
+def markdown_table(runs: list[RunRecord]) -> str:
+    """One row per cell, in the paper's order, and a line with what all of them cost."""
+    cells: dict[tuple[str, str], list[RunRecord]] = {}
+    for run in sorted(runs, key=lambda r: r.seed):
+        cells.setdefault((run.task, run.algo), []).append(run)
+    order = [(task, algo) for task in TASK_ORDER for algo in ALGOS if (task, algo) in cells]
+    lines = ["| task | algorithm | seeds | steps reached | stopped early | "
+             + " | ".join(f"steps to {100 * t:.0f} %" for t in THRESHOLDS)
+             + " | wall h | CPU h |",
+             "|---|---|---|---|---|" + "---|" * len(THRESHOLDS) + "---|---|"]
+    for task, algo in order:
+        cell = cells[(task, algo)]
+        reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
+                            for run in cell)
+        crossings = [steps_to(cell, t) for t in THRESHOLDS]
+        lines.append(
+            f"| {task} | {algo.upper()} | {', '.join(str(r.seed) for r in cell)} | {reached} | "
+            f"{sum(r.stopped_early for r in cell)} of {len(cell)} | "
+            + " | ".join("–" if c is None else f"{c:,}" for c in crossings)
+            + f" | {sum(r.wall_s for r in cell) / 3600:.1f} | {_cpu_hours(cell)} |")
+    return "\n".join(lines) + "\n\n" + _total(runs) + "\n"
+
+
+def _cpu_hours(runs: list[RunRecord]) -> str:
+    """Their CPU hours; a lower bound where some runs' are unknown; "–" where all are."""
+    known = [run.cpu_s for run in runs if run.cpu_s is not None]
+    if not known:
+        return "–"
+    hours = f"{sum(known) / 3600:.1f}"
+    return hours if len(known) == len(runs) else f"≥ {hours} ({len(runs) - len(known)} unknown)"
+
+
+def _total(runs: list[RunRecord]) -> str:
+    finished = sum(run.finished for run in runs)
+    return (f"All {len(runs)} runs ({finished} finished): "
+            f"{sum(run.wall_s for run in runs) / 3600:.1f} wall-clock hours of runs (one CPU "
+            f"each), {_cpu_hours(runs)} CPU hours; {sum(run.steps for run in runs):,} "
+            "environment steps.")

@@ -1,0 +1,81 @@
+"""`franka-composer report`: steps to thresholds and costs per cell, from run files alone
+(training/learning_report.py, cli/report.py)."""
+
+from __future__ import annotations
+
+import pytest
+
+from franka_composer import cli
+from franka_composer.training import hyperparameters
+from franka_composer.training.learning_report import (SMOOTHING, markdown_table, read_run,
+                                                      smoothed, steps_to)
+from franka_composer.training.runs import RunConfig, RunDir
+
+
+def _write_run(root, task, algo, seed, rates, outcome=None):
+    """A run whose evaluations every 2000 steps had `rates`, 10 s apart; `outcome` is
+    (stopped_early, cpu_time_s) for a finished run."""
+    run = RunDir(root / f"{task}-{algo}-seed{seed}")
+    run.write_config(RunConfig(task, algo, seed, hyperparameters(task, algo)))
+    run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
+        f"{2000 * i},{10 * i},{rate},-1\n" for i, rate in enumerate(rates)))
+    if outcome is not None:
+        run.write_outcome(2000 * (len(rates) - 1), outcome[0], 10 * (len(rates) - 1),
+                          outcome[1])
+    return run.root
+
+
+def test_a_curve_is_smoothed_over_full_windows_of_five_evaluations():
+    assert SMOOTHING == 5
+    curve = {0: 0.0, 2000: 1.0, 4000: 0.0, 6000: 1.0, 8000: 0.5, 10000: 1.0}
+    assert smoothed(curve) == {8000: pytest.approx(0.5), 10000: pytest.approx(0.7)}
+    assert smoothed({0: 1.0, 2000: 1.0}) == {}  # No full window yet.
+
+
+def test_steps_to_a_threshold_follow_the_median_seed(tmp_path):
+    # Smoothed: seed 0 reaches 0.8 at 14000 and 1.0 at 16000, seed 1 0.8 at 10000 and 1.0
+    # at 12000, seed 2 never passes 0.2: the median is seed 0, the second best.
+    seed0 = [0.0] * 4 + [1.0] * 6
+    seed1 = [0.0] * 2 + [1.0] * 8
+    seed2 = [0.2] * 10
+    runs = [read_run(_write_run(tmp_path, "push", "sac", s, rates))
+            for s, rates in enumerate((seed0, seed1, seed2))]
+    assert (steps_to(runs, 0.8), steps_to(runs, 0.9)) == (14000, 16000)
+    assert steps_to(runs[1:2], 0.8) == 10000
+    assert steps_to(runs[2:], 0.1) == 8000  # The first full window.
+    assert steps_to(runs[2:], 0.3) is None
+
+
+def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
+    stopped = read_run(_write_run(tmp_path, "push", "tqc", 0, [1.0] * 5, (True, 50.0)))
+    going = read_run(_write_run(tmp_path, "push", "tqc", 1, [0.0] * 5 + [1.0] * 5))
+    # Without holding, the seeds share no step after 8000 and the median never reaches 0.9.
+    # Held at 1.0, the median of (1.0, seed 1) reaches 0.9 once seed 1's mean is 0.8.
+    assert steps_to([stopped, going], 0.9) == 16000
+
+
+def test_the_table_has_a_row_per_cell_in_the_papers_order_and_the_total(tmp_path, capsys):
+    _write_run(tmp_path, "slide", "sac", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))
+    _write_run(tmp_path, "push", "tqc", 1, [1.0] * 5, (True, 1800.0))
+    _write_run(tmp_path, "push", "tqc", 0, [0.0] * 6)  # Still running.
+    runs = [read_run(root) for root in sorted(tmp_path.iterdir())]
+    table = markdown_table(runs)
+    assert table.splitlines() == [
+        "| task | algorithm | seeds | steps reached | stopped early | steps to 80 % | "
+        "steps to 90 % | wall h | CPU h |",
+        "|---|---|---|---|---|---|---|---|---|",
+        "| push | TQC | 0, 1 | 10,000 (running), 8,000 | 1 of 2 | – | – | 0.0 | "
+        "≥ 0.5 (1 unknown) |",
+        "| slide | SAC | 0 | 18,000 | 0 of 1 | 14,000 | 16,000 | 0.0 | 1.0 |",
+        "",
+        "All 3 runs (2 finished): 0.1 wall-clock hours of runs (one CPU each), ≥ 1.5 (1 "
+        "unknown) CPU hours; 36,000 environment steps."]
+    out = tmp_path / "report.md"
+    assert cli.main(["report", str(tmp_path), "--out", str(out)]) == 0
+    assert capsys.readouterr().out == out.read_text() == table
+
+
+def test_a_run_without_evaluations_is_refused_by_name(tmp_path):
+    root = _write_run(tmp_path, "push", "sac", 0, [])
+    with pytest.raises(ValueError, match="push-sac-seed0 has no evaluations yet"):
+        read_run(root)
