@@ -1,5 +1,6 @@
 """`franka-composer report`: steps to thresholds and costs per cell, from run files alone
-(training/learning_report.py, cli/report.py)."""
+(training/learning_report.py, cli/report.py); what makes a cell (`RunConfig.variant`, also
+for `evaluate`'s Table II, training/report.py)."""
 
 from __future__ import annotations
 
@@ -7,16 +8,17 @@ import pytest
 
 from franka_composer import cli
 from franka_composer.training import hyperparameters
+from franka_composer.training import report
 from franka_composer.training.learning_report import (SMOOTHING, markdown_table, read_run,
                                                       smoothed, steps_to)
 from franka_composer.training.runs import RunConfig, RunDir
 
 
-def _write_run(root, task, algo, seed, rates, outcome=None):
+def _write_run(root, task, algo, seed, rates, outcome=None, name="", **settings):
     """A run whose evaluations every 2000 steps had `rates`, 10 s apart; `outcome` is
-    (stopped_early, cpu_time_s) for a finished run."""
-    run = RunDir(root / f"{task}-{algo}-seed{seed}")
-    run.write_config(RunConfig(task, algo, seed, hyperparameters(task, algo)))
+    (stopped_early, cpu_time_s) for a finished run; `settings` go to its RunConfig."""
+    run = RunDir(root / f"{task}-{algo}-seed{seed}{name}")
+    run.write_config(RunConfig(task, algo, seed, hyperparameters(task, algo), **settings))
     run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
         f"{2000 * i},{10 * i},{rate},-1\n" for i, rate in enumerate(rates)))
     if outcome is not None:
@@ -79,3 +81,38 @@ def test_a_run_without_evaluations_is_refused_by_name(tmp_path):
     root = _write_run(tmp_path, "push", "sac", 0, [])
     with pytest.raises(ValueError, match="push-sac-seed0 has no evaluations yet"):
         read_run(root)
+
+
+def test_a_variant_names_what_differs_from_the_papers_setup():
+    table_i = hyperparameters("slide", "tqc")
+    assert RunConfig("slide", "tqc", 0, table_i.replace(
+        total_steps=10, eval_every=10, eval_episodes=1, stop_success_rate=0.95)).variant == ""
+    campaign_slide = table_i.replace(net_arch=[256, 256, 256], batch_size=512,
+                                     update_schedule="episode")
+    assert RunConfig("slide", "tqc", 0, campaign_slide, control="osc", precision="bf16",
+                     randomization="default", demos="/data/slide-expert-100.npz",
+                     demo_episodes=50, terminate_on_success=False).variant == (
+        "net_arch 256,256,256, batch_size 512, update_schedule episode, osc control, bf16, "
+        "randomization default, demos slide-expert-100.npz[:50], no termination on success")
+    assert RunConfig("push", "sac", 0, hyperparameters("push", "sac"),
+                     backend="sbx").variant == "sbx"
+
+
+def test_runs_of_different_variants_are_not_seeds_of_one_cell(tmp_path):
+    _write_run(tmp_path, "push", "sac", 0, [0.5] * 5)
+    _write_run(tmp_path, "push", "sac", 1, [0.5] * 5)
+    _write_run(tmp_path, "push", "sac", 0, [1.0] * 5, name="-bf16", precision="bf16")
+    rows = markdown_table([read_run(root) for root in sorted(tmp_path.iterdir())]).splitlines()
+    assert [row.split(" | ")[:3] for row in rows[2:4]] == [
+        ["| push", "SAC", "0, 1"], ["| push (bf16)", "SAC", "0"]]
+    results = [report.RunResult("a", "push", "sac", 0, 10, 0.5),
+               report.RunResult("b", "push", "sac", 1, 10, 1.0),
+               report.RunResult("c", "push", "sac", 0, 10, 0.0, "bf16"),
+               report.RunResult("d", "slide", "tqc", 0, 10, 1.0)]
+    assert report.markdown_table(results).splitlines()[2:] == [
+        "| Push | – | 75.0 ± 25.0 | – |", "| Push (bf16) | – | 0.0 ± 0.0 | – |",
+        "| Slide | – | – | 100.0 ± 0.0 |"]
+    assert report.seeds_note(results).splitlines() == [
+        "- push / sac: seeds 0, 1; trained steps 10, 10",
+        "- push (bf16) / sac: seeds 0; trained steps 10",
+        "- slide / tqc: seeds 0; trained steps 10"]

@@ -158,7 +158,8 @@ def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monk
         assert run.read_outcome()["steps"] == 300
     capsys.readouterr()
     assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
-    assert "push / sac: seeds 0, 1; trained steps 300, 300" in capsys.readouterr().out
+    assert ("push (net_arch 16,16, batch_size 32, buffer_size 2000) / sac: seeds 0, 1; "
+            "trained steps 300, 300") in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -49,9 +49,10 @@ def run(args: argparse.Namespace) -> int:
         finally:
             env.close()
         result = RunResult(str(root), config.task, config.algo, config.seed,
-                           int(model.num_timesteps), outcome.success_rate)
+                           int(model.num_timesteps), outcome.success_rate, config.variant)
         results.append(result)
-        print(f"{root}: {config.task} ({config.control} control) {config.algo} seed "
+        setup = f" ({config.variant})" if config.variant else ""
+        print(f"{root}: {config.task}{setup} {config.algo} seed "
               f"{config.seed}, {result.steps} steps: "
               f"success {100 * outcome.success_rate:.1f} % over {args.episodes} episodes")
     table = markdown_table(results)

@@ -1,5 +1,6 @@
-"""Success-rate curves as in the paper's Fig. 4: one panel per task, one line per algorithm,
-the median over seeds with median ± std shaded (clipped to [0, 1])."""
+"""Success-rate curves as in the paper's Fig. 4: one panel per task, one line per algorithm
+(and variant, `RunConfig.variant`, dashed and dotted after the paper's setup), the median
+over seeds with median ± std shaded (clipped to [0, 1])."""
 
 from __future__ import annotations
 
@@ -12,18 +13,23 @@ from franka_composer.training.report import TASK_ORDER, TASK_TITLES
 from franka_composer.training.runs import RunDir, read_eval_rows
 
 COLOURS = {"ddpg": "tab:green", "sac": "tab:blue", "tqc": "tab:red"}
+#: A panel's variants of one algorithm, in order ("" first): solid, dashed, dotted, ...
+LINESTYLES = ("-", "--", ":", "-.")
+
+Curves = dict[tuple[str, str, str], list[dict[int, float]]]
 
 
-def seed_curves(run_dirs: list[pathlib.Path]) -> dict[tuple[str, str], list[dict[int, float]]]:
-    """{(task, algo): [per-seed {steps: success rate}]} from the runs' eval.csv files."""
-    curves: dict[tuple[str, str], list[dict[int, float]]] = {}
+def seed_curves(run_dirs: list[pathlib.Path]) -> Curves:
+    """{(task, algo, variant): [per-seed {steps: success rate}]} from the runs' eval.csv
+    files."""
+    curves: Curves = {}
     for root in run_dirs:
         run = RunDir(pathlib.Path(root))
         config = run.read_config()
         rows = read_eval_rows(run.eval_csv)
         if not rows:
             raise ValueError(f"{root} has no evaluations yet (no eval.csv rows)")
-        curves.setdefault((config.task, config.algo), []).append(
+        curves.setdefault((config.task, config.algo, config.variant), []).append(
             {row["steps"]: row["success_rate"] for row in rows})
     return curves
 
@@ -35,28 +41,33 @@ def summarise(seeds: list[dict[int, float]]) -> tuple[np.ndarray, np.ndarray, np
     return np.array(steps), np.median(values, axis=0), np.std(values, axis=0)
 
 
-def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path) -> list[tuple[str, str]]:
-    """Writes the figure to `out`; returns the (task, algo) lines drawn."""
+def plot_curves(run_dirs: list[pathlib.Path],
+                out: pathlib.Path) -> list[tuple[str, str, str]]:
+    """Writes the figure to `out`; returns the (task, algo, variant) lines drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     curves = seed_curves(run_dirs)
-    tasks = [t for t in TASK_ORDER if any(t == task for task, _ in curves)]
+    tasks = [t for t in TASK_ORDER if any(t == task for task, _, _ in curves)]
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
     drawn = []
     for ax, task in zip(axes[0], tasks):
         for algo in ALGOS:
-            if (task, algo) not in curves:
-                continue
-            seeds = curves[(task, algo)]
-            steps, median, std = summarise(seeds)
-            ax.plot(steps, median, color=COLOURS[algo],
-                    label=f"{algo.upper()} ({len(seeds)} seed{'s' * (len(seeds) > 1)})")
-            ax.fill_between(steps, np.clip(median - std, 0, 1), np.clip(median + std, 0, 1),
-                            color=COLOURS[algo], alpha=0.2, linewidth=0)
-            drawn.append((task, algo))
+            variants = sorted(v for t, a, v in curves if (t, a) == (task, algo))
+            for variant in variants:
+                seeds = curves[(task, algo, variant)]
+                steps, median, std = summarise(seeds)
+                setup = f", {variant}" if variant else ""
+                ax.plot(steps, median, color=COLOURS[algo],
+                        linestyle=LINESTYLES[variants.index(variant) % len(LINESTYLES)],
+                        label=f"{algo.upper()} ({len(seeds)} seed{'s' * (len(seeds) > 1)}"
+                              f"{setup})")
+                ax.fill_between(steps, np.clip(median - std, 0, 1),
+                                np.clip(median + std, 0, 1), color=COLOURS[algo], alpha=0.2,
+                                linewidth=0)
+                drawn.append((task, algo, variant))
         ax.set_title(f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}")
         ax.set_xlabel("environment steps")
         # "20k" rather than "20000": full numbers run into each other on a narrow panel.

@@ -1,4 +1,4 @@
-"""What each cell (task x algorithm) took to learn and what it cost, from its runs' files
+"""What each cell (task x algorithm, and variant: `RunConfig.variant`) took to learn and what it cost, from its runs' files
 alone (config.json, eval.csv, outcome.json): the steps each seed reached, how many stopped
 early by the rule, the steps to a success threshold, and wall-clock and CPU hours.
 
@@ -32,6 +32,7 @@ class RunRecord:
 
     task: str
     algo: str
+    variant: str
     seed: int
     steps: int  # the last evaluated step (a finished run's final step)
     finished: bool
@@ -49,7 +50,7 @@ def read_run(root: pathlib.Path) -> RunRecord:
         raise ValueError(f"{root} has no evaluations yet (no eval.csv rows)")
     outcome = run.read_outcome()
     return RunRecord(
-        task=config.task, algo=config.algo, seed=config.seed,
+        task=config.task, algo=config.algo, variant=config.variant, seed=config.seed,
         steps=int(outcome.get("steps", rows[-1]["steps"])), finished=bool(outcome),
         stopped_early=bool(outcome.get("stopped_early", False)),
         wall_s=float(outcome.get("wall_time_s", rows[-1]["wall_time_s"])),
@@ -85,21 +86,22 @@ def steps_to(runs: list[RunRecord], threshold: float) -> int | None:
 
 def markdown_table(runs: list[RunRecord]) -> str:
     """One row per cell, in the paper's order, and a line with what all of them cost."""
-    cells: dict[tuple[str, str], list[RunRecord]] = {}
+    cells: dict[tuple[str, str, str], list[RunRecord]] = {}
     for run in sorted(runs, key=lambda r: r.seed):
-        cells.setdefault((run.task, run.algo), []).append(run)
-    order = [(task, algo) for task in TASK_ORDER for algo in ALGOS if (task, algo) in cells]
+        cells.setdefault((run.task, run.variant, run.algo), []).append(run)
+    order = sorted(cells, key=lambda cell: (TASK_ORDER.index(cell[0]), cell[1],
+                                            ALGOS.index(cell[2])))
     lines = ["| task | algorithm | seeds | steps reached | stopped early | "
              + " | ".join(f"steps to {100 * t:.0f} %" for t in THRESHOLDS)
              + " | wall h | CPU h |",
              "|---|---|---|---|---|" + "---|" * len(THRESHOLDS) + "---|---|"]
-    for task, algo in order:
-        cell = cells[(task, algo)]
+    for task, variant, algo in order:
+        cell = cells[(task, variant, algo)]
         reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
                             for run in cell)
         crossings = [steps_to(cell, t) for t in THRESHOLDS]
         lines.append(
-            f"| {task} | {algo.upper()} | {', '.join(str(r.seed) for r in cell)} | {reached} | "
+            f"| {task}{f' ({variant})' if variant else ''} | {algo.upper()} | {', '.join(str(r.seed) for r in cell)} | {reached} | "
             f"{sum(r.stopped_early for r in cell)} of {len(cell)} | "
             + " | ".join("–" if c is None else f"{c:,}" for c in crossings)
             + f" | {sum(r.wall_s for r in cell) / 3600:.1f} | {_cpu_hours(cell)} |")

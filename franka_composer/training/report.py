@@ -27,37 +27,47 @@ class RunResult:
     seed: int
     steps: int
     success_rate: float  # fraction in [0, 1]
+    variant: str = ""  # `RunConfig.variant`: "" for the paper's setup
 
 
-def group_by_cell(results: list[RunResult]) -> dict[tuple[str, str], list[RunResult]]:
-    """Results keyed by (task, algorithm)."""
-    cells: dict[tuple[str, str], list[RunResult]] = collections.defaultdict(list)
+def task_label(task: str, variant: str) -> str:
+    """"Push", or "Push (osc control)" for a variant: the row a run belongs to."""
+    return TASK_TITLES[task] + (f" ({variant})" if variant else "")
+
+
+def group_by_cell(results: list[RunResult]) -> dict[tuple[str, str, str], list[RunResult]]:
+    """Results keyed by (task, variant, algorithm): runs of different setups are not seeds
+    of one cell."""
+    cells: dict[tuple[str, str, str], list[RunResult]] = collections.defaultdict(list)
     for result in results:
-        cells[(result.task, result.algo)].append(result)
+        cells[(result.task, result.variant, result.algo)].append(result)
     return dict(cells)
 
 
 def markdown_table(results: list[RunResult]) -> str:
-    """Success rate % as mean ± std over seeds (population std, ddof=0) per task and
-    algorithm; "–" where no run exists. Rows and columns in the paper's order."""
+    """Success rate % as mean ± std over seeds (population std, ddof=0) per task (and
+    variant) and algorithm; "–" where no run exists. Rows and columns in the paper's
+    order, a task's paper setup before its variants."""
     cells = group_by_cell(results)
-    tasks = [t for t in TASK_ORDER if any(t == task for task, _ in cells)]
+    rows = sorted({(task, variant) for task, variant, _ in cells},
+                  key=lambda row: (TASK_ORDER.index(row[0]), row[1]))
     lines = ["| Tasks | " + " | ".join(a.upper() for a in ALGOS) + " |",
              "|---|" + "---|" * len(ALGOS)]
-    for task in tasks:
+    for task, variant in rows:
         row = []
         for algo in ALGOS:
-            rates = [100.0 * r.success_rate for r in cells.get((task, algo), [])]
+            rates = [100.0 * r.success_rate for r in cells.get((task, variant, algo), [])]
             row.append(f"{np.mean(rates):.1f} ± {np.std(rates):.1f}" if rates else "–")
-        lines.append(f"| {TASK_TITLES[task]} | " + " | ".join(row) + " |")
+        lines.append(f"| {task_label(task, variant)} | " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
 
 
 def seeds_note(results: list[RunResult]) -> str:
     """One line per non-empty cell: how many seeds and steps it averages."""
     notes = []
-    for (task, algo), runs in sorted(group_by_cell(results).items()):
+    for (task, variant, algo), runs in sorted(group_by_cell(results).items()):
         seeds = ", ".join(str(r.seed) for r in runs)
         steps = ", ".join(str(r.steps) for r in runs)
-        notes.append(f"- {task} / {algo}: seeds {seeds}; trained steps {steps}")
+        where = task + (f" ({variant})" if variant else "")
+        notes.append(f"- {where} / {algo}: seeds {seeds}; trained steps {steps}")
     return "\n".join(notes) + "\n"

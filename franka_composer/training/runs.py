@@ -16,10 +16,14 @@ import pathlib
 
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
-from franka_composer.training.hyperparams import BACKENDS, PRECISIONS, Hyperparameters
+from franka_composer.training.hyperparams import (BACKENDS, PRECISIONS, Hyperparameters,
+                                                  hyperparameters)
 from franka_composer.validation import check_choice
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
+#: Hyperparameters that leave what is learned alone: the budget, evaluation and stopping.
+NOT_LEARNING = ("total_steps", "eval_every", "eval_episodes", "stop_success_rate",
+                "stop_after_evaluations")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +69,26 @@ class RunConfig:
                 "randomization": self.randomization, "demos": self.demos,
                 "demo_episodes": self.demo_episodes,
                 "hyperparameters": self.hyperparameters.to_dict()}
+
+    @property
+    def variant(self) -> str:
+        """What sets this run apart from the paper's setup (Table I for its task and
+        algorithm, mocap, fp32, SB3, terminating on success, nothing added), as a label;
+        "" for none. Runs with different variants are not seeds of one cell: `evaluate`,
+        `plot` and `report` keep them apart."""
+        table_i = hyperparameters(self.task, self.algo).to_dict()
+        parts = [f"{name} {','.join(map(str, value)) if isinstance(value, tuple) else value}"
+                 for name, value in self.hyperparameters.to_dict().items()
+                 if name not in NOT_LEARNING and value != table_i[name]]
+        parts += [label for differs, label in (
+            (self.control != "mocap", f"{self.control} control"),
+            (self.precision != "fp32", self.precision),
+            (self.backend != "sb3", self.backend),
+            (self.randomization is not None, f"randomization {self.randomization}"),
+            (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
+             + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
+            (not self.terminate_on_success, "no termination on success")) if differs]
+        return ", ".join(parts)
 
     @property
     def env_options(self) -> dict:
