@@ -12,11 +12,12 @@ from franka_composer.cli.options import add_run_dirs
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "report", help="steps to 80 %% / 90 %% success and wall / CPU hours per cell",
-        description="Read each run's eval.csv and outcome.json and print, per task and "
-                    "algorithm, a Markdown table of the steps each seed reached, how many "
-                    "stopped early, the steps at which the median over seeds of the "
-                    "success curves (a trailing mean over 5 evaluations) first reaches 80 "
-                    "%% and 90 %%, and the runs' wall-clock and CPU hours; then the total.")
+        description="Read each run's eval.csv and outcome.json and print, per cell (task, "
+                    "algorithm and setup), a Markdown table of the steps each seed "
+                    "reached, how many stopped early, the steps at which the median over "
+                    "seeds of the success curves (a trailing mean over 5 evaluations) "
+                    "first reaches 80 % and 90 %, and the runs' wall-clock and CPU hours; "
+                    "then the total.")
     add_run_dirs(parser)
     parser.add_argument("--out", type=pathlib.Path, default=None,
                         help="also write the Markdown table here")
