@@ -17,7 +17,7 @@ def add_parser(subparsers) -> None:
                     "else its policy.pt) "
                     "for --episodes deterministic episodes on its task; print the success "
                     "rate per run, then a Markdown table of mean ± std over seeds per task "
-                    "and algorithm, in the layout of the paper's Table II.")
+                    "(and setup) and algorithm, in the layout of the paper's Table II.")
     add_run_dirs(parser)
     parser.add_argument("--episodes", type=positive_int, default=20,
                         help="test episodes per model (paper: 20)")
@@ -34,7 +34,8 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.evaluation import measure_success
     from franka_composer.training.models import make_env
     from franka_composer.training.policy_file import load_trained
-    from franka_composer.training.report import RunResult, markdown_table, seeds_note
+    from franka_composer.training.report import (RunResult, markdown_table, seeds_note,
+                                                 with_variant)
     from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import run_directories
 
@@ -51,8 +52,7 @@ def run(args: argparse.Namespace) -> int:
         result = RunResult(str(root), config.task, config.algo, config.seed,
                            int(model.num_timesteps), outcome.success_rate, config.variant)
         results.append(result)
-        setup = f" ({config.variant})" if config.variant else ""
-        print(f"{root}: {config.task}{setup} {config.algo} seed "
+        print(f"{root}: {with_variant(config.task, config.variant)} {config.algo} seed "
               f"{config.seed}, {result.steps} steps: "
               f"success {100 * outcome.success_rate:.1f} % over {args.episodes} episodes")
     table = markdown_table(results)

@@ -12,8 +12,9 @@ def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "plot", help="success-rate curves of runs: one panel per task, one line per algorithm",
         description="Read each run's eval.csv and draw the median success rate over seeds "
-                    "(runs of the same task and algorithm), with median ± std shaded, one "
-                    "panel per task and one line per algorithm, as in the paper's Fig. 4.")
+                    "(runs of the same task, algorithm and setup), with median ± std shaded, "
+                    "one panel per task and one line per algorithm and setup, as in the "
+                    "paper's Fig. 4.")
     add_run_dirs(parser)
     parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("curves.png"),
                         help="image file to write (PNG, PDF or SVG by extension)")

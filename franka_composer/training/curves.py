@@ -10,7 +10,7 @@ import numpy as np
 
 from franka_composer.training.hyperparams import ALGOS
 from franka_composer.training.report import TASK_ORDER, TASK_TITLES
-from franka_composer.training.runs import RunDir, read_eval_rows
+from franka_composer.training.runs import RunDir, success_curve
 
 COLOURS = {"ddpg": "tab:green", "sac": "tab:blue", "tqc": "tab:red"}
 #: A panel's variants of one algorithm, in order ("" first): solid, dashed, dotted, ...
@@ -26,11 +26,8 @@ def seed_curves(run_dirs: list[pathlib.Path]) -> Curves:
     for root in run_dirs:
         run = RunDir(pathlib.Path(root))
         config = run.read_config()
-        rows = read_eval_rows(run.eval_csv)
-        if not rows:
-            raise ValueError(f"{root} has no evaluations yet (no eval.csv rows)")
         curves.setdefault((config.task, config.algo, config.variant), []).append(
-            {row["steps"]: row["success_rate"] for row in rows})
+            success_curve(run.evaluations()))
     return curves
 
 

@@ -1,6 +1,7 @@
-"""What each cell (task x algorithm, and variant: `RunConfig.variant`) took to learn and what it cost, from its runs' files
-alone (config.json, eval.csv, outcome.json): the steps each seed reached, how many stopped
-early by the rule, the steps to a success threshold, and wall-clock and CPU hours.
+"""What each cell (task x algorithm x `RunConfig.variant`) took to learn and what it cost,
+from its runs' files alone (config.json, eval.csv, outcome.json): the steps each seed
+reached, how many stopped early by the rule, the steps to a success threshold, and
+wall-clock and CPU hours.
 
 Steps to a threshold are read off the median over seeds, as one reads the paper's Fig. 4,
 of each seed's curve smoothed over `SMOOTHING` evaluations (a trailing mean: 75 episodes at
@@ -16,9 +17,8 @@ import pathlib
 
 import numpy as np
 
-from franka_composer.training.hyperparams import ALGOS
-from franka_composer.training.report import TASK_ORDER
-from franka_composer.training.runs import RunDir, read_eval_rows
+from franka_composer.training.report import cell_order, group_by_cell, with_variant
+from franka_composer.training.runs import RunDir, success_curve
 
 #: Evaluations in the trailing mean of a seed's curve.
 SMOOTHING = 5
@@ -45,17 +45,15 @@ class RunRecord:
 def read_run(root: pathlib.Path) -> RunRecord:
     run = RunDir(pathlib.Path(root))
     config = run.read_config()
-    rows = read_eval_rows(run.eval_csv)
-    if not rows:
-        raise ValueError(f"{root} has no evaluations yet (no eval.csv rows)")
+    rows = run.evaluations()
     outcome = run.read_outcome()
+    last = rows[-1]
     return RunRecord(
         task=config.task, algo=config.algo, variant=config.variant, seed=config.seed,
-        steps=int(outcome.get("steps", rows[-1]["steps"])), finished=bool(outcome),
+        steps=int(outcome.get("steps", last["steps"])), finished=bool(outcome),
         stopped_early=bool(outcome.get("stopped_early", False)),
-        wall_s=float(outcome.get("wall_time_s", rows[-1]["wall_time_s"])),
-        cpu_s=outcome.get("cpu_time_s"),
-        curve={row["steps"]: row["success_rate"] for row in rows})
+        wall_s=float(outcome.get("wall_time_s", last["wall_time_s"])),
+        cpu_s=outcome.get("cpu_time_s"), curve=success_curve(rows))
 
 
 def smoothed(curve: dict[int, float]) -> dict[int, float]:
@@ -86,22 +84,19 @@ def steps_to(runs: list[RunRecord], threshold: float) -> int | None:
 
 def markdown_table(runs: list[RunRecord]) -> str:
     """One row per cell, in the paper's order, and a line with what all of them cost."""
-    cells: dict[tuple[str, str, str], list[RunRecord]] = {}
-    for run in sorted(runs, key=lambda r: r.seed):
-        cells.setdefault((run.task, run.variant, run.algo), []).append(run)
-    order = sorted(cells, key=lambda cell: (TASK_ORDER.index(cell[0]), cell[1],
-                                            ALGOS.index(cell[2])))
+    cells = group_by_cell(sorted(runs, key=lambda r: r.seed))
     lines = ["| task | algorithm | seeds | steps reached | stopped early | "
              + " | ".join(f"steps to {100 * t:.0f} %" for t in THRESHOLDS)
              + " | wall h | CPU h |",
              "|---|---|---|---|---|" + "---|" * len(THRESHOLDS) + "---|---|"]
-    for task, variant, algo in order:
+    for task, variant, algo in sorted(cells, key=cell_order):
         cell = cells[(task, variant, algo)]
         reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
                             for run in cell)
         crossings = [steps_to(cell, t) for t in THRESHOLDS]
         lines.append(
-            f"| {task}{f' ({variant})' if variant else ''} | {algo.upper()} | {', '.join(str(r.seed) for r in cell)} | {reached} | "
+            f"| {with_variant(task, variant)} | {algo.upper()} | "
+            f"{', '.join(str(r.seed) for r in cell)} | {reached} | "
             f"{sum(r.stopped_early for r in cell)} of {len(cell)} | "
             + " | ".join("–" if c is None else f"{c:,}" for c in crossings)
             + f" | {sum(r.wall_s for r in cell) / 3600:.1f} | {_cpu_hours(cell)} |")

@@ -30,18 +30,31 @@ class RunResult:
     variant: str = ""  # `RunConfig.variant`: "" for the paper's setup
 
 
+def with_variant(name: str, variant: str) -> str:
+    """`name`, with " (variant)" after it for a run not of the paper's setup."""
+    return name + (f" ({variant})" if variant else "")
+
+
 def task_label(task: str, variant: str) -> str:
     """"Push", or "Push (osc control)" for a variant: the row a run belongs to."""
-    return TASK_TITLES[task] + (f" ({variant})" if variant else "")
+    return with_variant(TASK_TITLES[task], variant)
 
 
-def group_by_cell(results: list[RunResult]) -> dict[tuple[str, str, str], list[RunResult]]:
-    """Results keyed by (task, variant, algorithm): runs of different setups are not seeds
-    of one cell."""
-    cells: dict[tuple[str, str, str], list[RunResult]] = collections.defaultdict(list)
+def group_by_cell(results: list) -> dict[tuple[str, str, str], list]:
+    """Runs (anything with `task`, `variant` and `algo`: `RunResult`,
+    `learning_report.RunRecord`) keyed by (task, variant, algorithm): runs of different
+    setups are not seeds of one cell."""
+    cells: dict[tuple[str, str, str], list] = collections.defaultdict(list)
     for result in results:
         cells[(result.task, result.variant, result.algo)].append(result)
     return dict(cells)
+
+
+def cell_order(cell: tuple[str, str, str]) -> tuple:
+    """Sort key of a (task, variant, algorithm) cell: the paper's task order, a task's paper
+    setup before its variants, the paper's algorithm order."""
+    task, variant, algo = cell
+    return TASK_ORDER.index(task), variant, ALGOS.index(algo)
 
 
 def markdown_table(results: list[RunResult]) -> str:
@@ -49,8 +62,8 @@ def markdown_table(results: list[RunResult]) -> str:
     variant) and algorithm; "–" where no run exists. Rows and columns in the paper's
     order, a task's paper setup before its variants."""
     cells = group_by_cell(results)
-    rows = sorted({(task, variant) for task, variant, _ in cells},
-                  key=lambda row: (TASK_ORDER.index(row[0]), row[1]))
+    rows = list(dict.fromkeys((task, variant)
+                              for task, variant, _ in sorted(cells, key=cell_order)))
     lines = ["| Tasks | " + " | ".join(a.upper() for a in ALGOS) + " |",
              "|---|" + "---|" * len(ALGOS)]
     for task, variant in rows:
@@ -68,6 +81,6 @@ def seeds_note(results: list[RunResult]) -> str:
     for (task, variant, algo), runs in sorted(group_by_cell(results).items()):
         seeds = ", ".join(str(r.seed) for r in runs)
         steps = ", ".join(str(r.steps) for r in runs)
-        where = task + (f" ({variant})" if variant else "")
-        notes.append(f"- {where} / {algo}: seeds {seeds}; trained steps {steps}")
+        notes.append(f"- {with_variant(task, variant)} / {algo}: seeds {seeds}; trained "
+                     f"steps {steps}")
     return "\n".join(notes) + "\n"

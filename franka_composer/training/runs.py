@@ -187,12 +187,24 @@ class RunDir:
             return {}
         return json.loads(self.checkpoint_state.read_text())
 
+    def evaluations(self) -> list[dict[str, float]]:
+        """eval.csv's rows; a run with no evaluations yet is a ValueError."""
+        rows = read_eval_rows(self.eval_csv)
+        if not rows:
+            raise ValueError(f"{self.root} has no evaluations yet (no eval.csv rows)")
+        return rows
+
     def best_model(self) -> pathlib.Path:
         """The final model, else the latest checkpoint (a run that was interrupted)."""
         for path in (self.final_model, self.checkpoint_model):
             if path.is_file():
                 return path
         raise ValueError(f"{self.root} has no model yet (neither model.zip nor a checkpoint)")
+
+
+def success_curve(rows: list[dict[str, float]]) -> dict[int, float]:
+    """{evaluated step: success rate} of eval.csv's rows."""
+    return {row["steps"]: row["success_rate"] for row in rows}
 
 
 def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
