@@ -505,6 +505,76 @@ def test_bf16_needs_the_torch_backend(tmp_path, capsys):
     assert not (tmp_path / "run").exists()
 
 
+def _critic_values(critic, obs, actions) -> "np.ndarray":
+    values = critic(obs, actions)
+    return np.concatenate([v.detach().numpy().ravel() for v in (
+        values if isinstance(values, tuple) else (values,))])
+
+
+@pytest.mark.parametrize("algo", ALGOS)
+def test_clipped_q_targets_bound_the_target_critic_and_nothing_else(algo):
+    """Critics made to output exactly `value` (zero weights, the output layer's bias set):
+    the target critic's values come out clamped to [-1/(1-gamma), 0], every critic (SAC's
+    two, TQC's quantiles) alike; the critic that is trained is left alone; and removing
+    the hook restores the target critic."""
+    import torch
+
+    from franka_composer.training.target_bounds import clip_target_critic
+
+    env = make_env("push")
+    model = build_model("push", algo, hyperparameters("push", algo).replace(
+        net_arch=(16, 16), buffer_size=1000), env, seed=0, device="cpu")
+    obs = model.policy.obs_to_tensor(env.observation_space.sample())[0]
+    actions = torch.zeros((1,) + env.action_space.shape)
+
+    def set_output(value):
+        with torch.no_grad():
+            for critic in (model.critic, model.critic_target):
+                for layer in critic.modules():
+                    if isinstance(layer, torch.nn.Linear):
+                        layer.weight.zero_()
+                        layer.bias.fill_(0.0 if layer.out_features == 16 else value)
+
+    handle = clip_target_critic(model, 0.95)
+    lowest = np.float32(-1 / (1 - 0.95))
+    for value, clamped in ((1000.0, 0.0), (-1000.0, lowest), (-5.0, -5.0), (0.0, 0.0)):
+        set_output(value)
+        target = _critic_values(model.critic_target, obs, actions)
+        assert target.size == {"tqc": 50, "sac": 2, "ddpg": 1}[algo]
+        assert np.all(target == np.float32(clamped)), (value, target)
+        assert np.all(_critic_values(model.critic, obs, actions) == np.float32(value))
+    handle.remove()
+    set_output(1000.0)
+    assert np.all(_critic_values(model.critic_target, obs, actions) == 1000.0)
+    env.close()
+
+
+def test_clip_q_targets_is_recorded_clips_again_on_resume_and_needs_sb3(tmp_path,
+                                                                       monkeypatch):
+    from franka_composer.training import loop
+
+    clipped = []  # (gamma, the model's target critic) per clip_target_critic call
+    clip = loop.clip_target_critic
+    monkeypatch.setattr(loop, "clip_target_critic", lambda model, gamma: clipped.append(
+        (gamma, model.critic_target)) or clip(model, gamma))
+    out = tmp_path / "run"
+    assert _train(out, "sac", 200, "--checkpoint-every", "100", "--clip-q-targets") == 0
+    config = RunDir(out).read_config()
+    assert config.hyperparameters.clip_q_targets is True
+    assert "clip_q_targets True" in config.variant
+    assert _train(out, "sac", 300, "--resume") == 0
+    assert [gamma for gamma, _ in clipped] == [0.95, 0.95]
+    assert clipped[0][1] is not clipped[1][1]  # The resumed run's own target critic.
+    assert len(clipped[1][1]._forward_hooks) == 1
+    assert _train(tmp_path / "plain", "sac", 100) == 0
+    assert len(clipped) == 2 and not RunDir(tmp_path / "plain").read_config(
+        ).hyperparameters.clip_q_targets
+    with pytest.raises(ValueError, match="clip_q_targets clamps a PyTorch target critic: "
+                                         "it needs backend sb3, not sbx"):
+        _train(tmp_path / "sbx", "sac", 100, "--backend", "sbx", "--clip-q-targets")
+    assert not (tmp_path / "sbx").exists()
+
+
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])
 def test_a_seed_sb3_cannot_take_is_refused_before_the_run_exists(tmp_path, capsys, seed):
     """SB3 seeds NumPy with the seed plus the evaluation offset (and plus the steps on a

@@ -124,6 +124,11 @@ def add_parser(subparsers) -> None:
                         help="steps between evaluations (Table I: 2000)")
     parser.add_argument("--eval-episodes", type=positive_int, default=None,
                         help="deterministic episodes per evaluation (Table I: 15)")
+    parser.add_argument("--clip-q-targets", action="store_true", default=None,
+                        help="clamp the target critic's values to the returns the sparse "
+                             "reward allows, [-1/(1-gamma), 0], as OpenAI baselines' HER "
+                             "does (not Table I's; sb3 backend): keeps a critic trained on "
+                             "--demos from diverging (RESULTS.md)")
     parser.add_argument("--stop-at-success", type=_rate, default=None, metavar="RATE",
                         help="stop early once --stop-after consecutive evaluations all reach "
                              "this success rate in (0, 1] (default: never; the Table II "
@@ -180,7 +185,7 @@ def run(args: argparse.Namespace) -> int:
             batch_size=args.batch_size, buffer_size=args.buffer_size,
             learning_starts=args.learning_starts, eval_every=args.eval_every,
             eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
-            stop_after_evaluations=args.stop_after)
+            stop_after_evaluations=args.stop_after, clip_q_targets=args.clip_q_targets)
         demo_path = _demos(args, hp.buffer_size, args.total_steps or hp.total_steps)
         run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
                                             args.terminate_on_success, args.backend,

@@ -56,6 +56,9 @@ class Hyperparameters:
         `stop_after_evaluations` consecutive evaluations all reach `stop_success_rate` (not
         in Table I; None, the default, never stops early; the Table II campaign uses 0.95
         and 5).
+      clip_q_targets: clamp the target critic's values to the returns the sparse reward
+        allows, [-1/(1-gamma), 0], as OpenAI baselines' HER does (not in Table I, whose SB3
+        has no such bound; `training/target_bounds.py`).
     """
 
     net_arch: tuple[int, ...] = (256, 256, 256)
@@ -79,6 +82,7 @@ class Hyperparameters:
     train_every: int = 1
     stop_success_rate: float | None = None
     stop_after_evaluations: int = 5
+    clip_q_targets: bool = False
 
     def replace(self, **overrides) -> "Hyperparameters":
         """A copy with `overrides` (None values are ignored); unknown names are a ValueError."""

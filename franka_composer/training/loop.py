@@ -21,6 +21,7 @@ from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows, write_eval_rows
+from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.
 EVAL_SEED_OFFSET = 10_000
@@ -96,6 +97,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         if config.demos is not None:
             episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
             demos.prefill(model, episodes, hp.total_steps)
+    if hp.clip_q_targets:
+        clip_target_critic(model, hp.gamma)
     # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
     clock = WallClock(state["wall_time_s"], state.get("cpu_time_s")) if resume else WallClock()
     if tensorboard:

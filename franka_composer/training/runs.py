@@ -61,6 +61,9 @@ class RunConfig:
             raise ValueError(f"precision {self.precision} runs the networks under "
                              f"torch.autocast: it needs backend sb3, not {self.backend} "
                              "(which trains in JAX)")
+        if self.hyperparameters.clip_q_targets and self.backend != "sb3":
+            raise ValueError(f"clip_q_targets clamps a PyTorch target critic: it needs "
+                             f"backend sb3, not {self.backend}")
 
     def to_dict(self) -> dict:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
