@@ -5,6 +5,8 @@
 #
 #   benchmarks/precision_check.sh run      train (or resume) both sweeps
 #   benchmarks/precision_check.sh table    success at 10k/20k/30k/40k, mean ± std per precision
+#       (MARKS="50000 60000 ..." other steps; WINDOW="60000 100000" adds each run's mean
+#       success over its evaluations in that range, mean ± std over the seeds)
 #   benchmarks/precision_check.sh sync     copy config.json/eval.csv into results/precision/
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -24,21 +26,27 @@ case "${1:-}" in
     wait
     ;;
   table)
-    "$BIN/python" - "$RUNS" "${PRECISIONS[@]}" <<'PY'
-import pathlib, sys
+    MARKS=${MARKS:-10000 20000 30000 40000} WINDOW=${WINDOW:-} \
+      "$BIN/python" - "$RUNS" "${PRECISIONS[@]}" <<'PY'
+import os, pathlib, sys
 import numpy as np
 from franka_composer.training.runs import read_eval_rows
 root, precisions = pathlib.Path(sys.argv[1]), sys.argv[2:]
-marks = (10_000, 20_000, 30_000, 40_000)
-print("| precision | " + " | ".join(f"{m // 1000}k" for m in marks) + " |")
-print("|---|" + "---|" * len(marks))
+marks = [int(m) for m in os.environ["MARKS"].split()]
+window = [int(m) for m in os.environ["WINDOW"].split()]
+def cell(rates):
+    return f"{100 * np.mean(rates):.0f} ± {100 * np.std(rates):.0f} % (n={len(rates)})" if rates else "–"
+heads = [f"{m // 1000}k" for m in marks] + ([f"mean {window[0] // 1000}k–{window[1] // 1000}k"] if window else [])
+print("| precision | " + " | ".join(heads) + " |")
+print("|---|" + "---|" * len(heads))
 for precision in precisions:
-    cells = []
-    for mark in marks:
-        rates = [row["success_rate"] for run in sorted((root / precision).glob("*/eval.csv"))
-                 for row in read_eval_rows(run) if row["steps"] == mark]
-        cells.append(f"{100 * np.mean(rates):.0f} ± {100 * np.std(rates):.0f} % (n={len(rates)})"
-                     if rates else "–")
+    runs = [read_eval_rows(run) for run in sorted((root / precision).glob("*/eval.csv"))]
+    cells = [cell([row["success_rate"] for rows in runs for row in rows if row["steps"] == mark])
+             for mark in marks]
+    if window:  # A run counts once it has evaluations up to the window's end.
+        cells.append(cell([np.mean([row["success_rate"] for row in rows
+                                    if window[0] <= row["steps"] <= window[1]])
+                           for rows in runs if rows and rows[-1]["steps"] >= window[1]]))
     print(f"| {precision} | " + " | ".join(cells) + " |")
 PY
     ;;

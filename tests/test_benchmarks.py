@@ -144,3 +144,43 @@ def test_a_resumed_run_evaluates_the_episodes_an_uninterrupted_run_would(tmp_pat
         assert [row[key] for row in resumed] == [row[key] for row in whole]
     still = module.still_rates("push", "mocap", seed=0, evaluations=7)
     assert still[4:] != still[1:4]  # Evaluating the first episodes again would show.
+
+
+@pytest.mark.slow
+def test_probing_the_critic_leaves_the_run_as_train_makes_it():
+    """`critic_probe.py` samples actions on the probed states from a fork of torch's
+    generator: a run probed every 50 steps ends with the weights, bit for bit, of the same
+    run unprobed; and the probe reports one saturation and log-std per action dimension."""
+    torch = pytest.importorskip("torch")
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.models import build_model, make_env
+
+    spec = importlib.util.spec_from_file_location("critic_probe", BENCHMARKS / "critic_probe.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    hp = hyperparameters("push", "sac").replace(net_arch=(16, 16), batch_size=32,
+                                                buffer_size=1000, learning_starts=100)
+    env = make_env("push")
+    states = {key: np.stack([value] * 5) for key, value in
+              env.observation_space.sample().items()}
+    env.close()
+    reports = []
+
+    class Probe(BaseCallback):
+        def _on_step(self):
+            if self.num_timesteps % 50 == 0:
+                reports.append(module.critic_report(self.model, states))
+            return True
+
+    weights = []
+    for callback in (Probe(), None):
+        env = make_env("push")
+        model = build_model("push", "sac", hp, env, seed=3, device="cpu")
+        model.learn(300, callback=callback)
+        weights.append(torch.cat([p.detach().flatten() for p in model.policy.parameters()]))
+        env.close()
+    assert len(reports) == 6 and torch.equal(weights[0], weights[1])
+    assert all(r["saturated"].shape == r["log_std"].shape == (3,) and r["alpha"] > 0
+               for r in reports)
