@@ -23,12 +23,14 @@ def test_the_table2_grid_is_issue_15s_budgets():
     cells = {(c.task, c.algo): [] for c in GRIDS["table2"]}
     for cell in GRIDS["table2"]:
         cells[(cell.task, cell.algo)].append((cell.seed, cell.steps, cell.options))
-    slide = ("--net-arch", "256,256,256", "--batch-size", "512")
+    bf16 = ("--precision", "bf16")
+    slide = ("--net-arch", "256,256,256", "--batch-size", "512") + bf16
     expected = {
-        ("push", "sac"): (3, 250_000, ()), ("push", "tqc"): (3, 250_000, ()),
-        ("push", "ddpg"): (3, 150_000, ()),
-        ("pick_and_place", "sac"): (3, 400_000, ()), ("pick_and_place", "tqc"): (3, 400_000, ()),
-        ("pick_and_place", "ddpg"): (1, 200_000, ()),
+        ("push", "sac"): (3, 250_000, bf16), ("push", "tqc"): (3, 250_000, bf16),
+        ("push", "ddpg"): (3, 150_000, bf16),
+        ("pick_and_place", "sac"): (3, 400_000, bf16),
+        ("pick_and_place", "tqc"): (3, 400_000, bf16),
+        ("pick_and_place", "ddpg"): (1, 200_000, bf16),
         ("slide", "sac"): (3, 200_000, slide), ("slide", "tqc"): (3, 200_000, slide),
         ("slide", "ddpg"): (1, 200_000, slide),
     }
