@@ -10,8 +10,9 @@ import pytest
 
 from franka_composer import cli
 from franka_composer.training.runs import RunDir, read_eval_rows
-from franka_composer.training.sweep import (GRIDS, Cell, cell_status, grid, run_directories,
-                                            status_table, train_command)
+from franka_composer.training.sweep import (GRIDS, Cell, cell_log, cell_status, grid,
+                                            run_directories, run_sweep, status_table,
+                                            train_command)
 
 #: Small enough for seconds per cell (as tests/test_training.py's tiny runs).
 TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
@@ -84,7 +85,9 @@ def test_the_status_of_each_cell_is_read_from_its_directory(tmp_path):
         ("waiting", 0, None)]
     assert statuses[0].steps_per_s == pytest.approx(20.0)  # 2000 steps in 100 s.
     assert statuses[2].steps_per_s == pytest.approx(50.0)
-    assert cell_status(cells[2], tmp_path, running=True).state == "running"
+    assert cell_status(cells[2], tmp_path, running=True, queued=True).state == "running"
+    assert cell_status(cells[2], tmp_path, queued=True).state == "queued"
+    assert cell_status(cells[3], tmp_path, queued=True).state == "queued"
     assert cell_status(cells[2], tmp_path, failed=True).state == "failed"
     table = status_table(statuses).splitlines()
     assert table[0] == "| cell | state | steps | budget | steps/s | latest success |"
@@ -162,6 +165,24 @@ def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monk
     assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
     assert ("push (net_arch 16,16, batch_size 32, buffer_size 2000) / sac: seeds 0, 1; "
             "trained steps 300, 300") in capsys.readouterr().out
+
+
+def test_one_cpu_runs_one_cell_while_the_others_queue(tmp_path):
+    """The live table calls a cell running once its task has started (the start line of
+    its log, which names the train command), queued until then."""
+    pytest.importorskip("ray")
+    pytest.importorskip("stable_baselines3")
+    cells = grid(["push"], ["sac"], [0, 1], 100)
+    tables = []
+    run_sweep(cells, tmp_path, tuple(TINY), num_cpus=1, refresh_s=0.2, show=tables.append)
+    states = [[line.split(" | ")[1] for line in table.splitlines()[2:]] for table in tables]
+    assert all(row.count("running") <= 1 for row in states[:-1])
+    assert any(sorted(row) == ["queued", "running"] for row in states[:-1])
+    assert states[-1] == ["done", "done"]
+    for cell in cells:
+        first = cell_log(cell, tmp_path).read_text().splitlines()[0]
+        assert f"-m franka_composer train --out {tmp_path / cell.name}" in first
+        assert f"--task push --algo sac --seed {cell.seed}" in first
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -102,8 +102,11 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
     if run.root.exists() and not run.read_state():
         shutil.rmtree(run.root)
     run.root.parent.mkdir(parents=True, exist_ok=True)
-    with open(run.root.parent / f"{cell.name}.log", "a") as log:
+    with open(cell_log(cell, root), "a") as log:
         command = train_command(cell, root, train_args, resume=bool(run.read_state()))
+        # The line also tells the sweep's table that the cell left the queue.
+        log.write(f"{time.strftime('%Y-%m-%dT%H:%M:%S')} {' '.join(command)}\n")
+        log.flush()
         process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
         try:
             return cell.name, process.wait()
@@ -111,6 +114,16 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
             process.terminate()
             process.wait()
             raise
+
+
+def cell_log(cell: Cell, root: pathlib.Path) -> pathlib.Path:
+    """Where the cell's `train` output goes, beside its run directory (appended to)."""
+    return root / f"{cell.name}.log"
+
+
+def _started_since(cell: Cell, root: pathlib.Path, since: float) -> bool:
+    log = cell_log(cell, root)
+    return log.exists() and log.stat().st_mtime >= since
 
 
 def _finished(run: RunDir, cell: Cell) -> bool:
@@ -123,8 +136,8 @@ class CellStatus:
     """What a cell's directory says it has reached."""
 
     name: str
-    #: "done", "stopped early", "running", "failed" (this sweep's), "unfinished" (started,
-    #: not running in this sweep) or "waiting" (not started).
+    #: "done", "stopped early", "running", "queued" (waiting for a CPU), "failed" (this
+    #: sweep's), "unfinished" (started, not in this sweep) or "waiting" (not started).
     state: str
     steps: int
     budget: int
@@ -133,7 +146,7 @@ class CellStatus:
 
 
 def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
-                running: bool = False) -> CellStatus:
+                running: bool = False, queued: bool = False) -> CellStatus:
     run = RunDir(root / cell.name)
     rows = read_eval_rows(run.eval_csv)
     steps = rows[-1]["steps"] if rows else 0
@@ -144,7 +157,7 @@ def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
     if _finished(run, cell):
         state = "stopped early" if run.read_outcome()["stopped_early"] else "done"
     else:
-        state = ("failed" if failed else "running" if running
+        state = ("failed" if failed else "running" if running else "queued" if queued
                  else "unfinished" if run.config_path.exists() else "waiting")
     return CellStatus(cell.name, state, steps, cell.steps, rate,
                       rows[-1]["success_rate"] if rows else None)
@@ -182,6 +195,7 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
             ray.init(address=address, num_cpus=None if address else num_cpus,
                      include_dashboard=False, log_to_driver=False)
         remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
+        submitted = time.time()
         pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
         try:
             last = 0.0
@@ -193,9 +207,11 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
                         failed.add(name)
                     del pending[ref]
                 if time.monotonic() - last >= refresh_s and pending:
-                    running = {cell.name for cell in pending.values()}
-                    show(status_table([cell_status(c, root, c.name in failed, c.name in running)
-                                       for c in cells]))
+                    queued = {cell.name for cell in pending.values()}
+                    running = {cell.name for cell in pending.values()
+                               if _started_since(cell, root, submitted)}
+                    show(status_table([cell_status(c, root, c.name in failed, c.name in running,
+                                                   c.name in queued) for c in cells]))
                     last = time.monotonic()
         except BaseException:
             for ref in pending:
