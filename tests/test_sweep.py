@@ -4,7 +4,10 @@ two-cell sweep on a local Ray (training/sweep.py, cli/sweep.py)."""
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
 import sys
+import time
 
 import pytest
 
@@ -165,6 +168,35 @@ def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monk
     assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
     assert ("push (net_arch 16,16, batch_size 32, buffer_size 2000) / sac: seeds 0, 1; "
             "trained steps 300, 300") in capsys.readouterr().out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path, signum):
+    """`kill` (SIGTERM), or SIGINT though a background job ignores it, stops the sweep the
+    way Ctrl-C does: the running cell checkpoints, and no train process is left behind."""
+    pytest.importorskip("ray")
+    pytest.importorskip("stable_baselines3")
+    out = tmp_path / "sweep"
+    run = RunDir(out / "push-sac-seed0")
+    sweep = subprocess.Popen(
+        [sys.executable, "-m", "franka_composer", "sweep", "--out", str(out), "--tasks", "push",
+         "--algos", "sac", "--seeds", "0", "--steps", "100000", "--num-cpus", "1",
+         "--refresh", "1000", "--", *TINY], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    deadline = time.monotonic() + 120
+    while len(read_eval_rows(run.eval_csv)) < 3:  # Past learning_starts: inside learn.
+        assert sweep.poll() is None and time.monotonic() < deadline, sweep.communicate()[0]
+        time.sleep(0.2)
+    sweep.send_signal(signum)
+    output = sweep.communicate(timeout=120)[0]
+    assert sweep.returncode == 130, output
+    assert "interrupted: each running cell saved a checkpoint" in output
+    assert run.read_state()["steps"] >= 200
+    assert "interrupted: checkpoint saved" in cell_log(Cell("push", "sac", 0, 100000),
+                                                       out).read_text()
+    left = subprocess.run(["pgrep", "-f", f"--out {run.root}"], capture_output=True, text=True)
+    assert left.stdout == ""
 
 
 def test_one_cpu_runs_one_cell_while_the_others_queue(tmp_path):

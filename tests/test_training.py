@@ -15,6 +15,7 @@ pytest.importorskip("sb3_contrib")
 
 from franka_composer import cli  # noqa: E402
 from franka_composer.training import ALGOS, TABLE_I, hyperparameters  # noqa: E402
+from franka_composer.training.callbacks import LatestCheckpoint  # noqa: E402
 from franka_composer.training.models import build_model, load_model, make_env  # noqa: E402
 from franka_composer.training.runs import RunDir, read_eval_rows  # noqa: E402
 
@@ -188,12 +189,18 @@ def test_demo_plays_a_trained_policy_on_its_task(runs, tmp_path, capsys):
         cli.main(["demo", "--policy", str(committed), "--control", "osc", "--no-video"])
 
 
-def test_resume_continues_step_count_buffer_and_csv(tmp_path):
+def test_resume_continues_step_count_buffer_and_csv(tmp_path, monkeypatch):
     out = tmp_path / "run"
     assert _train(out, "sac", 200, "--checkpoint-every", "100") == 0
     state = RunDir(out).read_state()
-    assert state["steps"] == 200
+    assert state["steps"] == 200 and state["checkpoint_every"] == 100
+    saved_at, save = [], LatestCheckpoint.save
+    monkeypatch.setattr(LatestCheckpoint, "save",
+                        lambda self: (saved_at.append(self.model.num_timesteps), save(self)))
     assert _train(out, "sac", 400, "--resume") == 0
+    # The run's own cadence after a resume, not the default's (400 twice: on the grid, where
+    # SB3 saves before storing the step's transition, then complete at the end).
+    assert saved_at == [300, 400, 400]
     rows = read_eval_rows(RunDir(out).eval_csv)
     assert [r["steps"] for r in rows] == [0, 100, 200, 300, 400]
     assert rows[3]["wall_time_s"] > state["wall_time_s"]

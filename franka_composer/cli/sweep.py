@@ -106,9 +106,14 @@ def run(args: argparse.Namespace) -> int:
                          "'franka_composer[sweep]' (or pip install ray)") from error
     for cell in cells:  # Every cell's options are checked by train's own parser first.
         build_parser().parse_args(train_command(cell, args.out, train_args)[3:])
-    statuses = run_sweep(cells, args.out, train_args, address=args.address,
-                         num_cpus=args.num_cpus, refresh_s=args.refresh,
-                         show=lambda table: print(table + "\n", flush=True))
+    try:
+        statuses = run_sweep(cells, args.out, train_args, address=args.address,
+                             num_cpus=args.num_cpus, refresh_s=args.refresh,
+                             show=lambda table: print(table + "\n", flush=True))
+    except KeyboardInterrupt:  # Ctrl-C, SIGINT or SIGTERM: the running cells checkpointed.
+        print("interrupted: each running cell saved a checkpoint; the same command resumes "
+              "the sweep", flush=True)
+        return 130
     failed = [s.name for s in statuses if s.state == "failed"]
     if failed:
         print(f"failed: {', '.join(failed)} (see {args.out}/<cell>.log)")

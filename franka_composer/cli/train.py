@@ -13,6 +13,7 @@ from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
+from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
 
 
 def _net_arch(text: str) -> tuple[int, ...]:
@@ -135,9 +136,10 @@ def add_parser(subparsers) -> None:
                              "campaign uses 0.95); RUN_DIR/outcome.json records it")
     parser.add_argument("--stop-after", type=positive_int, default=None, metavar="N",
                         help="consecutive evaluations for --stop-at-success (default 5)")
-    parser.add_argument("--checkpoint-every", type=positive_int, default=50_000,
+    parser.add_argument("--checkpoint-every", type=positive_int, default=None,
                         help="steps between checkpoints of model and replay buffer "
-                             "(default 50000; one is also written on Ctrl-C / SIGTERM)")
+                             f"(default {DEFAULT_CHECKPOINT_EVERY}; a --resume keeps the "
+                             "run's own; one is also written on Ctrl-C / SIGTERM)")
     parser.add_argument("--threads", type=positive_int, default=None,
                         help="CPU threads for the networks (default: the library's, or "
                              "OMP_NUM_THREADS). torch's thread count with sb3; with sbx, "

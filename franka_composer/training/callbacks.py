@@ -148,4 +148,4 @@ class LatestCheckpoint(CheckpointCallback):
         self.n_calls = calls
         run.checkpoint_state.write_text(json.dumps(
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
-             "cpu_time_s": self._clock.cpu()}) + "\n")
+             "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq}) + "\n")

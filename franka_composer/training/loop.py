@@ -6,7 +6,6 @@ Interrupting it (Ctrl-C, or SIGTERM from a scheduler) writes a checkpoint first,
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import importlib.util
 import pathlib
@@ -20,24 +19,13 @@ from franka_composer.training.callbacks import Evaluation, LatestCheckpoint, Wal
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
-from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows, write_eval_rows
+from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunConfig, RunDir,
+                                          read_eval_rows, write_eval_rows)
+from franka_composer.training.signals import interrupt_on
 from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.
 EVAL_SEED_OFFSET = 10_000
-
-
-@contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """SIGTERM raises KeyboardInterrupt inside the block, so it checkpoints like Ctrl-C."""
-    def handler(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _skip_evaluated_episodes(eval_env, evaluations: int, episodes: int) -> None:
@@ -60,9 +48,11 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
 
 
 def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
-          device: str = "auto", checkpoint_every: int = 50_000, progress: bool = True):
+          device: str = "auto", checkpoint_every: int | None = None, progress: bool = True):
     """Trains `run` up to its total steps (`total_steps` overrides and is saved); returns the
-    model. With `resume`, starts from the latest checkpoint."""
+    model. With `resume`, starts from the latest checkpoint. `checkpoint_every` defaults to
+    the cadence the run's checkpoints were written at (DEFAULT_CHECKPOINT_EVERY for a new
+    run), so a resumed run does not quietly checkpoint less often than it was started to."""
     config = run.read_config()
     if total_steps is not None:
         config = dataclasses.replace(
@@ -107,6 +97,9 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     evaluation = Evaluation(eval_env, run, clock, every=hp.eval_every,
                             episodes=hp.eval_episodes, stop_success_rate=hp.stop_success_rate,
                             stop_after=hp.stop_after_evaluations)
+    if checkpoint_every is None:
+        checkpoint_every = state.get("checkpoint_every", DEFAULT_CHECKPOINT_EVERY) if resume \
+            else DEFAULT_CHECKPOINT_EVERY
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every)
     precision = GradientStepPrecision(config.precision)
     callbacks = CallbackList([precision, evaluation, checkpoint])
@@ -114,7 +107,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     if run.read_outcome().get("stopped_early"):
         remaining = 0  # It met the stopping rule: more steps would not be the same run.
     try:
-        with _sigterm_as_interrupt():
+        with interrupt_on(signal.SIGTERM):
             if remaining > 0:
                 model.learn(total_timesteps=remaining, callback=callbacks,
                             reset_num_timesteps=not resume, tb_log_name="run",
@@ -130,7 +123,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         eval_env.close()
     if getattr(checkpoint, "model", None) is None:  # Nothing trained (a finished run resumed).
         checkpoint.init_callback(model)
-    checkpoint.save()
+    checkpoint.save()  # Again on the grid too: SB3 checkpoints before storing the transition.
     model.save(run.final_model)
     if config.backend == "sb3":
         save_policy(model, run.policy_file)

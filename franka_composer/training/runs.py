@@ -21,6 +21,10 @@ from franka_composer.training.hyperparams import (BACKENDS, PRECISIONS, Hyperpar
 from franka_composer.validation import check_choice
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
+#: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
+#: state.json records a run's own, which a resume keeps.
+DEFAULT_CHECKPOINT_EVERY = 50_000
+
 #: Hyperparameters that leave what is learned alone: the budget, evaluation and stopping.
 NOT_LEARNING = ("total_steps", "eval_every", "eval_episodes", "stop_success_rate",
                 "stop_after_evaluations")

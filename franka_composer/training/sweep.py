@@ -15,11 +15,13 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 import shutil
+import signal
 import subprocess
 import sys
 import time
 
 from franka_composer.training.runs import RunDir, read_eval_rows
+from franka_composer.training.signals import interrupt_on
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,7 +111,13 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
         log.flush()
         process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
         try:
-            return cell.name, process.wait()
+            # Ray cancels a task by a simulated SIGINT: Python acts on it between bytecodes
+            # (so not inside a blocking wait) and not at all where the worker inherited
+            # SIG_IGN from a sweep started in the background.
+            with interrupt_on(signal.SIGINT):
+                while process.poll() is None:
+                    time.sleep(0.5)
+            return cell.name, process.returncode
         except BaseException:
             process.terminate()
             process.wait()
@@ -179,7 +187,8 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
               address: str | None = None, num_cpus: int | None = None,
               refresh_s: float = 30.0, show=print) -> list[CellStatus]:
     """Runs every unfinished cell as a Ray task of one CPU; shows the table every
-    `refresh_s` seconds and at the end; returns the final statuses."""
+    `refresh_s` seconds and at the end; returns the final statuses. SIGTERM or SIGINT (also
+    in the background) stops it as Ctrl-C does: each running cell checkpoints first."""
     import ray
 
     names = [cell.name for cell in cells]
@@ -198,21 +207,8 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
         submitted = time.time()
         pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
         try:
-            last = 0.0
-            while pending:
-                done, _ = ray.wait(list(pending), timeout=1.0)
-                for ref in done:
-                    name, code = ray.get(ref)
-                    if code != 0:
-                        failed.add(name)
-                    del pending[ref]
-                if time.monotonic() - last >= refresh_s and pending:
-                    queued = {cell.name for cell in pending.values()}
-                    running = {cell.name for cell in pending.values()
-                               if _started_since(cell, root, submitted)}
-                    show(status_table([cell_status(c, root, c.name in failed, c.name in running,
-                                                   c.name in queued) for c in cells]))
-                    last = time.monotonic()
+            with interrupt_on(signal.SIGTERM, signal.SIGINT):  # Stops with checkpoints.
+                _wait_for_cells(pending, cells, root, failed, submitted, refresh_s, show)
         except BaseException:
             for ref in pending:
                 ray.cancel(ref)  # KeyboardInterrupt in the task: its run checkpoints.
@@ -224,6 +220,28 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     statuses = [cell_status(cell, root, cell.name in failed) for cell in cells]
     show(status_table(statuses))
     return statuses
+
+
+def _wait_for_cells(pending: dict, cells: list[Cell], root: pathlib.Path, failed: set[str],
+                    submitted: float, refresh_s: float, show) -> None:
+    """Collects the cells' tasks as they end, showing the table every `refresh_s` seconds."""
+    import ray
+
+    last = 0.0
+    while pending:
+        done, _ = ray.wait(list(pending), timeout=1.0)
+        for ref in done:
+            name, code = ray.get(ref)
+            if code != 0:
+                failed.add(name)
+            del pending[ref]
+        if time.monotonic() - last >= refresh_s and pending:
+            queued = {cell.name for cell in pending.values()}
+            running = {cell.name for cell in pending.values()
+                       if _started_since(cell, root, submitted)}
+            show(status_table([cell_status(c, root, c.name in failed, c.name in running,
+                                           c.name in queued) for c in cells]))
+            last = time.monotonic()
 
 
 def run_directories(paths) -> list[pathlib.Path]:
