@@ -5,10 +5,13 @@
 #   BIN=.venv-sbx/bin benchmarks/train_throughput.sh "push sac step 1 1100 sb3" \
 #     "push sac step 1 1100 sbx"
 #
-# Each spec is "TASK ALGO SCHEDULE TRAIN_EVERY STEPS [BACKEND]" (BACKEND: sb3, the default,
-# or sbx, which needs sbx-rl in BIN's environment). A run takes SB3's 100 random steps,
-# then learns; it evaluates once at the start and once at the end (1 episode), so
-# steps/s = (STEPS - 100) / (wall time of eval.csv's last row - its first row).
+# Each spec is "TASK ALGO SCHEDULE TRAIN_EVERY STEPS [BACKEND [PRECISION]]" (BACKEND: sb3, the
+# default, or sbx, which needs sbx-rl in BIN's environment; PRECISION: fp32, the default, or
+# bf16). TRAIN_ARGS adds options to every run, e.g. the Table II campaign's slide network:
+#   TRAIN_ARGS="--net-arch 256,256,256 --batch-size 512" benchmarks/train_throughput.sh ...
+# A run takes SB3's 100 random steps, then learns; it evaluates once at the start and once
+# at the end (1 episode), so steps/s = (STEPS - 100) / (wall time of eval.csv's last row -
+# its first row).
 # Runs land in runs/throughput/ (not committed); each prints one line with the load average
 # and the CPU seconds the whole process used per wall second (above 1: more than one core).
 # With JAX_LOG_COMPILES=1 in the environment, sbx runs also print the seconds JAX spent
@@ -19,15 +22,17 @@ export OMP_NUM_THREADS=1
 BIN=${BIN:-.venv/bin}
 TIMEFORMAT='%R %U %S'
 for spec in "$@"; do
-  read -r task algo schedule every steps backend <<<"$spec"
-  backend=${backend:-sb3}
+  read -r task algo schedule every steps backend precision <<<"$spec"
+  backend=${backend:-sb3} precision=${precision:-fp32}
   out=runs/throughput/$task-$algo-$schedule-every$every
   [[ $backend == sb3 ]] || out=$out-$backend
+  [[ $precision == fp32 ]] || out=$out-$precision
   rm -rf "$out"
   mkdir -p "$out"
   times=$( { time "$BIN/franka-composer" train --task "$task" --algo "$algo" --seed 0 \
     --out "$out" --total-steps "$steps" --eval-every "$steps" --eval-episodes 1 \
-    --update-schedule "$schedule" --train-every "$every" --backend "$backend" --threads 1 \
+    --update-schedule "$schedule" --train-every "$every" --backend "$backend" \
+    --precision "$precision" --threads 1 ${TRAIN_ARGS:-} \
     --no-progress --device cpu >/dev/null 2>"$out/stderr.log"; } 2>&1 )
   python3 - "$out" "$steps" "$spec" "$times" <<'PY'
 import csv, os, re, sys
