@@ -6,8 +6,9 @@
 #   benchmarks/table2.sh run      train the cells, WORKERS at a time (default 1), each
 #                                 resumed from its checkpoint if it has one, skipped if done
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
-#   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv, outcome.json and
-#                                 (once it has finished) policy.pt into results/table2/<cell>/,
+#   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv (up to its
+#                                 checkpoint), outcome.json and (once it has finished)
+#                                 policy.pt into results/table2/<cell>/,
 #                                 from which `franka-composer evaluate results/table2` and
 #                                 `franka-composer demo --policy results/table2/<cell>` run
 #
@@ -33,8 +34,19 @@ case "${1:-}" in
       for file in config.json eval.csv outcome.json policy.pt; do
         if [ -f "$dir/$file" ]; then cp "$dir/$file" "results/table2/$cell/"; fi
       done
+      # A cell stopped between checkpoints redoes the steps after its checkpoint, and their
+      # evaluations with them: only the ones a resume keeps are committed.
+      "$BIN/python" - "$dir" "results/table2/$cell/eval.csv" <<'PY'
+import pathlib
+import sys
+from franka_composer.training.runs import RunDir, read_eval_rows, write_eval_rows
+run, committed = RunDir(pathlib.Path(sys.argv[1])), pathlib.Path(sys.argv[2])
+if run.read_state() and not run.read_outcome():
+    kept = [r for r in read_eval_rows(run.eval_csv) if r["steps"] <= run.read_state()["steps"]]
+    write_eval_rows(committed, kept)
+PY
     done
     ls results/table2
     ;;
-  *) sed -n '2,13p' "$0"; exit 2 ;;
+  *) sed -n '2,16p' "$0"; exit 2 ;;
 esac
