@@ -194,13 +194,20 @@ def test_resume_continues_step_count_buffer_and_csv(tmp_path, monkeypatch):
     assert _train(out, "sac", 200, "--checkpoint-every", "100") == 0
     state = RunDir(out).read_state()
     assert state["steps"] == 200 and state["checkpoint_every"] == 100
-    saved_at, save = [], LatestCheckpoint.save
-    monkeypatch.setattr(LatestCheckpoint, "save",
-                        lambda self: (saved_at.append(self.model.num_timesteps), save(self)))
+    assert RunDir(out).read_outcome()["steps"] == 200
+    saved_at, outcomes, save = [], [], LatestCheckpoint.save
+
+    def spy(self):
+        saved_at.append(self.model.num_timesteps)
+        outcomes.append(RunDir(out).read_outcome())
+        save(self)
+
+    monkeypatch.setattr(LatestCheckpoint, "save", spy)
     assert _train(out, "sac", 400, "--resume") == 0
     # The run's own cadence after a resume, not the default's (400 twice: on the grid, where
     # SB3 saves before storing the step's transition, then complete at the end).
     assert saved_at == [300, 400, 400]
+    assert outcomes == [{}, {}, {}]  # Going on, it has not ended: no outcome until it does.
     rows = read_eval_rows(RunDir(out).eval_csv)
     assert [r["steps"] for r in rows] == [0, 100, 200, 300, 400]
     assert rows[3]["wall_time_s"] > state["wall_time_s"]

@@ -106,6 +106,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     remaining = hp.total_steps - model.num_timesteps
     if run.read_outcome().get("stopped_early"):
         remaining = 0  # It met the stopping rule: more steps would not be the same run.
+    elif remaining > 0:
+        run.outcome_path.unlink(missing_ok=True)  # A raised budget: it has not ended now.
     try:
         with interrupt_on(signal.SIGTERM):
             if remaining > 0:

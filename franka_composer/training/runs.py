@@ -3,7 +3,8 @@
     RUN_DIR/config.json          task, algorithm, seed, backend, options, hyperparameters
     RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
     RUN_DIR/model.zip            the final model (written when training completes)
-    RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early
+    RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early (none
+                                 while a resume with a raised budget trains)
     RUN_DIR/checkpoint/          latest model.zip, replay_buffer.pkl, state.json
 """
 
