@@ -26,29 +26,9 @@ case "${1:-}" in
     wait
     ;;
   table)
-    MARKS=${MARKS:-10000 20000 30000 40000} WINDOW=${WINDOW:-} \
-      "$BIN/python" - "$RUNS" "${PRECISIONS[@]}" <<'PY'
-import os, pathlib, sys
-import numpy as np
-from franka_composer.training.runs import read_eval_rows
-root, precisions = pathlib.Path(sys.argv[1]), sys.argv[2:]
-marks = [int(m) for m in os.environ["MARKS"].split()]
-window = [int(m) for m in os.environ["WINDOW"].split()]
-def cell(rates):
-    return f"{100 * np.mean(rates):.0f} ± {100 * np.std(rates):.0f} % (n={len(rates)})" if rates else "–"
-heads = [f"{m // 1000}k" for m in marks] + ([f"mean {window[0] // 1000}k–{window[1] // 1000}k"] if window else [])
-print("| precision | " + " | ".join(heads) + " |")
-print("|---|" + "---|" * len(heads))
-for precision in precisions:
-    runs = [read_eval_rows(run) for run in sorted((root / precision).glob("*/eval.csv"))]
-    cells = [cell([row["success_rate"] for rows in runs for row in rows if row["steps"] == mark])
-             for mark in marks]
-    if window:  # A run counts once it has evaluations up to the window's end.
-        cells.append(cell([np.mean([row["success_rate"] for row in rows
-                                    if window[0] <= row["steps"] <= window[1]])
-                           for rows in runs if rows and rows[-1]["steps"] >= window[1]]))
-    print(f"| {precision} | " + " | ".join(cells) + " |")
-PY
+    arms=(); for precision in "${PRECISIONS[@]}"; do arms+=(--arm "$precision" "$RUNS/$precision/*"); done
+    "$BIN/python" benchmarks/compare_arms.py "${arms[@]}" --marks ${MARKS:-10000 20000 30000 40000} \
+      ${WINDOW:+--window $WINDOW}
     ;;
   sync)
     for dir in "$RUNS"/*/*/; do

@@ -184,3 +184,41 @@ def test_probing_the_critic_leaves_the_run_as_train_makes_it():
     assert len(reports) == 6 and torch.equal(weights[0], weights[1])
     assert all(r["saturated"].shape == r["log_std"].shape == (3,) and r["alpha"] > 0
                for r in reports)
+
+
+def _write_runs(root: pathlib.Path, curves: dict[str, dict[int, float]]) -> None:
+    from franka_composer.training.runs import write_eval_rows
+    for name, curve in curves.items():
+        (root / name).mkdir(parents=True)
+        write_eval_rows(root / name / "eval.csv", [
+            {"steps": steps, "wall_time_s": 1.0, "success_rate": rate, "mean_reward": -1.0}
+            for steps, rate in curve.items()])
+
+
+def test_compare_arms_gives_mean_and_std_over_seeds_at_each_mark_and_over_a_window(tmp_path):
+    _write_runs(tmp_path / "a", {"seed0": {10_000: 0.2, 20_000: 0.4, 30_000: 0.6},
+                                 "seed1": {10_000: 0.4, 20_000: 0.8, 30_000: 1.0}})
+    # A run short of the window's end counts at the marks it reached, not in the window.
+    _write_runs(tmp_path / "b", {"seed0": {10_000: 0.1, 20_000: 0.3, 30_000: 0.5},
+                                 "seed1": {10_000: 0.3}})
+    completed = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "compare_arms.py"), "--arm", "a", str(tmp_path / "a/*"),
+         "--arm", "b", str(tmp_path / "b/*"), "--marks", "10000", "30000",
+         "--window", "20000", "30000"], capture_output=True, text=True, check=True)
+    assert completed.stdout.splitlines() == [
+        "| arm | 10k | 30k | mean 20k–30k |",
+        "|---|---|---|---|",
+        "| a | 30 ± 10 % (n=2) | 80 ± 20 % (n=2) | 70 ± 20 % (n=2) |",
+        "| b | 20 ± 10 % (n=2) | 50 ± 0 % (n=1) | 40 ± 0 % (n=1) |",
+    ]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--arm", "a", "/nowhere/*"], "arm 'a': no run directory matches '/nowhere/*'"),
+    (["--arm", "a", "/nowhere/*", "--window", "5", "1"], "--window: start 5 is after end 1"),
+])
+def test_compare_arms_names_what_was_wrong(args, message):
+    completed = subprocess.run([sys.executable, str(BENCHMARKS / "compare_arms.py"), *args],
+                               capture_output=True, text=True, check=False)
+    assert completed.returncode != 0
+    assert message in completed.stderr

@@ -122,6 +122,41 @@ def test_a_bad_sweep_is_refused_before_anything_runs(tmp_path, argv, message):
     assert not (tmp_path / "sweep").exists()
 
 
+def test_a_cell_trained_as_another_run_is_refused_before_anything_runs(tmp_path):
+    """Changing a grid's options (say, a backend) under a sweep that has trained would
+    otherwise resume its cells with their old settings under the new grid's name."""
+    from franka_composer.training import hyperparameters, loop
+    from franka_composer.training.runs import RunConfig
+
+    out = tmp_path / "sweep"
+    hp = hyperparameters("push", "sac").replace(stop_success_rate=0.95)
+    trained = loop.start(out / "push-sac-seed0", RunConfig("push", "sac", 0, hp))
+    trained.checkpoint.mkdir()
+    trained.checkpoint_state.write_text(json.dumps({"steps": 2000}))
+    untrained = loop.start(out / "push-sac-seed1", RunConfig("push", "sac", 1, hp))
+    before = {path: path.stat().st_mtime_ns for path in out.rglob("*")}
+    sweep = ["sweep", "--out", str(out), "--tasks", "push", "--algos", "sac", "--seeds", "0",
+             "1", "--steps", "5000", "--", "--stop-at-success", "0.95"]
+    with pytest.raises(ValueError) as error:
+        cli.main([*sweep, "--precision", "bf16", "--batch-size", "64"])
+    assert str(error.value) == (
+        f"{trained.root} holds a run other than the one this sweep gives that cell (the "
+        "sweep's setting, not the run's: precision: bf16, not fp32; batch_size: 64, not "
+        "512): move it aside, or sweep into another --out")
+    assert {path: path.stat().st_mtime_ns for path in out.rglob("*")} == before
+    # The same run with a larger budget is the same cell; a cell without a checkpoint
+    # starts afresh with the sweep's settings, whatever its directory held.
+    from franka_composer.cli.sweep import _check_trained_as
+    from franka_composer.cli.train import run_config
+
+    for run, options in ((trained, ["--total-steps", "9000"]), (untrained, ["--seed", "1",
+                                                                            "--precision",
+                                                                            "bf16"])):
+        args = cli.build_parser().parse_args(["train", "--task", "push", "--algo", "sac",
+                                              "--stop-at-success", "0.95", *options])
+        _check_trained_as(run, run_config(args))
+
+
 def test_bad_train_options_and_budgets_are_refused_by_the_parsers(tmp_path, capsys):
     base = ["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
             "--seeds", "0"]

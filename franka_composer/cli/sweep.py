@@ -24,8 +24,9 @@ def add_parser(subparsers) -> None:
                     "in OUT/TASK-ALGO-seedN, one CPU each, as Ray tasks on a local Ray (or "
                     "the cluster at --address; OUT must then be on a file system all its "
                     "nodes share). Running the same sweep again resumes unfinished cells "
-                    "from their checkpoints and skips finished ones; Ctrl-C checkpoints the "
-                    "running cells. `evaluate OUT` and `plot OUT` read the sweep. Options "
+                    "from their checkpoints (with the settings they were started with: a cell "
+                    "trained with settings other than the grid's is refused) and skips "
+                    "finished ones; Ctrl-C checkpoints the running cells. `evaluate OUT` and `plot OUT` read the sweep. Options "
                     "after `--` go to every cell's `train` (e.g. -- --update-schedule "
                     "episode --threads 1). Needs Ray: pip install 'franka_composer[sweep]'.")
     parser.add_argument("--out", type=pathlib.Path, required=True,
@@ -86,8 +87,24 @@ def cells_of(args: argparse.Namespace):
     return grid(args.tasks, args.algos, args.seeds, args.steps), ()
 
 
+def _check_trained_as(run, config) -> None:
+    """A cell resumes from its checkpoint with the settings it was started with: if the
+    grid or the options after -- now describe another run, say so rather than go on with
+    the old one under the new one's name. (A cell without a checkpoint starts afresh.)"""
+    if not (run.read_state() or run.read_outcome()):
+        return
+    differences = config.differences(run.read_config())
+    if differences:
+        raise ValueError(f"{run.root} holds a run other than the one this sweep gives that "
+                         f"cell (the sweep's setting, not the run's: "
+                         f"{'; '.join(differences)}): move it aside, or sweep into another "
+                         "--out")
+
+
 def run(args: argparse.Namespace) -> int:
     from franka_composer.cli import build_parser
+    from franka_composer.cli.train import run_config
+    from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import cell_status, run_sweep, status_table, train_command
 
     cells, rule = cells_of(args)
@@ -104,8 +121,11 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise ValueError("franka-composer sweep runs its cells on Ray: pip install "
                          "'franka_composer[sweep]' (or pip install ray)") from error
-    for cell in cells:  # Every cell's options are checked by train's own parser first.
-        build_parser().parse_args(train_command(cell, args.out, train_args)[3:])
+    for cell in cells:  # Every cell's options are checked by train's own parser first,
+        # and a cell trained before must be the run the grid describes.
+        config = run_config(build_parser().parse_args(train_command(cell, args.out,
+                                                                    train_args)[3:]))
+        _check_trained_as(RunDir(args.out / cell.name), config)
     try:
         statuses = run_sweep(cells, args.out, train_args, address=args.address,
                              num_cpus=args.num_cpus, refresh_s=args.refresh,

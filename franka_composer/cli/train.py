@@ -34,14 +34,14 @@ def _rate(text: str) -> float:
     return value
 
 
-def _demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -> str | None:
-    """The demonstrations' path, absolute (the run may resume from elsewhere), checked
-    before the run directory exists: they load as the task's, and the buffer keeps them."""
+def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -> None:
+    """Checks --demos before the run directory exists: they load as the task's, and the
+    buffer keeps them."""
     if args.demos is None:
         if args.demo_episodes is not None:
             raise ValueError("--demo-episodes takes the first episodes of --demos DATASET, "
                              "and no --demos was given")
-        return None
+        return
     from franka_composer.training import demos
     from franka_composer.training.models import make_env
 
@@ -54,7 +54,6 @@ def _demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -> str 
         raise ValueError(f"--demo-episodes {args.demo_episodes}, but {args.demos} holds "
                          f"{len(episodes)} episodes")
     demos.check_capacity(episodes[:args.demo_episodes], buffer_size, total_steps)
-    return str(args.demos.resolve())
 
 
 def add_parser(subparsers) -> None:
@@ -171,29 +170,37 @@ def _limit_threads(threads: int | None, backend: str):
             os.sched_setaffinity(0, pinned)
 
 
+def run_config(args: argparse.Namespace):
+    """The run these `train` arguments start (what its config.json will hold)."""
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.runs import RunConfig
+
+    hp = hyperparameters(args.task, args.algo).replace(
+        update_schedule=args.update_schedule, train_every=args.train_every,
+        net_arch=args.net_arch,
+        batch_size=args.batch_size, buffer_size=args.buffer_size,
+        learning_starts=args.learning_starts, eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
+        stop_after_evaluations=args.stop_after, clip_q_targets=args.clip_q_targets)
+    return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
+                     args.backend, args.control, args.precision, args.randomization,
+                     str(args.demos.resolve()) if args.demos else None, args.demo_episodes)
+
+
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training import hyperparameters, loop
+    from franka_composer.training import loop
     from franka_composer.training.models import algorithm_class
-    from franka_composer.training.runs import RunConfig, RunDir
+    from franka_composer.training.runs import RunDir
 
     out = args.out or pathlib.Path("runs") / f"{args.task}-{args.algo}-seed{args.seed}"
     if args.resume:
         run_dir = RunDir(out)
     else:
         algorithm_class(args.algo, args.backend)  # A missing sbx fails before the run exists.
-        hp = hyperparameters(args.task, args.algo).replace(
-            update_schedule=args.update_schedule, train_every=args.train_every,
-            net_arch=args.net_arch,
-            batch_size=args.batch_size, buffer_size=args.buffer_size,
-            learning_starts=args.learning_starts, eval_every=args.eval_every,
-            eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
-            stop_after_evaluations=args.stop_after, clip_q_targets=args.clip_q_targets)
-        demo_path = _demos(args, hp.buffer_size, args.total_steps or hp.total_steps)
-        run_dir = loop.start(out, RunConfig(args.task, args.algo, args.seed, hp,
-                                            args.terminate_on_success, args.backend,
-                                            args.control, args.precision,
-                                            args.randomization, demo_path,
-                                            args.demo_episodes))
+        config = run_config(args)
+        _check_demos(args, config.hyperparameters.buffer_size,
+                     args.total_steps or config.hyperparameters.total_steps)
+        run_dir = loop.start(out, config)
     try:
         with _limit_threads(args.threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,

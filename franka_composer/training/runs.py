@@ -98,6 +98,17 @@ class RunConfig:
             (not self.terminate_on_success, "no termination on success")) if differs]
         return ", ".join(parts)
 
+    def differences(self, other: "RunConfig") -> list[str]:
+        """What makes `other` a different run from this one, as "name: ours, not theirs";
+        the step budget is not among them (a run may go on to a larger one)."""
+        def settings(config: RunConfig) -> dict:
+            flat = {**config.to_dict(), **config.hyperparameters.to_dict()}
+            del flat["hyperparameters"], flat["total_steps"]
+            return flat
+        ours, theirs = settings(self), settings(other)
+        return [f"{name}: {ours[name]}, not {theirs[name]}" for name in ours
+                if ours[name] != theirs[name]]
+
     @property
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""

@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# Does TQC learn the same on sbx (1.5x SB3-bf16's steps/s here) as on SB3 in bf16 (issue 15)?
+# TQC + HER on push, Table I settings, the campaign's stopping rule, seeds 0, 1, 2 to 1e5
+# steps in each arm, at low priority, runs outside the work tree (each resumes: run it again).
+# The SB3 arm is the campaign's own push-tqc cells, the command its sweep runs, brought forward.
+#
+#   benchmarks/tqc_check.sh run sbx|sb3 [SEED ...]   train (or resume) one arm's seeds in turn
+#   benchmarks/tqc_check.sh sync     copy each run's config.json, eval.csv (up to 1e5 steps)
+#                                    and outcome.json (at 1e5) into results/tqc-check/<arm>/
+#   benchmarks/tqc_check.sh table    success at 50k-100k and mean over 60k-100k per arm,
+#                                    from results/tqc-check/
+#   benchmarks/tqc_check.sh final    the final test: 100 episodes per model (the same for all),
+#                                    run before the campaign takes the SB3 cells further
+set -uo pipefail
+cd "$(dirname "$0")/.."
+RUNS=${RUNS:-$HOME/franka_runs}
+BIN=${BIN:-.venv/bin}
+STEPS=100000
+export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
+
+run_dir() {  # run_dir ARM SEED
+  if [ "$1" = sbx ]; then echo "$RUNS/tqc-check/push-tqc-seed$2-sbx"; else echo "$RUNS/table2/push-tqc-seed$2"; fi
+}
+
+case "${1:-}" in
+  run)
+    arm=${2:?sbx or sb3}; shift 2
+    case "$arm" in sbx) setup=(--backend sbx) ;; sb3) setup=(--precision bf16) ;;
+      *) echo "tqc_check.sh run: arm must be sbx or sb3, not '$arm'" >&2; exit 2 ;; esac
+    seeds=("$@"); [ ${#seeds[@]} -gt 0 ] || seeds=(0 1 2)
+    for seed in "${seeds[@]}"; do
+      out=$(run_dir "$arm" "$seed")
+      if [ -f "$out/checkpoint/state.json" ]; then
+        args=(--resume)
+      else
+        rm -rf "$out"
+        args=(--task push --algo tqc --seed "$seed" "${setup[@]}" --stop-at-success 0.95
+              --stop-after 5)
+      fi
+      nice -n 10 "$BIN/franka-composer" train --out "$out" --total-steps "$STEPS" --no-progress \
+        "${args[@]}" --checkpoint-every 10000 --threads 1 --device cpu || exit 1
+    done
+    ;;
+  sync)
+    for arm in sbx sb3; do
+      for seed in 0 1 2; do
+        run=$(run_dir "$arm" "$seed"); kept=results/tqc-check/$arm/push-tqc-seed$seed
+        [ -f "$run/config.json" ] || continue
+        mkdir -p "$kept"
+        cp "$run/config.json" "$kept/"
+        # The SB3 arm's cells go on to the campaign's budget: the check keeps its first 1e5
+        # steps, and of a run stopped between checkpoints only what a resume keeps.
+        "$BIN/python" - "$run" "$kept/eval.csv" "$STEPS" <<'PY'
+import json
+import pathlib
+import sys
+from franka_composer.training.runs import RunDir, read_eval_rows, write_eval_rows
+run, kept, steps = RunDir(pathlib.Path(sys.argv[1])), pathlib.Path(sys.argv[2]), int(sys.argv[3])
+state = run.read_state()
+if state and not run.read_outcome():
+    steps = min(steps, state["steps"])
+write_eval_rows(kept, [row for row in read_eval_rows(run.eval_csv) if row["steps"] <= steps])
+outcome = run.read_outcome()
+if outcome and outcome["steps"] <= steps:  # Not the outcome of the campaign's longer run.
+    (kept.parent / "outcome.json").write_text(json.dumps(outcome))
+PY
+      done
+    done
+    ;;
+  table)
+    "$BIN/python" benchmarks/compare_arms.py \
+      --arm "sb3 bf16" "results/tqc-check/sb3/*" --arm sbx "results/tqc-check/sbx/*" \
+      --marks 50000 60000 70000 80000 90000 100000 --window 60000 100000
+    ;;
+  final)  # Before the campaign takes the SB3 arm's cells past 1e5 steps.
+    runs=()
+    for arm in sb3 sbx; do
+      for seed in 0 1 2; do
+        run=$(run_dir "$arm" "$seed")
+        if ! grep -q "\"steps\": $STEPS," "$run/outcome.json" 2>/dev/null; then
+          echo "tqc_check.sh final: $run has not ended at $STEPS steps" >&2; exit 1
+        fi
+        runs+=("$run")
+      done
+    done
+    "$BIN/franka-composer" evaluate "${runs[@]}" --episodes 100
+    ;;
+  *) sed -n '2,13p' "$0"; exit 2 ;;
+esac
