@@ -89,13 +89,16 @@ def test_a_variant_names_what_differs_from_the_papers_setup():
         total_steps=10, eval_every=10, eval_episodes=1, stop_success_rate=0.95)).variant == ""
     campaign_slide = table_i.replace(net_arch=[256, 256, 256], batch_size=512,
                                      update_schedule="episode")
-    assert RunConfig("slide", "tqc", 0, campaign_slide, control="osc", precision="bf16",
-                     randomization="default", demos="/data/slide-expert-100.npz",
-                     demo_episodes=50, terminate_on_success=False).variant == (
-        "net_arch 256,256,256, batch_size 512, update_schedule episode, osc control, bf16, "
+    config = RunConfig("slide", "tqc", 0, campaign_slide, control="osc", precision="bf16",
+                       randomization="default", demos="/data/slide-expert-100.npz",
+                       demo_episodes=50, terminate_on_success=False)
+    assert config.setup == (
+        "net_arch 256,256,256, batch_size 512, update_schedule episode, osc control, "
         "randomization default, demos slide-expert-100.npz[:50], no termination on success")
-    assert RunConfig("push", "sac", 0, hyperparameters("push", "sac"),
-                     backend="sbx").variant == "sbx"
+    assert config.computation == "bf16"
+    assert config.variant == config.setup + ", bf16"
+    sbx = RunConfig("push", "sac", 0, hyperparameters("push", "sac"), backend="sbx")
+    assert (sbx.setup, sbx.computation, sbx.variant) == ("", "sbx", "sbx")
 
 
 def test_runs_of_different_variants_are_not_seeds_of_one_cell(tmp_path):
@@ -107,12 +110,18 @@ def test_runs_of_different_variants_are_not_seeds_of_one_cell(tmp_path):
         ["| push", "SAC", "0, 1"], ["| push (bf16)", "SAC", "0"]]
     results = [report.RunResult("a", "push", "sac", 0, 10, 0.5),
                report.RunResult("b", "push", "sac", 1, 10, 1.0),
-               report.RunResult("c", "push", "sac", 0, 10, 0.0, "bf16"),
-               report.RunResult("d", "slide", "tqc", 0, 10, 1.0)]
+               report.RunResult("c", "push", "sac", 0, 10, 0.0, computation="bf16"),
+               report.RunResult("d", "push", "tqc", 0, 10, 0.2, computation="sbx"),
+               report.RunResult("e", "push", "sac", 0, 10, 0.4, "osc control", "bf16"),
+               report.RunResult("f", "slide", "tqc", 0, 10, 1.0)]
+    # A row per task and setup; runs computed otherwise share its cells, not averaged.
     assert report.markdown_table(results).splitlines()[2:] == [
-        "| Push | – | 75.0 ± 25.0 | – |", "| Push (bf16) | – | 0.0 ± 0.0 | – |",
+        "| Push | – | 75.0 ± 25.0; 0.0 ± 0.0 (bf16) | 20.0 ± 0.0 (sbx) |",
+        "| Push (osc control) | – | 40.0 ± 0.0 (bf16) | – |",
         "| Slide | – | – | 100.0 ± 0.0 |"]
     assert report.seeds_note(results).splitlines() == [
         "- push / sac: seeds 0, 1; trained steps 10, 10",
         "- push (bf16) / sac: seeds 0; trained steps 10",
+        "- push (osc control, bf16) / sac: seeds 0; trained steps 10",
+        "- push (sbx) / tqc: seeds 0; trained steps 10",
         "- slide / tqc: seeds 0; trained steps 10"]

@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
         finally:
             env.close()
         result = RunResult(str(root), config.task, config.algo, config.seed,
-                           int(model.num_timesteps), outcome.success_rate, config.variant)
+                           int(model.num_timesteps), outcome.success_rate, config.setup,
+                           config.computation)
         results.append(result)
         print(f"{root}: {with_variant(config.task, config.variant)} {config.algo} seed "
               f"{config.seed}, {result.steps} steps: "

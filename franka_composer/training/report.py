@@ -9,6 +9,7 @@ import numpy as np
 
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
+from franka_composer.training.runs import variant_label
 
 #: Row order of the paper's Table II; the other tasks follow in the registry's order.
 TABLE_II_TASKS = ("push", "slide", "pick_and_place")
@@ -27,7 +28,12 @@ class RunResult:
     seed: int
     steps: int
     success_rate: float  # fraction in [0, 1]
-    variant: str = ""  # `RunConfig.variant`: "" for the paper's setup
+    setup: str = ""  # `RunConfig.setup`: "" for the paper's
+    computation: str = ""  # `RunConfig.computation`: "" for the paper's (SB3, fp32)
+
+    @property
+    def variant(self) -> str:
+        return variant_label(self.setup, self.computation)
 
 
 def with_variant(name: str, variant: str) -> str:
@@ -58,20 +64,25 @@ def cell_order(cell: tuple[str, str, str]) -> tuple:
 
 
 def markdown_table(results: list[RunResult]) -> str:
-    """Success rate % as mean ± std over seeds (population std, ddof=0) per task (and
-    variant) and algorithm; "–" where no run exists. Rows and columns in the paper's
-    order, a task's paper setup before its variants."""
-    cells = group_by_cell(results)
-    rows = list(dict.fromkeys((task, variant)
-                              for task, variant, _ in sorted(cells, key=cell_order)))
+    """Success rate % as mean ± std over seeds (population std, ddof=0), a row per task
+    (and setup), a column per algorithm; "–" where no run exists. Rows and columns in the
+    paper's order, a task's paper setup before its variants. How a cell's runs were
+    computed, where not as the paper's, follows its number ("85.0 ± 5.0 (bf16)"): runs
+    computed differently are not averaged, they share the cell side by side."""
+    rows: dict[tuple[str, str], dict[str, list[str]]] = {}
+    for (task, _, algo), runs in sorted(group_by_cell(results).items(),
+                                        key=lambda cell: cell_order(cell[0])):
+        rates = [100.0 * run.success_rate for run in runs]
+        computation = runs[0].computation
+        rows.setdefault((task, runs[0].setup), {}).setdefault(algo, []).append(
+            f"{np.mean(rates):.1f} ± {np.std(rates):.1f}"
+            + (f" ({computation})" if computation else ""))
     lines = ["| Tasks | " + " | ".join(a.upper() for a in ALGOS) + " |",
              "|---|" + "---|" * len(ALGOS)]
-    for task, variant in rows:
-        row = []
-        for algo in ALGOS:
-            rates = [100.0 * r.success_rate for r in cells.get((task, variant, algo), [])]
-            row.append(f"{np.mean(rates):.1f} ± {np.std(rates):.1f}" if rates else "–")
-        lines.append(f"| {task_label(task, variant)} | " + " | ".join(row) + " |")
+    for (task, setup), entries in rows.items():
+        lines.append(f"| {task_label(task, setup)} | "
+                     + " | ".join("; ".join(entries.get(algo, [])) or "–" for algo in ALGOS)
+                     + " |")
     return "\n".join(lines) + "\n"
 
 

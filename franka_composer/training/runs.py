@@ -31,6 +31,11 @@ NOT_LEARNING = ("total_steps", "eval_every", "eval_episodes", "stop_success_rate
                 "stop_after_evaluations")
 
 
+def variant_label(setup: str, computation: str) -> str:
+    """A run's variant (`RunConfig.variant`) from its setup and computation labels."""
+    return ", ".join(part for part in (setup, computation) if part)
+
+
 @dataclasses.dataclass(frozen=True)
 class RunConfig:
     """What a run trains: enough to rebuild its model and environments on resume.
@@ -79,24 +84,34 @@ class RunConfig:
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
-    def variant(self) -> str:
-        """What sets this run apart from the paper's setup (Table I for its task and
-        algorithm, mocap, fp32, SB3, terminating on success, nothing added), as a label;
-        "" for none. Runs with different variants are not seeds of one cell: `evaluate`,
-        `plot` and `report` keep them apart."""
+    def setup(self) -> str:
+        """What this run learns that the paper's setup does not (Table I for its task and
+        algorithm, mocap, terminating on success, nothing added), as a label; "" for none."""
         table_i = hyperparameters(self.task, self.algo).to_dict()
         parts = [f"{name} {','.join(map(str, value)) if isinstance(value, tuple) else value}"
                  for name, value in self.hyperparameters.to_dict().items()
                  if name not in NOT_LEARNING and value != table_i[name]]
         parts += [label for differs, label in (
             (self.control != "mocap", f"{self.control} control"),
-            (self.precision != "fp32", self.precision),
-            (self.backend != "sb3", self.backend),
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
             (not self.terminate_on_success, "no termination on success")) if differs]
         return ", ".join(parts)
+
+    @property
+    def computation(self) -> str:
+        """How its networks were computed, where not as the paper's (SB3, fp32): "bf16",
+        "sbx" or ""."""
+        return ", ".join(label for differs, label in (
+            (self.precision != "fp32", self.precision),
+            (self.backend != "sb3", self.backend)) if differs)
+
+    @property
+    def variant(self) -> str:
+        """Its setup and computation: runs with different variants are not seeds of one
+        cell (`evaluate`, `plot` and `report` keep them apart)."""
+        return variant_label(self.setup, self.computation)
 
     def differences(self, other: "RunConfig") -> list[str]:
         """What makes `other` a different run from this one, as "name: ours, not theirs";
