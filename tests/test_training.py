@@ -390,13 +390,40 @@ def test_sbx_run_trains_resumes_and_evaluates(tmp_path, algo, capsys):
     env = make_env("push")
     model = load_model(algo, RunDir(out).final_model, env=env, device="cpu", backend="sbx")
     assert isinstance(model, getattr(sbx, algo.upper())) and model.num_timesteps == 300
-    assert not RunDir(out).policy_file.exists()  # JAX actors: the run keeps its model.zip.
     model.load_replay_buffer(RunDir(out).checkpoint_buffer)
     assert model.replay_buffer.size() == 300  # The first 200 came back from the checkpoint.
+    # Its policy file (the flax actor's parameters) acts as the model, to the bit.
+    from franka_composer.training.policy_file import ActorPolicy, load_trained
+
+    committed = RunDir(_committed_copy(out, tmp_path / "committed"))
+    small = load_trained(committed, env, device="cpu")
+    assert isinstance(small, ActorPolicy) and small.num_timesteps == 300
+    assert RunDir(out).policy_file.stat().st_size < RunDir(out).final_model.stat().st_size / 2
+    obs, _ = env.reset(seed=3)
+    for _ in range(20):
+        action, _ = model.predict(obs, deterministic=True)
+        np.testing.assert_array_equal(small.predict(obs, deterministic=True)[0], action)
+        obs = env.step(env.action_space.sample())[0]
     env.close()
     capsys.readouterr()
-    assert cli.main(["evaluate", str(out), "--episodes", "1", "--device", "cpu"]) == 0
-    assert "300 steps" in capsys.readouterr().out
+    reports = []
+    for root in (out, committed.root):
+        assert cli.main(["evaluate", str(root), "--episodes", "1", "--device", "cpu"]) == 0
+        reports.append(capsys.readouterr().out.replace(str(root), "RUN"))
+    assert "300 steps" in reports[0] and reports[0] == reports[1]
+    # A policy file is loaded by the library its run's config.json names, or refused.
+    config = json.loads(committed.config_path.read_text())
+    committed.config_path.write_text(json.dumps({**config, "backend": "sb3"}))
+    env = make_env("push")
+    with pytest.raises(ValueError, match="holds an actor of sbx, and its run's config.json "
+                                         "says sb3"):
+        load_trained(committed, env, device="cpu")
+    committed.config_path.write_text(json.dumps({**config, "hyperparameters": {
+        **config["hyperparameters"], "net_arch": [16, 8]}}))
+    with pytest.raises(ValueError, match="its actor's parameters do not fit the network its "
+                                         "run's config.json describes"):
+        load_trained(committed, env, device="cpu")
+    env.close()
 
 
 def test_sbx_backend_without_sbx_is_a_value_error(tmp_path, monkeypatch):

@@ -127,8 +127,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         checkpoint.init_callback(model)
     checkpoint.save()  # Again on the grid too: SB3 checkpoints before storing the transition.
     model.save(run.final_model)
-    if config.backend == "sb3":
-        save_policy(model, run.policy_file)
+    save_policy(model, run.policy_file)
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
     run.write_outcome(int(model.num_timesteps), stopped_early, clock(), clock.cpu())
     return model

@@ -5,8 +5,9 @@ Deterministic actions come from the actor alone, so this is all `evaluate`, `rol
 [256]^3 networks, against 2.3-2.9 MB for SB3's model.zip with its critics, target critics
 and optimiser state (Table II's 23 runs: 13 MB). The actor is rebuilt from the run's
 config.json (the same `policy_kwargs` the model was built with) and acts as the trained
-model does, to the bit. SB3 runs only: sbx's actors are JAX functions; their runs keep
-model.zip.
+model does, to the bit. An sbx run's actor is a flax network: its parameters are stored the
+same way, by their flax path ("params/Dense_0/kernel"), and put back into a freshly built
+sbx model (its model.zip is 17.5 MB for TQC, with its optimiser states).
 """
 
 from __future__ import annotations
@@ -14,31 +15,45 @@ from __future__ import annotations
 import pathlib
 
 import gymnasium as gym
+import numpy as np
 
-from franka_composer.training.models import (algorithm_class, load_model, policy_kwargs,
-                                             resolve_device)
+from franka_composer.training.models import (algorithm_class, build_model, load_model,
+                                             policy_kwargs, resolve_device)
 from franka_composer.training.runs import RunConfig, RunDir
 
 #: Bumped when the file's layout changes; a file of another version is refused by name.
 FORMAT = 1
 
 
-def save_policy(model, path: pathlib.Path) -> None:
-    """Writes `model`'s actor and step count to `path` (an SB3 model)."""
+def _actor_weights(model) -> tuple[str, dict]:
+    """(backend, the actor's weights as CPU tensors by name) of an SB3 or sbx model."""
     import torch
 
     actor = getattr(model, "actor", None)
-    if not isinstance(actor, torch.nn.Module):
-        raise ValueError(f"a policy file holds a torch actor; {type(model).__name__} has none "
-                         "(sbx runs keep their model.zip)")
-    torch.save({"format": FORMAT, "steps": int(model.num_timesteps),
-                "actor": {name: tensor.detach().cpu()
-                          for name, tensor in actor.state_dict().items()}}, path)
+    if isinstance(actor, torch.nn.Module):
+        return "sb3", {name: tensor.detach().cpu() for name, tensor in actor.state_dict().items()}
+    actor_state = getattr(getattr(model, "policy", None), "actor_state", None)
+    if actor_state is None:
+        raise ValueError(f"a policy file holds an SB3 or sbx actor; {type(model).__name__} "
+                         "has neither")
+    from flax.traverse_util import flatten_dict
+
+    return "sbx", {name: torch.from_numpy(np.array(leaf)) for name, leaf in
+                   flatten_dict(dict(actor_state.params), sep="/").items()}
+
+
+def save_policy(model, path: pathlib.Path) -> None:
+    """Writes `model`'s actor and step count to `path` (an SB3 or sbx model)."""
+    import torch
+
+    backend, weights = _actor_weights(model)
+    torch.save({"format": FORMAT, "backend": backend, "steps": int(model.num_timesteps),
+                "actor": weights}, path)
 
 
 class ActorPolicy:
-    """An SB3 policy whose actor holds saved weights; `predict` and `num_timesteps` as on the
-    trained model, for code that takes either."""
+    """An SB3 or sbx policy whose actor holds saved weights; `predict` and `num_timesteps`
+    as on the trained model, for code that takes either."""
 
     def __init__(self, policy, num_timesteps: int) -> None:
         self.policy = policy
@@ -53,20 +68,46 @@ def load_policy(config: RunConfig, path: pathlib.Path, env: gym.Env,
     """The actor saved at `path` by a run of `config`, on `env`'s spaces."""
     import torch
 
-    if config.backend != "sb3":
-        raise ValueError(f"{path}: policy files hold SB3 actors, and this run used "
-                         f"{config.backend}")
     device = resolve_device(device)
     state = torch.load(path, map_location=device, weights_only=True)
     if state.get("format") != FORMAT:
         raise ValueError(f"{path} is a policy file of format {state.get('format')!r}; this "
                          f"version of franka_composer reads format {FORMAT}")
+    saved_by = state.get("backend", "sb3")  # Files from before sbx's were SB3's.
+    if saved_by != config.backend:
+        raise ValueError(f"{path} holds an actor of {saved_by}, and its run's config.json "
+                         f"says {config.backend}")
+    if config.backend == "sbx":
+        return ActorPolicy(_sbx_policy(config, state["actor"], env, path), state["steps"])
     policy_class = algorithm_class(config.algo).policy_aliases["MultiInputPolicy"]
     policy = policy_class(env.observation_space, env.action_space, lr_schedule=lambda _: 0.0,
                           **policy_kwargs(config.algo, config.hyperparameters))
     policy.actor.load_state_dict(state["actor"])
     policy.set_training_mode(False)
     return ActorPolicy(policy.to(device), state["steps"])
+
+
+def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Path):
+    """A freshly built sbx model's policy with the saved actor parameters in place (its
+    critics stay untrained: acting needs the actor alone)."""
+    import flax
+    import jax.numpy as jnp
+    from flax.traverse_util import flatten_dict, unflatten_dict
+
+    hp = config.hyperparameters.replace(buffer_size=1_000)  # Acting never reads the buffer.
+    policy = build_model(config.task, config.algo, hp, env, seed=config.seed, device="cpu",
+                         backend="sbx").policy
+    fresh = flatten_dict(dict(policy.actor_state.params), sep="/")
+    if {name: tuple(leaf.shape) for name, leaf in fresh.items()} != {
+            name: tuple(tensor.shape) for name, tensor in weights.items()}:
+        raise ValueError(f"{path}: its actor's parameters do not fit the network its run's "
+                         "config.json describes")
+    params = unflatten_dict({name: jnp.asarray(weights[name].numpy()) for name in fresh},
+                            sep="/")
+    if isinstance(policy.actor_state.params, flax.core.FrozenDict):
+        params = flax.core.freeze(params)
+    policy.actor_state = policy.actor_state.replace(params=params)
+    return policy
 
 
 def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
