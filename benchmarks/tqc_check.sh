@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Does TQC learn the same on sbx (1.5x SB3-bf16's steps/s here) as on SB3 in bf16 (issue 15)?
-# TQC + HER on push, Table I settings, the campaign's stopping rule, seeds 0, 1, 2 to 1e5
-# steps in each arm, at low priority, runs outside the work tree (each resumes: run it again).
-# The SB3 arm is the campaign's own push-tqc cells, the command its sweep runs, brought forward.
+# Does TQC learn the same on sbx (1.5x SB3-bf16's steps/s here) as on SB3 in bf16 (issue 15),
+# and SB3 in bf16 as SB3 in fp32 (the paper's)? TQC + HER on push, Table I settings, the
+# campaign's stopping rule, seeds 0, 1, 2 to 1e5 steps in each arm, at low priority, runs
+# outside the work tree (each resumes: run it again). The sb3 arm (bf16) is the campaign's own
+# push-tqc cells, the command its sweep runs, brought forward.
 #
-#   benchmarks/tqc_check.sh run sbx|sb3 [SEED ...]   train (or resume) one arm's seeds in turn
+#   benchmarks/tqc_check.sh run sbx|sb3|fp32 [SEED ...]   train (or resume) an arm's seeds
 #   benchmarks/tqc_check.sh sync     copy each run's config.json, eval.csv (up to 1e5 steps)
 #                                    and outcome.json (at 1e5) into results/tqc-check/<arm>/
 #   benchmarks/tqc_check.sh table    success at 50k-100k and mean over 60k-100k per arm,
@@ -18,15 +19,16 @@ BIN=${BIN:-.venv/bin}
 STEPS=100000
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 
+ARMS=(sb3 sbx fp32)
 run_dir() {  # run_dir ARM SEED
-  if [ "$1" = sbx ]; then echo "$RUNS/tqc-check/push-tqc-seed$2-sbx"; else echo "$RUNS/table2/push-tqc-seed$2"; fi
+  if [ "$1" = sb3 ]; then echo "$RUNS/table2/push-tqc-seed$2"; else echo "$RUNS/tqc-check/push-tqc-seed$2-$1"; fi
 }
 
 case "${1:-}" in
   run)
-    arm=${2:?sbx or sb3}; shift 2
-    case "$arm" in sbx) setup=(--backend sbx) ;; sb3) setup=(--precision bf16) ;;
-      *) echo "tqc_check.sh run: arm must be sbx or sb3, not '$arm'" >&2; exit 2 ;; esac
+    arm=${2:?sbx, sb3 or fp32}; shift 2
+    case "$arm" in sbx) setup=(--backend sbx) ;; sb3) setup=(--precision bf16) ;; fp32) setup=() ;;
+      *) echo "tqc_check.sh run: arm must be sbx, sb3 or fp32, not '$arm'" >&2; exit 2 ;; esac
     seeds=("$@"); [ ${#seeds[@]} -gt 0 ] || seeds=(0 1 2)
     for seed in "${seeds[@]}"; do
       out=$(run_dir "$arm" "$seed")
@@ -34,7 +36,7 @@ case "${1:-}" in
         args=(--resume)
       else
         rm -rf "$out"
-        args=(--task push --algo tqc --seed "$seed" "${setup[@]}" --stop-at-success 0.95
+        args=(--task push --algo tqc --seed "$seed" ${setup[@]+"${setup[@]}"} --stop-at-success 0.95
               --stop-after 5)
       fi
       nice -n 10 "$BIN/franka-composer" train --out "$out" --total-steps "$STEPS" --no-progress \
@@ -42,7 +44,7 @@ case "${1:-}" in
     done
     ;;
   sync)
-    for arm in sbx sb3; do
+    for arm in "${ARMS[@]}"; do
       for seed in 0 1 2; do
         run=$(run_dir "$arm" "$seed"); kept=results/tqc-check/$arm/push-tqc-seed$seed
         [ -f "$run/config.json" ] || continue
@@ -68,15 +70,17 @@ PY
     done
     ;;
   table)
-    "$BIN/python" benchmarks/compare_arms.py \
-      --arm "sb3 bf16" "results/tqc-check/sb3/*" --arm sbx "results/tqc-check/sbx/*" \
+    arms=(--arm "sb3 bf16" "results/tqc-check/sb3/*" --arm sbx "results/tqc-check/sbx/*")
+    if [ -d results/tqc-check/fp32 ]; then arms+=(--arm "sb3 fp32" "results/tqc-check/fp32/*"); fi
+    "$BIN/python" benchmarks/compare_arms.py "${arms[@]}" \
       --marks 50000 60000 70000 80000 90000 100000 --window 60000 100000
     ;;
   final)  # Before the campaign takes the SB3 arm's cells past 1e5 steps.
     runs=()
-    for arm in sb3 sbx; do
+    for arm in "${ARMS[@]}"; do
       for seed in 0 1 2; do
         run=$(run_dir "$arm" "$seed")
+        [ "$arm" = fp32 ] && [ ! -d "$run" ] && continue  # The fp32 arm came later.
         if ! grep -q "\"steps\": $STEPS," "$run/outcome.json" 2>/dev/null; then
           echo "tqc_check.sh final: $run has not ended at $STEPS steps" >&2; exit 1
         fi
@@ -85,5 +89,5 @@ PY
     done
     "$BIN/franka-composer" evaluate "${runs[@]}" --episodes 100
     ;;
-  *) sed -n '2,13p' "$0"; exit 2 ;;
+  *) sed -n '2,14p' "$0"; exit 2 ;;
 esac
