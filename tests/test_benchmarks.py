@@ -222,3 +222,34 @@ def test_compare_arms_names_what_was_wrong(args, message):
                                capture_output=True, text=True, check=False)
     assert completed.returncode != 0
     assert message in completed.stderr
+
+
+def test_precision_fidelity_compares_one_gradient_step_on_the_same_batch_and_noise():
+    """fp32 against itself is exact (the same batch, noise and starting state each time:
+    nothing of the step is kept); bf16 departs from it, and the model is left unchanged."""
+    import torch
+
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.models import build_model, make_env
+
+    spec = importlib.util.spec_from_file_location("precision_fidelity",
+                                                  BENCHMARKS / "precision_fidelity.py")
+    fidelity = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fidelity)
+    env = make_env("push")
+    model = build_model("push", "tqc", hyperparameters("push", "tqc").replace(
+        net_arch=(16, 16), batch_size=32, buffer_size=2000), env, seed=0, device="cpu")
+    fidelity.fill(model, 200)
+    assert model.replay_buffer.size() == 200 and model.gradient_steps == 1
+    before = {name: tensor.clone() for name, tensor in model.policy.state_dict().items()}
+    same = fidelity.compare(model, 3, against="fp32")
+    assert set(same) == {"critic", "actor"}
+    for values in same.values():
+        np.testing.assert_allclose(values[:, 1], 0.0, atol=0)
+        np.testing.assert_allclose(values[:, 0], 1.0, rtol=1e-6)
+    bf16 = fidelity.compare(model, 3)
+    assert all(0.0 < values[:, 1].min() and values[:, 0].max() < 1.0 for values in bf16.values())
+    after = model.policy.state_dict()
+    assert all(torch.equal(before[name], after[name]) for name in before)
+    assert type(model.critic.optimizer).step is model.critic.optimizer.step.__func__
+    env.close()
