@@ -7,8 +7,8 @@
 #                                 resumed from its checkpoint if it has one, skipped if done
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
 #   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv (up to its
-#                                 checkpoint), outcome.json and (once it has finished)
-#                                 policy.pt into results/table2/<cell>/,
+#                                 checkpoint) and, once it has finished at the grid's
+#                                 budget, outcome.json and policy.pt into results/table2/<cell>/,
 #                                 from which `franka-composer evaluate results/table2` and
 #                                 `franka-composer demo --policy results/table2/<cell>` run
 #
@@ -28,24 +28,35 @@ case "${1:-}" in
     ;;
   status) "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status ;;
   sync)
-    for dir in "$RUNS"/*/; do
-      cell=$(basename "$dir")
-      mkdir -p "results/table2/$cell"
-      for file in config.json eval.csv outcome.json policy.pt; do
-        if [ -f "$dir/$file" ]; then cp "$dir/$file" "results/table2/$cell/"; fi
-      done
-      # A cell stopped between checkpoints redoes the steps after its checkpoint, and their
-      # evaluations with them: only the ones a resume keeps are committed.
-      "$BIN/python" - "$dir" "results/table2/$cell/eval.csv" <<'PY'
+    "$BIN/python" - "$RUNS" results/table2 <<'PY'
 import pathlib
+import shutil
 import sys
 from franka_composer.training.runs import RunDir, read_eval_rows, write_eval_rows
-run, committed = RunDir(pathlib.Path(sys.argv[1])), pathlib.Path(sys.argv[2])
-if run.read_state() and not run.read_outcome():
-    kept = [r for r in read_eval_rows(run.eval_csv) if r["steps"] <= run.read_state()["steps"]]
-    write_eval_rows(committed, kept)
+from franka_composer.training.sweep import GRIDS, cell_finished
+runs, kept = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+for cell in GRIDS["table2"]:
+    run = RunDir(runs / cell.name)
+    if not run.config_path.is_file():
+        continue
+    copy = RunDir(kept / cell.name)
+    copy.root.mkdir(parents=True, exist_ok=True)
+    shutil.copy(run.config_path, copy.config_path)
+    rows = read_eval_rows(run.eval_csv)
+    if run.read_state() and not run.read_outcome():
+        # A cell stopped between checkpoints redoes the steps after its checkpoint, and
+        # their evaluations with them: only the ones a resume keeps are committed.
+        rows = [row for row in rows if row["steps"] <= run.read_state()["steps"]]
+    write_eval_rows(copy.eval_csv, rows)
+    # How it ended and its policy, once it has ended at the grid's budget (or by the rule):
+    # a cell brought forward to a smaller budget goes on, and its policy with it.
+    for path, committed in ((run.outcome_path, copy.outcome_path),
+                            (run.policy_file, copy.policy_file)):
+        if cell_finished(run, cell) and path.is_file():
+            shutil.copy(path, committed)
+        elif committed.is_file():
+            committed.unlink()
 PY
-    done
     ls results/table2
     ;;
   *) sed -n '2,16p' "$0"; exit 2 ;;

@@ -99,7 +99,7 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
     directory without a checkpoint (stopped before its first one) starts again. Cancelled
     (Ctrl-C on the sweep), it passes SIGTERM on, so the run checkpoints first."""
     run = RunDir(root / cell.name)
-    if _finished(run, cell):
+    if cell_finished(run, cell):
         return cell.name, 0
     if run.root.exists() and not run.read_state():
         shutil.rmtree(run.root)
@@ -134,7 +134,8 @@ def _started_since(cell: Cell, root: pathlib.Path, since: float) -> bool:
     return log.exists() and log.stat().st_mtime >= since
 
 
-def _finished(run: RunDir, cell: Cell) -> bool:
+def cell_finished(run: RunDir, cell: Cell) -> bool:
+    """Whether `run` has ended at `cell`'s budget, or before it by the stopping rule."""
     outcome = run.read_outcome()
     return bool(outcome) and (outcome["stopped_early"] or outcome["steps"] >= cell.steps)
 
@@ -162,7 +163,7 @@ def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
     if len(rows) >= 2 and rows[-1]["wall_time_s"] > rows[-2]["wall_time_s"]:
         rate = ((rows[-1]["steps"] - rows[-2]["steps"])
                 / (rows[-1]["wall_time_s"] - rows[-2]["wall_time_s"]))
-    if _finished(run, cell):
+    if cell_finished(run, cell):
         state = "stopped early" if run.read_outcome()["stopped_early"] else "done"
     else:
         state = ("failed" if failed else "running" if running else "queued" if queued
@@ -196,7 +197,7 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     if repeated:
         raise ValueError(f"a sweep's cells must differ: {', '.join(repeated)} repeat")
     root.mkdir(parents=True, exist_ok=True)
-    todo = [cell for cell in cells if not _finished(RunDir(root / cell.name), cell)]
+    todo = [cell for cell in cells if not cell_finished(RunDir(root / cell.name), cell)]
     failed: set[str] = set()
     if todo:
         started = not ray.is_initialized()
