@@ -32,7 +32,7 @@ case "${1:-}" in
 import pathlib
 import shutil
 import sys
-from franka_composer.training.runs import RunDir, read_eval_rows, write_eval_rows
+from franka_composer.training.runs import RunDir, write_eval_rows
 from franka_composer.training.sweep import GRIDS, cell_finished
 runs, kept = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
 for cell in GRIDS["table2"]:
@@ -42,12 +42,7 @@ for cell in GRIDS["table2"]:
     copy = RunDir(kept / cell.name)
     copy.root.mkdir(parents=True, exist_ok=True)
     shutil.copy(run.config_path, copy.config_path)
-    rows = read_eval_rows(run.eval_csv)
-    if run.read_state() and not run.read_outcome():
-        # A cell stopped between checkpoints redoes the steps after its checkpoint, and
-        # their evaluations with them: only the ones a resume keeps are committed.
-        rows = [row for row in rows if row["steps"] <= run.read_state()["steps"]]
-    write_eval_rows(copy.eval_csv, rows)
+    write_eval_rows(copy.eval_csv, run.kept_evaluations())
     # How it ended and its policy, once it has ended at the grid's budget (or by the rule):
     # a cell brought forward to a smaller budget goes on, and its policy with it.
     for path, committed in ((run.outcome_path, copy.outcome_path),

@@ -52,19 +52,16 @@ case "${1:-}" in
         cp "$run/config.json" "$kept/"
         # The SB3 arm's cells go on to the campaign's budget: the check keeps its first 1e5
         # steps, and of a run stopped between checkpoints only what a resume keeps.
-        "$BIN/python" - "$run" "$kept/eval.csv" "$STEPS" <<'PY'
-import json
+        "$BIN/python" - "$run" "$kept" "$STEPS" <<'PY'
 import pathlib
+import shutil
 import sys
-from franka_composer.training.runs import RunDir, read_eval_rows, write_eval_rows
-run, kept, steps = RunDir(pathlib.Path(sys.argv[1])), pathlib.Path(sys.argv[2]), int(sys.argv[3])
-state = run.read_state()
-if state and not run.read_outcome():
-    steps = min(steps, state["steps"])
-write_eval_rows(kept, [row for row in read_eval_rows(run.eval_csv) if row["steps"] <= steps])
-outcome = run.read_outcome()
-if outcome and outcome["steps"] <= steps:  # Not the outcome of the campaign's longer run.
-    (kept.parent / "outcome.json").write_text(json.dumps(outcome))
+from franka_composer.training.runs import RunDir, write_eval_rows
+run, kept = (RunDir(pathlib.Path(path)) for path in sys.argv[1:3])
+steps = int(sys.argv[3])
+write_eval_rows(kept.eval_csv, [row for row in run.kept_evaluations() if row["steps"] <= steps])
+if run.read_outcome().get("steps", steps + 1) <= steps:  # Not the campaign's longer run's.
+    shutil.copy(run.outcome_path, kept.outcome_path)
 PY
       done
     done

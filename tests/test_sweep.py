@@ -98,6 +98,16 @@ def test_the_status_of_each_cell_is_read_from_its_directory(tmp_path):
     assert table[5] == "| push-sac-seed3 | waiting | 0 | 4,000 | – | – |"
 
 
+def test_the_evaluations_a_resume_keeps_end_at_the_checkpoint_until_the_run_ends(tmp_path):
+    run = _write_run(tmp_path, "push-sac-seed0", [(0, 1, 0.0), (2000, 2, 0.2), (4000, 3, 0.4)])
+    assert [r["steps"] for r in run.kept_evaluations()] == [0, 2000, 4000]  # No checkpoint.
+    run.checkpoint.mkdir()
+    run.checkpoint_state.write_text(json.dumps({"steps": 2000}))
+    assert [r["steps"] for r in run.kept_evaluations()] == [0, 2000]
+    run.write_outcome(4000, False, 3.0)
+    assert [r["steps"] for r in run.kept_evaluations()] == [0, 2000, 4000]
+
+
 def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
     for name in ("push-sac-seed1", "push-sac-seed0"):
         _write_run(tmp_path / "sweep", name, [(0, 1, 0.0)])

@@ -26,7 +26,8 @@ def add_parser(subparsers) -> None:
                     "nodes share). Running the same sweep again resumes unfinished cells "
                     "from their checkpoints (with the settings they were started with: a cell "
                     "trained with settings other than the grid's is refused) and skips "
-                    "finished ones; Ctrl-C checkpoints the running cells. `evaluate OUT` and `plot OUT` read the sweep. Options "
+                    "finished ones; Ctrl-C checkpoints the running cells. `evaluate OUT` and "
+                    "`plot OUT` read the sweep. Options "
                     "after `--` go to every cell's `train` (e.g. -- --update-schedule "
                     "episode --threads 1). Needs Ray: pip install 'franka_composer[sweep]'.")
     parser.add_argument("--out", type=pathlib.Path, required=True,

@@ -20,7 +20,7 @@ from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunConfig, RunDir,
-                                          read_eval_rows, write_eval_rows)
+                                          write_eval_rows)
 from franka_composer.training.signals import interrupt_on
 from franka_composer.training.target_bounds import clip_target_critic
 
@@ -72,8 +72,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         model = load_model(config.algo, run.checkpoint_model, env=env, device=device,
                            backend=config.backend)
         model.load_replay_buffer(run.checkpoint_buffer)
-        # Evaluations logged after the checkpoint belong to steps that will be redone.
-        rows = [r for r in read_eval_rows(run.eval_csv) if r["steps"] <= state["steps"]]
+        rows = run.kept_evaluations()
         write_eval_rows(run.eval_csv, rows)
         # The evaluations go on with the episodes an uninterrupted run would see next.
         _skip_evaluated_episodes(eval_env, sum(r["steps"] % hp.eval_every == 0 for r in rows),

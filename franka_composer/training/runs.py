@@ -228,6 +228,16 @@ class RunDir:
             raise ValueError(f"{self.root} has no evaluations yet (no eval.csv rows)")
         return rows
 
+    def kept_evaluations(self) -> list[dict[str, float]]:
+        """eval.csv's rows that a resume keeps: of a run stopped between checkpoints, those
+        up to its checkpoint (the steps after it are redone, their evaluations with them);
+        all of a run that has ended."""
+        rows = read_eval_rows(self.eval_csv)
+        state = self.read_state()
+        if state and not self.read_outcome():
+            rows = [row for row in rows if row["steps"] <= state["steps"]]
+        return rows
+
     def best_model(self) -> pathlib.Path:
         """The final model, else the latest checkpoint (a run that was interrupted)."""
         for path in (self.final_model, self.checkpoint_model):
