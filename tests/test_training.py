@@ -139,18 +139,26 @@ def test_a_policy_file_acts_as_the_trained_model_to_the_bit(runs, tmp_path, algo
     assert "300 steps" in reports[0] and reports[0] == reports[1]
 
 
-def test_a_table_i_policy_file_is_the_actor_alone(tmp_path):
-    """Table I's push SAC: its policy file is the actor's fp32 weights (under 1 MB) and a
-    fraction of SB3's model.zip, so a policy per Table II cell stays far under 20 MB."""
+@pytest.mark.parametrize("algo, backend", [("sac", "sb3"), ("tqc", "sbx")])
+def test_a_table_i_policy_file_is_the_actor_alone(tmp_path, algo, backend):
+    """Table I's push networks: a policy file is the actor's fp32 weights (under 1 MB) and a
+    fraction of the model.zip (SB3's 2.3-2.9 MB, sbx's TQC 17.3 MB), so a policy per Table
+    II cell stays far under 20 MB."""
     from franka_composer.training.policy_file import save_policy
 
     env = make_env("push")
-    model = build_model("push", "sac", hyperparameters("push", "sac").replace(
-        buffer_size=1000), env, seed=0, device="cpu")
+    model = build_model("push", algo, hyperparameters("push", algo).replace(
+        buffer_size=1000), env, seed=0, device="cpu", backend=backend)
     save_policy(model, tmp_path / "policy.pt")
     model.save(tmp_path / "model.zip")
     env.close()
-    actor_bytes = 4 * sum(p.numel() for p in model.actor.parameters())
+    if backend == "sb3":
+        actor_bytes = 4 * sum(p.numel() for p in model.actor.parameters())
+    else:
+        import jax
+
+        actor_bytes = 4 * sum(leaf.size for leaf in
+                              jax.tree_util.tree_leaves(model.policy.actor_state.params))
     assert actor_bytes < (tmp_path / "policy.pt").stat().st_size < actor_bytes + 20_000 < 10**6
     assert (tmp_path / "model.zip").stat().st_size > 4 * actor_bytes
 

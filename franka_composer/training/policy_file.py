@@ -7,7 +7,7 @@ and optimiser state (Table II's 23 runs: 13 MB). The actor is rebuilt from the r
 config.json (the same `policy_kwargs` the model was built with) and acts as the trained
 model does, to the bit. An sbx run's actor is a flax network: its parameters are stored the
 same way, by their flax path ("params/Dense_0/kernel"), and put back into a freshly built
-sbx model (its model.zip is 17.5 MB for TQC, with its optimiser states).
+sbx model (its model.zip is 17.3 MB for Table I's TQC, with its optimiser states).
 """
 
 from __future__ import annotations
