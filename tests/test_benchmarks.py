@@ -20,8 +20,9 @@ _RUN_FIGURES = ("steps_per_s_resets_included", "steps_per_s_resets_excluded",
                 "floor_steps_per_s", "overhead_ratio")
 
 
-def _measure_module():
-    spec = importlib.util.spec_from_file_location("measure", BENCHMARKS / "measure.py")
+def _load_benchmark(name: str):
+    """benchmarks/<name>.py as a module (the scripts are not a package)."""
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module  # Its dataclasses look their module up there.
     spec.loader.exec_module(module)
@@ -78,7 +79,7 @@ def test_bench_rejects_an_unknown_task_naming_the_valid_ones(capsys):
 def test_the_baseline_follows_the_env_trajectory_bit_for_bit(control):
     """Same model, start state, actions, action law and MuJoCo calls: the baseline ends
     exactly where the env ends (one code path, one machine)."""
-    measure = _measure_module()
+    measure = _load_benchmark("measure")
     env = gym.make("FrankaPickAndPlaceSparse-v0", control=control)
     env.reset(seed=1)
     physics = env.unwrapped.composer_env.physics
@@ -100,10 +101,7 @@ def test_the_still_baseline_is_what_an_untrained_run_scores(tmp_path):
     """An untrained policy scores exactly the episodes that start solved: the zero-action
     replay of a run's evaluations gives the rates of the run's own first evaluations
     (learning starts after them)."""
-    spec = importlib.util.spec_from_file_location("still_baseline",
-                                                  BENCHMARKS / "still_baseline.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _load_benchmark("still_baseline")
     from franka_composer.training.runs import RunDir, read_eval_rows
 
     out = tmp_path / "run"
@@ -122,10 +120,7 @@ def test_a_resumed_run_evaluates_the_episodes_an_uninterrupted_run_would(tmp_pat
     both runs and only the episodes decide the evaluations: a run stopped at 300 steps and
     resumed to 600 logs what an uninterrupted 600-step run logs, not its first
     evaluations' episodes again (which would score differently: the still baseline)."""
-    spec = importlib.util.spec_from_file_location("still_baseline",
-                                                  BENCHMARKS / "still_baseline.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _load_benchmark("still_baseline")
     from franka_composer.training.runs import RunDir, read_eval_rows
 
     def train(out, *args):
@@ -157,9 +152,7 @@ def test_probing_the_critic_leaves_the_run_as_train_makes_it():
     from franka_composer.training import hyperparameters
     from franka_composer.training.models import build_model, make_env
 
-    spec = importlib.util.spec_from_file_location("critic_probe", BENCHMARKS / "critic_probe.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _load_benchmark("critic_probe")
     hp = hyperparameters("push", "sac").replace(net_arch=(16, 16), batch_size=32,
                                                 buffer_size=1000, learning_starts=100)
     env = make_env("push")
@@ -232,10 +225,7 @@ def test_precision_fidelity_compares_one_gradient_step_on_the_same_batch_and_noi
     from franka_composer.training import hyperparameters
     from franka_composer.training.models import build_model, make_env
 
-    spec = importlib.util.spec_from_file_location("precision_fidelity",
-                                                  BENCHMARKS / "precision_fidelity.py")
-    fidelity = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(fidelity)
+    fidelity = _load_benchmark("precision_fidelity")
     env = make_env("push")
     model = build_model("push", "tqc", hyperparameters("push", "tqc").replace(
         net_arch=(16, 16), batch_size=32, buffer_size=2000), env, seed=0, device="cpu")
@@ -253,3 +243,64 @@ def test_precision_fidelity_compares_one_gradient_step_on_the_same_batch_and_noi
     assert all(torch.equal(before[name], after[name]) for name in before)
     assert type(model.critic.optimizer).step is model.critic.optimizer.step.__func__
     env.close()
+
+
+def test_the_paper_curves_are_read_back_from_a_figure_drawn_as_its_are(tmp_path):
+    """A figure drawn as the paper's are (seaborn's grey axes, white grid, deep colours,
+    shaded spreads, the legend top left, a later line over an earlier one, saved as JPEG)
+    from known curves gives those curves back, and their steps to 80 % and 90 %."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from franka_composer.training.learning_report import first_reaching, smoothed
+
+    curves_module = _load_benchmark("paper_curves")
+    steps = np.arange(2000, 500_001, 2000)
+    wiggle = 0.03 * np.sin(steps / 7000)
+    truth = {"ddpg": 0.07 + wiggle,
+             "sac": 0.05 + 0.93 / (1 + np.exp(-(steps - 160_000) / 18_000)) + wiggle,
+             "tqc": 0.05 + 0.95 / (1 + np.exp(-(steps - 145_000) / 15_000)) - wiggle}
+    fig, ax = plt.subplots(figsize=(6.5, 5))
+    ax.set_facecolor("#eaeaf2")
+    ax.grid(color="white", linewidth=1.25)
+    ax.set_axisbelow(True)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+    for algo, values in truth.items():
+        colour = np.array(curves_module.LINE_COLOURS[algo]) / 255
+        ax.plot(steps / 1e6, values, color=colour, linewidth=1.5, label=algo.upper())
+        ax.fill_between(steps / 1e6, values - 0.03, values + 0.03, color=colour, alpha=0.2,
+                        linewidth=0)
+    ax.set_xticks(np.arange(0, 0.51, 0.1))
+    ax.set_yticks(np.arange(0, 1.01, 0.2))
+    ax.set_ylim(-0.05, 1.05)
+    ax.legend(loc="upper left")
+    fig.savefig(tmp_path / "figure.jpg", dpi=600)
+    plt.close(fig)
+
+    figure = curves_module.Figure("figure.jpg", (0.0, 1e5), (0.0, 0.2))
+    read = curves_module.digitise(np.asarray(Image.open(tmp_path / "figure.jpg")), figure)
+    assert set(read) == set(truth)
+    for algo, values in truth.items():
+        true_curve = dict(zip(steps.tolist(), values.tolist()))
+        # Where a later line covers it, a line is read from its visible neighbours.
+        common = sorted(set(read[algo]) & set(true_curve))
+        assert len(common) > 0.75 * len(steps)
+        errors = [abs(read[algo][s] - true_curve[s]) for s in common]
+        assert np.median(errors) < 0.002 and max(errors) < 0.015, algo
+        for threshold in (0.8, 0.9):
+            expected = first_reaching(smoothed(true_curve), threshold)
+            got = first_reaching(smoothed(read[algo]), threshold)
+            assert (expected is None) == (got is None), algo
+            if expected is not None:
+                assert abs(got - expected) <= 2000, (algo, threshold, got, expected)
+
+
+def test_the_paper_curves_refuse_a_figure_without_its_grid(tmp_path):
+    curves_module = _load_benchmark("paper_curves")
+    grey = np.full((300, 400, 3), curves_module.AXES_GREY, dtype=np.uint8)
+    grey[:, 100:104] = 255  # One vertical grid line: no scale can be read off it.
+    with pytest.raises(ValueError, match="x grid lines not found evenly spaced"):
+        curves_module.digitise(grey, curves_module.FIGURES["push"])

@@ -76,10 +76,13 @@ def steps_to(runs: list[RunRecord], threshold: float) -> int | None:
             last = max(curve)
             curve.update({step: curve[last] for step in evaluated if step > last})
     common = sorted(set.intersection(*(set(curve) for curve in curves)))
-    for step in common:
-        if np.median([curve[step] for curve in curves]) >= threshold:
-            return step
-    return None
+    return first_reaching({step: float(np.median([curve[step] for curve in curves]))
+                           for step in common}, threshold)
+
+
+def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
+    """The first step at which `curve` reaches `threshold`; None if it never does."""
+    return next((step for step in sorted(curve) if curve[step] >= threshold), None)
 
 
 def markdown_table(runs: list[RunRecord]) -> str:
