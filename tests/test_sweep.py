@@ -4,6 +4,7 @@ two-cell sweep on a local Ray (training/sweep.py, cli/sweep.py)."""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -12,7 +13,8 @@ import time
 import pytest
 
 from franka_composer import cli
-from franka_composer.training.runs import RunDir, read_eval_rows
+from franka_composer.training import hyperparameters
+from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows
 from franka_composer.training.sweep import (GRIDS, Cell, cell_log, cell_status, grid,
                                             run_directories, run_sweep, status_table,
                                             train_command)
@@ -65,10 +67,10 @@ def test_a_cell_starts_with_its_options_and_resumes_with_what_still_applies(tmp_
                           "--no-progress", "--resume", "--threads", "1", "--device=cpu"]
 
 
-def _write_run(root, name, rows, outcome=None):
+def _write_run(root, name, rows, outcome=None, seed=0, precision="fp32"):
     run = RunDir(root / name)
-    run.root.mkdir(parents=True)
-    run.config_path.write_text(json.dumps({"task": "push"}))
+    run.write_config(RunConfig("push", "sac", seed, hyperparameters("push", "sac"),
+                               precision=precision))
     run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
         f"{steps},{wall},{rate},-1\n" for steps, wall, rate in rows))
     if outcome:
@@ -109,13 +111,29 @@ def test_the_evaluations_a_resume_keeps_end_at_the_checkpoint_until_the_run_ends
 
 
 def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
-    for name in ("push-sac-seed1", "push-sac-seed0"):
-        _write_run(tmp_path / "sweep", name, [(0, 1, 0.0)])
-    single = _write_run(tmp_path, "alone", [(0, 1, 0.0)]).root
+    for seed in (1, 0):
+        _write_run(tmp_path / "sweep", f"push-sac-seed{seed}", [(0, 1, 0.0)], seed=seed)
+    single = _write_run(tmp_path, "alone", [(0, 1, 0.0)], seed=2).root
     assert run_directories([tmp_path / "sweep", single]) == [
         tmp_path / "sweep" / "push-sac-seed0", tmp_path / "sweep" / "push-sac-seed1", single]
     with pytest.raises(ValueError, match="is neither a training run nor a sweep of runs"):
         run_directories([tmp_path / "sweep" / "nothing"])
+
+
+def test_a_seed_given_twice_is_refused_before_it_counts_twice(tmp_path):
+    for seed in (0, 1):
+        _write_run(tmp_path / "sweep", f"push-sac-seed{seed}", [(0, 1, 0.0)], seed=seed)
+    copy = _write_run(tmp_path / "kept", "push-sac-seed1", [(0, 1, 0.0)], seed=1).root
+    message = (f"{tmp_path / 'sweep' / 'push-sac-seed1'} and {copy} are both seed 1 of push "
+               "SAC: give each run once")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        run_directories([tmp_path / "sweep", tmp_path / "kept"])
+    with pytest.raises(ValueError, match="are both seed 0 of push SAC"):
+        run_directories([tmp_path / "sweep", tmp_path / "sweep" / "push-sac-seed0"])
+    # The same seed in another setup is another cell's.
+    bf16 = _write_run(tmp_path, "bf16", [(0, 1, 0.0)], seed=1, precision="bf16").root
+    assert run_directories([tmp_path / "sweep", bf16]) == [
+        tmp_path / "sweep" / "push-sac-seed0", tmp_path / "sweep" / "push-sac-seed1", bf16]
 
 
 @pytest.mark.parametrize("argv, message", [

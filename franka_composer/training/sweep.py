@@ -20,6 +20,7 @@ import subprocess
 import sys
 import time
 
+from franka_composer.training.report import with_variant
 from franka_composer.training.runs import RunDir, read_eval_rows
 from franka_composer.training.signals import interrupt_on
 
@@ -246,7 +247,9 @@ def _wait_for_cells(pending: dict, cells: list[Cell], root: pathlib.Path, failed
 
 
 def run_directories(paths) -> list[pathlib.Path]:
-    """Run directories from paths that are runs or sweeps (directories of runs)."""
+    """Run directories from paths that are runs or sweeps (directories of runs). Each seed
+    of a cell once: the same run given twice (a sweep and one of its runs, or a copy kept
+    elsewhere) would count as two seeds."""
     runs = []
     for path in map(pathlib.Path, paths):
         if RunDir(path).config_path.is_file():
@@ -257,4 +260,14 @@ def run_directories(paths) -> list[pathlib.Path]:
             raise ValueError(f"{path} is neither a training run nor a sweep of runs "
                              "(no config.json in it or in its subdirectories)")
         runs += inside
+    seen: dict[tuple, pathlib.Path] = {}
+    for run in runs:
+        config = RunDir(run).read_config()
+        seed = (config.task, config.variant, config.algo, config.seed)
+        if seed in seen:
+            raise ValueError(
+                f"{seen[seed]} and {run} are both seed {config.seed} of "
+                f"{with_variant(f'{config.task} {config.algo.upper()}', config.variant)}: "
+                "give each run once (a cell's seeds are different runs)")
+        seen[seed] = run
     return runs
