@@ -114,11 +114,16 @@ def test_runs_of_different_variants_are_not_seeds_of_one_cell(tmp_path):
                report.RunResult("d", "push", "tqc", 0, 10, 0.2, computation="sbx"),
                report.RunResult("e", "push", "sac", 0, 10, 0.4, "osc control", "bf16"),
                report.RunResult("f", "slide", "tqc", 0, 10, 1.0)]
-    # A row per task and setup; runs computed otherwise share its cells, not averaged.
-    assert report.markdown_table(results).splitlines()[2:] == [
+    # A row per task and setup; runs computed otherwise share its cells, not averaged. The
+    # paper's row under each Table II task's; none for a task not in the paper's table.
+    assert report.markdown_table(results + [report.RunResult("g", "reach", "sac", 0, 10, 1.0)]
+                                 ).splitlines()[2:] == [
         "| Push | – | 75.0 ± 25.0; 0.0 ± 0.0 (bf16) | 20.0 ± 0.0 (sbx) |",
         "| Push (osc control) | – | 40.0 ± 0.0 (bf16) | – |",
-        "| Slide | – | – | 100.0 ± 0.0 |"]
+        "| Push: the paper's | 11.7 ± 0.3 | 100.0 ± 0.0 | 100.0 ± 0.0 |",
+        "| Slide | – | – | 100.0 ± 0.0 |",
+        "| Slide: the paper's | 71.7 ± 0.5 | 85.0 ± 0.4 | 85.1 ± 0.4 |",
+        "| Reach | – | 100.0 ± 0.0 | – |"]
     assert report.seeds_note(results).splitlines() == [
         "- push / sac: seeds 0, 1; trained steps 10, 10",
         "- push (bf16) / sac: seeds 0; trained steps 10",
