@@ -9,8 +9,9 @@ import pytest
 from franka_composer import cli
 from franka_composer.training import hyperparameters
 from franka_composer.training import report
-from franka_composer.training.learning_report import (SMOOTHING, markdown_table, read_run,
-                                                      smoothed, steps_to)
+from franka_composer.training.learning_report import (SMOOTHING, markdown_table,
+                                                      read_paper_curves, read_run, smoothed,
+                                                      steps_to)
 from franka_composer.training.runs import RunConfig, RunDir
 
 
@@ -75,6 +76,29 @@ def test_the_table_has_a_row_per_cell_in_the_papers_order_and_the_total(tmp_path
     out = tmp_path / "report.md"
     assert cli.main(["report", str(tmp_path), "--out", str(out)]) == 0
     assert capsys.readouterr().out == out.read_text() == table
+
+
+def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    _write_run(runs, "push", "tqc", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))
+    _write_run(runs, "reach", "sac", 0, [1.0] * 5, (True, 60.0))
+    paper = tmp_path / "curves.csv"
+    # The paper's push TQC, smoothed: 0.84 at 8000 and 10000, so 80 % at 8000, never 90 %.
+    paper.write_text("task,algo,steps,success\n" + "".join(
+        f"push,tqc,{2000 * i},{rate}\n" for i, rate in enumerate([0.6, 0.8, 1.0, 0.8, 1.0, 0.6])))
+    assert read_paper_curves(paper) == {
+        ("push", "tqc"): {0: 0.6, 2000: 0.8, 4000: 1.0, 6000: 0.8, 8000: 1.0, 10000: 0.6}}
+    assert cli.main(["report", str(runs), "--paper-curves", str(paper)]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    assert rows[0] == ("| task | algorithm | seeds | steps reached | stopped early | "
+                       "steps to 80 % | steps to 90 % | paper: steps to 80 % | "
+                       "paper: steps to 90 % | wall h | CPU h |")
+    assert rows[2] == ("| push | TQC | 0 | 18,000 | 0 of 1 | 14,000 | 16,000 | 8,000 | – | 0.0 "
+                       "| 1.0 |")
+    # No curve of the paper's for the cell: blank, not "never".
+    assert rows[3] == "| reach | SAC | 0 | 8,000 | 1 of 1 | 8,000 | 8,000 |  |  | 0.0 | 0.0 |"
+    with pytest.raises(ValueError, match="--paper-curves: .*nowhere.csv is not a file"):
+        cli.main(["report", str(runs), "--paper-curves", str(tmp_path / "nowhere.csv")])
 
 
 def test_a_run_without_evaluations_is_refused_by_name(tmp_path):

@@ -19,16 +19,24 @@ def add_parser(subparsers) -> None:
                     "first reaches 80 % and 90 %, and the runs' wall-clock and CPU hours; "
                     "then the total.")
     add_run_dirs(parser)
+    parser.add_argument("--paper-curves", type=pathlib.Path, default=None, metavar="CSV",
+                        help="the paper's published curves (results/paper-curves/curves.csv, "
+                             "from benchmarks/paper_curves.py): its steps to 80 %% and 90 %% "
+                             "beside each cell's")
     parser.add_argument("--out", type=pathlib.Path, default=None,
                         help="also write the Markdown table here")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training.learning_report import markdown_table, read_run
+    from franka_composer.training.learning_report import (markdown_table, read_paper_curves,
+                                                          read_run)
     from franka_composer.training.sweep import run_directories
 
-    table = markdown_table([read_run(root) for root in run_directories(args.runs)])
+    if args.paper_curves is not None and not args.paper_curves.is_file():
+        raise ValueError(f"--paper-curves: {args.paper_curves} is not a file")
+    paper = read_paper_curves(args.paper_curves) if args.paper_curves else None
+    table = markdown_table([read_run(root) for root in run_directories(args.runs)], paper)
     print(table, end="")
     if args.out:
         args.out.write_text(table)

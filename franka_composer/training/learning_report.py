@@ -12,6 +12,7 @@ step at which it reaches the threshold. A seed that stopped early (5 evaluations
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import pathlib
 
@@ -85,25 +86,50 @@ def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
     return next((step for step in sorted(curve) if curve[step] >= threshold), None)
 
 
-def markdown_table(runs: list[RunRecord]) -> str:
-    """One row per cell, in the paper's order, and a line with what all of them cost."""
+def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, float]]:
+    """The paper's published curves as `benchmarks/paper_curves.py` writes them (a CSV of
+    task, algo, steps, success): {(task, algo): {steps: success}}."""
+    curves: dict[tuple[str, str], dict[int, float]] = {}
+    with open(path, newline="") as handle:
+        for row in csv.DictReader(handle):
+            curves.setdefault((row["task"], row["algo"]), {})[int(row["steps"])] = float(
+                row["success"])
+    return curves
+
+
+def markdown_table(runs: list[RunRecord],
+                   paper: dict[tuple[str, str], dict[int, float]] | None = None) -> str:
+    """One row per cell, in the paper's order, and a line with what all of them cost. With
+    the paper's curves (`read_paper_curves`), its steps to each threshold beside ours, read
+    the same way off its curve ("–": never reached; blank: no curve for the cell)."""
     cells = group_by_cell(sorted(runs, key=lambda r: r.seed))
+    thresholds = [f"{100 * t:.0f} %" for t in THRESHOLDS]
+    columns = [f"steps to {t}" for t in thresholds]
+    if paper is not None:
+        columns += [f"paper: steps to {t}" for t in thresholds]
     lines = ["| task | algorithm | seeds | steps reached | stopped early | "
-             + " | ".join(f"steps to {100 * t:.0f} %" for t in THRESHOLDS)
-             + " | wall h | CPU h |",
-             "|---|---|---|---|---|" + "---|" * len(THRESHOLDS) + "---|---|"]
+             + " | ".join(columns) + " | wall h | CPU h |",
+             "|---|---|---|---|---|" + "---|" * len(columns) + "---|---|"]
     for task, variant, algo in sorted(cells, key=cell_order):
         cell = cells[(task, variant, algo)]
         reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
                             for run in cell)
-        crossings = [steps_to(cell, t) for t in THRESHOLDS]
+        crossings = [_steps(steps_to(cell, t)) for t in THRESHOLDS]
+        if paper is not None:
+            curve = paper.get((task, algo))
+            crossings += [_steps(first_reaching(smoothed(curve), t)) if curve else ""
+                          for t in THRESHOLDS]
         lines.append(
             f"| {with_variant(task, variant)} | {algo.upper()} | "
             f"{', '.join(str(r.seed) for r in cell)} | {reached} | "
             f"{sum(r.stopped_early for r in cell)} of {len(cell)} | "
-            + " | ".join("–" if c is None else f"{c:,}" for c in crossings)
+            + " | ".join(crossings)
             + f" | {sum(r.wall_s for r in cell) / 3600:.1f} | {_cpu_hours(cell)} |")
     return "\n".join(lines) + "\n\n" + _total(runs) + "\n"
+
+
+def _steps(step: int | None) -> str:
+    return "–" if step is None else f"{step:,}"
 
 
 def _cpu_hours(runs: list[RunRecord]) -> str:
