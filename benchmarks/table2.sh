@@ -4,7 +4,8 @@
 # run here in the background at low priority, checkpoints outside the work tree.
 #
 #   benchmarks/table2.sh run      train the cells, WORKERS at a time (default 1), each
-#                                 resumed from its checkpoint if it has one, skipped if done
+#                                 resumed from its checkpoint if it has one, skipped if done;
+#                                 CELLS='push-sac-* ...' runs only the cells it names
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
 #   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv (up to its
 #                                 checkpoint) and, once it has finished at the grid's
@@ -19,14 +20,17 @@ cd "$(dirname "$0")/.."
 RUNS=${RUNS:-$HOME/franka_runs/table2}
 BIN=${BIN:-.venv/bin}
 WORKERS=${WORKERS:-1}
+read -ra cells <<< "${CELLS:-}"  # Patterns, not globbed here.
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 
 case "${1:-}" in
   run)
     nice -n 10 "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --num-cpus "$WORKERS" \
-      --refresh 600 -- --checkpoint-every 10000 --threads 1 --device cpu
+      ${cells[@]+--cells "${cells[@]}"} --refresh 600 -- --checkpoint-every 10000 --threads 1 \
+      --device cpu
     ;;
-  status) "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status ;;
+  status) "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status \
+      ${cells[@]+--cells "${cells[@]}"} ;;
   sync)
     "$BIN/python" - "$RUNS" results/table2 <<'PY'
 import pathlib
@@ -54,5 +58,5 @@ for cell in GRIDS["table2"]:
 PY
     ls results/table2
     ;;
-  *) sed -n '2,16p' "$0"; exit 2 ;;
+  *) sed -n '2,17p' "$0"; exit 2 ;;
 esac

@@ -185,6 +185,21 @@ def test_a_cell_trained_as_another_run_is_refused_before_anything_runs(tmp_path)
         _check_trained_as(run, run_config(args))
 
 
+def test_cells_picks_a_part_of_a_grid_by_name(tmp_path, capsys):
+    assert cli.main(["sweep", "--grid", "table2", "--out", str(tmp_path / "t"), "--status",
+                     "--cells", "push-sac-*", "slide-ddpg-seed0"]) == 0
+    cells = [line.split(" | ")[0].lstrip("| ") for line in
+             capsys.readouterr().out.splitlines()[2:]]
+    assert cells == ["push-sac-seed0", "push-sac-seed1", "push-sac-seed2", "slide-ddpg-seed0"]
+    with pytest.raises(ValueError, match=re.escape(
+            "--cells 'push-tqc-seed9' matches no cell of the grid; its cells: push-sac-seed0, "
+            "push-sac-seed1")):
+        cli.main(["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
+                  "--seeds", "0", "1", "--steps", "10", "--cells", "push-sac-*",
+                  "push-tqc-seed9"])
+    assert not (tmp_path / "s").exists()
+
+
 def test_bad_train_options_and_budgets_are_refused_by_the_parsers(tmp_path, capsys):
     base = ["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
             "--seeds", "0"]

@@ -4,6 +4,7 @@ table (`franka_composer/training/sweep.py`)."""
 from __future__ import annotations
 
 import argparse
+import fnmatch
 import pathlib
 
 from franka_composer.cli.options import positive_int, positive_seconds, training_seed
@@ -40,6 +41,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--seeds", nargs="+", type=training_seed, metavar="SEED")
     parser.add_argument("--steps", type=_budgets, metavar="N|TASK=N,...",
                         help="each cell's step budget, or one per task (push=250000,...)")
+    parser.add_argument("--cells", nargs="+", metavar="PATTERN", default=None,
+                        help="only the cells whose names (TASK-ALGO-seedN) match one of "
+                             "these shell patterns, e.g. 'push-sac-*': a part of a grid, "
+                             "to split it across machines or hold some cells back")
     parser.add_argument("--address", default=None,
                         help="an existing Ray cluster (e.g. auto, or ray://host:10001); "
                              "default: start a local Ray")
@@ -70,7 +75,20 @@ def _budgets(text: str):
 
 
 def cells_of(args: argparse.Namespace):
-    """The grid the arguments ask for; a clear error if they ask for none or two."""
+    """The grid the arguments ask for (the part of it --cells names); a clear error if
+    they ask for none or two, or a pattern names no cell."""
+    cells, rule = _grid_of(args)
+    if args.cells is None:
+        return cells, rule
+    for pattern in args.cells:
+        if not any(fnmatch.fnmatchcase(cell.name, pattern) for cell in cells):
+            raise ValueError(f"--cells {pattern!r} matches no cell of the grid; its cells: "
+                             f"{', '.join(cell.name for cell in cells)}")
+    return [cell for cell in cells
+            if any(fnmatch.fnmatchcase(cell.name, pattern) for pattern in args.cells)], rule
+
+
+def _grid_of(args: argparse.Namespace):
     from franka_composer.training.sweep import GRIDS, STOPPING_RULE, grid
 
     explicit = [args.tasks, args.algos, args.seeds, args.steps]
