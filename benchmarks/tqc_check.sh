@@ -2,16 +2,17 @@
 # Does TQC learn the same on sbx (1.5x SB3-bf16's steps/s here) as on SB3 in bf16 (issue 15),
 # and SB3 in bf16 as SB3 in fp32 (the paper's)? TQC + HER on push, Table I settings, the
 # campaign's stopping rule, seeds 0, 1, 2 to 1e5 steps in each arm, at low priority, runs
-# outside the work tree (each resumes: run it again). The sb3 arm (bf16) is the campaign's own
-# push-tqc cells, the command its sweep runs, brought forward.
+# outside the work tree (each resumes: run it again). The sb3 arm (bf16) was the campaign's
+# push-tqc cells brought forward, moved to tqc-check/ when the check sent TQC to sbx: the
+# campaign's push-tqc cells went on from copies of the sbx arm's runs (RESULTS.md).
 #
 #   benchmarks/tqc_check.sh run sbx|sb3|fp32 [SEED ...]   train (or resume) an arm's seeds
 #   benchmarks/tqc_check.sh sync     copy each run's config.json, eval.csv (up to 1e5 steps)
 #                                    and outcome.json (at 1e5) into results/tqc-check/<arm>/
 #   benchmarks/tqc_check.sh table    success at 50k-100k and mean over 60k-100k per arm,
 #                                    from results/tqc-check/
-#   benchmarks/tqc_check.sh final    the final test: 100 episodes per model (the same for all),
-#                                    run before the campaign takes the SB3 cells further
+#   benchmarks/tqc_check.sh final    the final test: EPISODES (default 100) per model, the
+#                                    same episodes for all
 set -uo pipefail
 cd "$(dirname "$0")/.."
 RUNS=${RUNS:-$HOME/franka_runs}
@@ -20,9 +21,7 @@ STEPS=100000
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 
 ARMS=(sb3 sbx fp32)
-run_dir() {  # run_dir ARM SEED
-  if [ "$1" = sb3 ]; then echo "$RUNS/table2/push-tqc-seed$2"; else echo "$RUNS/tqc-check/push-tqc-seed$2-$1"; fi
-}
+run_dir() { echo "$RUNS/tqc-check/push-tqc-seed$2-$1"; }  # run_dir ARM SEED
 
 case "${1:-}" in
   run)
@@ -50,8 +49,8 @@ case "${1:-}" in
         [ -f "$run/config.json" ] || continue
         mkdir -p "$kept"
         cp "$run/config.json" "$kept/"
-        # The SB3 arm's cells go on to the campaign's budget: the check keeps its first 1e5
-        # steps, and of a run stopped between checkpoints only what a resume keeps.
+        # The check's first 1e5 steps, and of a run stopped between checkpoints only what a
+        # resume keeps.
         "$BIN/python" - "$run" "$kept" "$STEPS" <<'PY'
 import pathlib
 import shutil
@@ -60,7 +59,7 @@ from franka_composer.training.runs import RunDir, write_eval_rows
 run, kept = (RunDir(pathlib.Path(path)) for path in sys.argv[1:3])
 steps = int(sys.argv[3])
 write_eval_rows(kept.eval_csv, [row for row in run.kept_evaluations() if row["steps"] <= steps])
-if run.read_outcome().get("steps", steps + 1) <= steps:  # Not the campaign's longer run's.
+if run.read_outcome().get("steps", steps + 1) <= steps:
     shutil.copy(run.outcome_path, kept.outcome_path)
 PY
       done
@@ -72,19 +71,18 @@ PY
     "$BIN/python" benchmarks/compare_arms.py "${arms[@]}" \
       --marks 50000 60000 70000 80000 90000 100000 --window 60000 100000
     ;;
-  final)  # Before the campaign takes the SB3 arm's cells past 1e5 steps.
+  final)
     runs=()
     for arm in "${ARMS[@]}"; do
       for seed in 0 1 2; do
         run=$(run_dir "$arm" "$seed")
-        [ "$arm" = fp32 ] && [ ! -d "$run" ] && continue  # The fp32 arm came later.
         if ! grep -q "\"steps\": $STEPS," "$run/outcome.json" 2>/dev/null; then
           echo "tqc_check.sh final: $run has not ended at $STEPS steps" >&2; exit 1
         fi
         runs+=("$run")
       done
     done
-    "$BIN/franka-composer" evaluate "${runs[@]}" --episodes 100
+    "$BIN/franka-composer" evaluate "${runs[@]}" --episodes "${EPISODES:-100}"
     ;;
   *) sed -n '2,14p' "$0"; exit 2 ;;
 esac

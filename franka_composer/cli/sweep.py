@@ -123,6 +123,7 @@ def _check_trained_as(run, config) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.cli import build_parser
     from franka_composer.cli.train import run_config
+    from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import cell_status, run_sweep, status_table, train_command
 
@@ -141,9 +142,11 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("franka-composer sweep runs its cells on Ray: pip install "
                          "'franka_composer[sweep]' (or pip install ray)") from error
     for cell in cells:  # Every cell's options are checked by train's own parser first,
-        # and a cell trained before must be the run the grid describes.
+        # its library must be there (sbx is an extra), and a cell trained before must be
+        # the run the grid describes.
         config = run_config(build_parser().parse_args(train_command(cell, args.out,
                                                                     train_args)[3:]))
+        algorithm_class(config.algo, config.backend)
         _check_trained_as(RunDir(args.out / cell.name), config)
     try:
         statuses = run_sweep(cells, args.out, train_args, address=args.address,
