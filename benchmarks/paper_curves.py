@@ -28,7 +28,8 @@ import subprocess
 
 import numpy as np
 
-from franka_composer.training.learning_report import THRESHOLDS, first_reaching, smoothed
+from franka_composer.training.learning_report import (THRESHOLDS, first_reaching, smoothed,
+                                                      steps_text)
 
 #: seaborn's "deep" palette, in the order the paper's legends list the algorithms.
 LINE_COLOURS = {"ddpg": (76, 114, 176), "sac": (221, 132, 82), "tqc": (85, 168, 104)}
@@ -146,7 +147,7 @@ def steps_to_table(curves: dict[str, dict[str, dict[int, float]]]) -> str:
             crossings = [first_reaching(smoothed(curve), t) for t in THRESHOLDS]
             last = [curve[s] for s in sorted(curve)[-10:]]
             lines.append(f"| {task} | {algo.upper()} | "
-                         + " | ".join("–" if c is None else f"{c:,}" for c in crossings)
+                         + " | ".join(steps_text(c) for c in crossings)
                          + f" | {100 * np.mean(last):.0f} % | {max(curve):,} |")
     return "\n".join(lines) + "\n"
 

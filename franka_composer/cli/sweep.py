@@ -80,12 +80,15 @@ def cells_of(args: argparse.Namespace):
     cells, rule = _grid_of(args)
     if args.cells is None:
         return cells, rule
-    for pattern in args.cells:
-        if not any(fnmatch.fnmatchcase(cell.name, pattern) for cell in cells):
+    names = [cell.name for cell in cells]
+    matched = {pattern: [name for name in names if fnmatch.fnmatchcase(name, pattern)]
+               for pattern in args.cells}
+    for pattern, matches in matched.items():
+        if not matches:
             raise ValueError(f"--cells {pattern!r} matches no cell of the grid; its cells: "
-                             f"{', '.join(cell.name for cell in cells)}")
-    return [cell for cell in cells
-            if any(fnmatch.fnmatchcase(cell.name, pattern) for pattern in args.cells)], rule
+                             f"{', '.join(names)}")
+    wanted = set().union(*matched.values())
+    return [cell for cell in cells if cell.name in wanted], rule
 
 
 def _grid_of(args: argparse.Namespace):

@@ -114,10 +114,10 @@ def markdown_table(runs: list[RunRecord],
         cell = cells[(task, variant, algo)]
         reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
                             for run in cell)
-        crossings = [_steps(steps_to(cell, t)) for t in THRESHOLDS]
+        crossings = [steps_text(steps_to(cell, t)) for t in THRESHOLDS]
         if paper is not None:
             curve = paper.get((task, algo))
-            crossings += [_steps(first_reaching(smoothed(curve), t)) if curve else ""
+            crossings += [steps_text(first_reaching(smoothed(curve), t)) if curve else ""
                           for t in THRESHOLDS]
         lines.append(
             f"| {with_variant(task, variant)} | {algo.upper()} | "
@@ -128,7 +128,8 @@ def markdown_table(runs: list[RunRecord],
     return "\n".join(lines) + "\n\n" + _total(runs) + "\n"
 
 
-def _steps(step: int | None) -> str:
+def steps_text(step: int | None) -> str:
+    """A step in a table: "–" for never."""
     return "–" if step is None else f"{step:,}"
 
 
