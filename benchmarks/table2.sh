@@ -6,6 +6,8 @@
 #   benchmarks/table2.sh run      train the cells, WORKERS at a time (default 1), each
 #                                 resumed from its checkpoint if it has one, skipped if done;
 #                                 CELLS='push-sac-* ...' runs only the cells it names
+#   benchmarks/table2.sh stop     stop a `run` in the background as Ctrl-C does: each running
+#                                 cell checkpoints, then exits (waits for them, up to 5 min)
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
 #   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv (up to its
 #                                 checkpoint) and, once it has finished at the grid's
@@ -28,6 +30,18 @@ case "${1:-}" in
     nice -n 10 "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --num-cpus "$WORKERS" \
       ${cells[@]+--cells "${cells[@]}"} --refresh 600 -- --checkpoint-every 10000 --threads 1 \
       --device cpu
+    ;;
+  stop)
+    # SIGTERM to the sweep: it cancels its cells, and each run checkpoints before exiting.
+    pkill -TERM -f "franka-composer sweep --grid table2 --out $RUNS( |$)" || true
+    for _ in $(seq 300); do
+      pgrep -f "franka_composer train --out $RUNS/" >/dev/null || break
+      sleep 1
+    done
+    if pgrep -af "franka_composer train --out $RUNS/"; then
+      echo "cells above still running" >&2; exit 1
+    fi
+    "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status
     ;;
   status) "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status \
       ${cells[@]+--cells "${cells[@]}"} ;;
@@ -58,5 +72,5 @@ for cell in GRIDS["table2"]:
 PY
     ls results/table2
     ;;
-  *) sed -n '2,17p' "$0"; exit 2 ;;
+  *) sed -n '2,19p' "$0"; exit 2 ;;
 esac
