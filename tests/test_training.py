@@ -205,17 +205,18 @@ def test_resume_continues_step_count_buffer_and_csv(tmp_path, monkeypatch):
     assert RunDir(out).read_outcome()["steps"] == 200
     saved_at, outcomes, save = [], [], LatestCheckpoint.save
 
-    def spy(self):
-        saved_at.append(self.model.num_timesteps)
+    def spy(self, *, exact):
+        saved_at.append((self.model.num_timesteps, exact, self.episode_ended))
         outcomes.append(RunDir(out).read_outcome())
-        save(self)
+        save(self, exact=exact)
 
     monkeypatch.setattr(LatestCheckpoint, "save", spy)
     assert _train(out, "sac", 400, "--resume") == 0
-    # The run's own cadence after a resume, not the default's (400 twice: on the grid, where
-    # SB3 saves before storing the step's transition, then complete at the end).
-    assert saved_at == [300, 400, 400]
-    assert outcomes == [{}, {}, {}]  # Going on, it has not ended: no outcome until it does.
+    # The run's own cadence after a resume, not the default's: at the first episode end at
+    # or after 300 (its episodes end at steps 250, 251, 301, 351), exact; then where it
+    # ended, inside an episode: not exact.
+    assert saved_at == [(301, True, True), (400, False, False)]
+    assert outcomes == [{}, {}]  # Going on, it has not ended: no outcome until it does.
     rows = read_eval_rows(RunDir(out).eval_csv)
     assert [r["steps"] for r in rows] == [0, 100, 200, 300, 400]
     assert rows[3]["wall_time_s"] > state["wall_time_s"]
@@ -229,6 +230,117 @@ def test_resume_continues_step_count_buffer_and_csv(tmp_path, monkeypatch):
     outcome = RunDir(out).read_outcome()
     assert 0 < state["cpu_time_s"] < outcome["cpu_time_s"]
     assert state["wall_time_s"] < outcome["wall_time_s"]
+
+
+def _stop_asked_at(monkeypatch, steps: int) -> None:
+    """SIGTERM's effect on the run's checkpoint callback, from its step `steps` on."""
+    on_step = LatestCheckpoint._on_step
+
+    def asked(self):
+        self.stop_requested |= self.num_timesteps >= steps
+        return on_step(self)
+
+    monkeypatch.setattr(LatestCheckpoint, "_on_step", asked)
+
+
+def _trained_state(out, algo, backend):
+    """Everything a run's outcome is made of: its evaluations, the final model's
+    parameters and the replay buffer's contents."""
+    env = make_env("push")
+    model = load_model(algo, RunDir(out).final_model, env=env, device="cpu", backend=backend)
+    model.load_replay_buffer(RunDir(out).checkpoint_buffer)
+    buffer = model.replay_buffer
+    stored = {name: getattr(buffer, name)[:buffer.pos].copy()
+              for name in ("actions", "rewards", "dones")}
+    stored.update({f"obs.{k}": v[:buffer.pos].copy() for k, v in buffer.observations.items()})
+    if backend == "sbx":
+        import jax
+
+        parameters = [np.asarray(leaf) for leaf in jax.tree_util.tree_leaves(
+            (model.policy.actor_state.params, model.policy.qf_state.params))]
+    else:
+        parameters = [p.detach().numpy().copy() for p in model.policy.parameters()]
+    env.close()
+    return read_eval_rows(RunDir(out).eval_csv), parameters, stored
+
+
+@pytest.mark.parametrize("algo, backend", [("sac", "sb3"), ("tqc", "sb3"), ("ddpg", "sb3"),
+                                           ("sac", "sbx")])
+def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, monkeypatch,
+                                                                   algo, backend):
+    """Stopped (SIGTERM, Ctrl-C) inside an episode, a run checkpoints at that episode's end
+    and exits; resumed, it trains, evaluates and stores what the uninterrupted run does."""
+    options = ["--backend", backend, "--checkpoint-every", "100000"]
+    assert _train(tmp_path / "whole", algo, 400, *options) == 0
+    with monkeypatch.context() as patch:
+        _stop_asked_at(patch, 160)  # Inside the fourth episode (learning began at 100).
+        assert _train(tmp_path / "stopped", algo, 400, *options) == 130
+    state = RunDir(tmp_path / "stopped").read_state()
+    assert state["exact"] and 160 < state["steps"] <= 200
+    assert RunDir(tmp_path / "stopped").checkpoint_generators.is_file()
+    assert _train(tmp_path / "stopped", algo, 400, "--resume") == 0
+    whole = _trained_state(tmp_path / "whole", algo, backend)
+    resumed = _trained_state(tmp_path / "stopped", algo, backend)
+    for row in (*whole[0], *resumed[0]):
+        del row["wall_time_s"]
+    assert [r["steps"] for r in whole[0]] == [0, 100, 200, 300, 400]
+    assert resumed[0] == whole[0]
+    assert len(resumed[1]) == len(whole[1]) > 0
+    for a, b in zip(resumed[1], whole[1]):
+        np.testing.assert_array_equal(a, b)
+    assert resumed[2].keys() == whole[2].keys() and len(whole[2]["actions"]) == 400
+    for name in whole[2]:
+        np.testing.assert_array_equal(resumed[2][name], whole[2][name])
+
+
+def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, monkeypatch):
+    """A checkpoint that is not at an episode's end (a second signal, checkpoints written
+    before resumes were exact) resumes with episodes seeded by the run's seed and step."""
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        on_step = LatestCheckpoint._on_step
+
+        def interrupted(self):
+            if self.num_timesteps == 130:
+                raise KeyboardInterrupt("signal 15, again")
+            return on_step(self)
+
+        patch.setattr(LatestCheckpoint, "_on_step", interrupted)
+        assert _train(out, "sac", 400) == 130
+    assert RunDir(out).read_state() == {**RunDir(out).read_state(), "steps": 130,
+                                        "exact": False}
+    assert not RunDir(out).checkpoint_generators.exists()
+    seeds = []
+    with monkeypatch.context() as patch:
+        from stable_baselines3 import SAC
+
+        set_random_seed = SAC.set_random_seed
+        patch.setattr(SAC, "set_random_seed",
+                      lambda self, seed: seeds.append(seed) or set_random_seed(self, seed))
+        assert _train(out, "sac", 200, "--resume") == 0
+    assert seeds[-1] == 1 + 130  # The run's seed and step.
+    assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
+
+
+def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_path,
+                                                                          monkeypatch):
+    """An exact checkpoint whose rebuilt env differs from the one it saw (here: its episode
+    stream's seed altered) is not resumed as if it were exact."""
+    import pickle
+
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        _stop_asked_at(patch, 160)
+        assert _train(out, "sac", 400) == 130
+    generators = RunDir(out).checkpoint_generators
+    state = pickle.loads(generators.read_bytes())
+    state["stream"]["seed"] = 99
+    generators.write_bytes(pickle.dumps(state))
+    steps = RunDir(out).read_state()["steps"]
+    with pytest.warns(RuntimeWarning, match="did not come back as its checkpoint saw it: the "
+                                            "run goes on with a fresh episode stream"):
+        assert _train(out, "sac", steps + 50, "--resume") == 0
+    assert RunDir(out).read_outcome()["steps"] == steps + 50
 
 
 def test_cpu_time_stays_unknown_after_a_checkpoint_that_did_not_record_it(tmp_path):
@@ -351,10 +463,25 @@ def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
     stdout, _ = process.communicate(timeout=60)
     assert process.returncode == 130 and "--resume" in stdout
     steps = RunDir(out).read_state()["steps"]
-    assert steps >= 200
+    assert steps >= 200 and RunDir(out).read_state()["exact"]  # At the episode's end.
     assert _train(out, "ddpg", steps + 100, "--resume") == 0
     evaluated = [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)]
     assert evaluated == sorted(set(evaluated)) and evaluated[-1] == steps + 100
+
+
+def test_a_first_stop_signal_asks_and_a_second_interrupts():
+    import signal
+
+    from franka_composer.training.signals import stop_requests
+
+    asked = []
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(KeyboardInterrupt, match="signal 15, again"):
+        with stop_requests(lambda: asked.append(True), signal.SIGTERM):
+            signal.raise_signal(signal.SIGTERM)
+            assert asked == [True]  # Asked; nothing raised.
+            signal.raise_signal(signal.SIGTERM)
+    assert asked == [True] and signal.getsignal(signal.SIGTERM) is before
 
 
 def test_sbx_model_has_table_i_settings():

@@ -136,9 +136,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--stop-after", type=positive_int, default=None, metavar="N",
                         help="consecutive evaluations for --stop-at-success (default 5)")
     parser.add_argument("--checkpoint-every", type=positive_int, default=None,
-                        help="steps between checkpoints of model and replay buffer "
+                        help="steps between checkpoints of model and replay buffer, each "
+                             "at the first episode end at or after a multiple "
                              f"(default {DEFAULT_CHECKPOINT_EVERY}; a --resume keeps the "
-                             "run's own; one is also written on Ctrl-C / SIGTERM)")
+                             "run's own; one is also written on Ctrl-C / SIGTERM, at the "
+                             "episode's end)")
     parser.add_argument("--threads", type=positive_int, default=None,
                         help="CPU threads for the networks (default: the library's, or "
                              "OMP_NUM_THREADS). torch's thread count with sb3; with sbx, "

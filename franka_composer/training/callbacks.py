@@ -5,8 +5,8 @@
   appends each evaluation to eval.csv (the whole run's record, across resumes) and stops
   training by the run's early-stopping rule.
 - `LatestCheckpoint` is SB3's `CheckpointCallback` (model and replay buffer), keeping only
-  the latest under fixed names, with a state file written last, from which `--resume`
-  continues.
+  the latest under fixed names, taken at episode ends with the generators' states so that
+  `--resume` continues exactly (`exact_resume`), with a state file written last.
 - The progress bar is SB3's (`learn(progress_bar=True)`).
 """
 
@@ -18,6 +18,8 @@ import time
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
+from franka_composer.training import exact_resume
+from franka_composer.training.exact_resume import EpisodeStream
 from franka_composer.training.runs import RunDir, append_eval_row, read_eval_rows
 
 
@@ -116,36 +118,65 @@ class Evaluation(EvalCallback):
         return self.record.stopped_early
 
 
-class LatestCheckpoint(CheckpointCallback):
-    """SB3's CheckpointCallback of model and replay buffer every `every` steps (on the run's
-    grid), keeping only the latest: checkpoint/model.zip, replay_buffer.pkl, and
-    state.json written last, so a checkpoint whose state exists is complete."""
+class StoppedAtCheckpoint(KeyboardInterrupt):
+    """A stop that was asked for (SIGTERM, Ctrl-C) and waited for an episode's end, where
+    the checkpoint it wrote resumes exactly."""
 
-    def __init__(self, run: RunDir, clock: WallClock, *, every: int) -> None:
+
+class LatestCheckpoint(CheckpointCallback):
+    """SB3's CheckpointCallback of model and replay buffer, keeping only the latest:
+    checkpoint/model.zip, replay_buffer.pkl, generators.pkl and state.json written last, so
+    a checkpoint whose state exists is complete.
+
+    It is written at the first episode end at or after each multiple of `every` steps (the
+    run's grid, after a resume too), and at the first episode end after `stop_requested` is
+    set, which then stops the run (`StoppedAtCheckpoint`): there, with the step's transition
+    stored and its gradient steps done, a resume goes on exactly (`exact_resume`). The
+    episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop."""
+
+    def __init__(self, run: RunDir, clock: WallClock, *, every: int,
+                 stream: EpisodeStream) -> None:
         super().__init__(every, str(run.checkpoint), name_prefix="model",
                          save_replay_buffer=True)
-        self._run, self._clock = run, clock
+        self._run, self._clock, self.stream = run, clock, stream
+        self.stop_requested = False
+        self.episode_ended = False  # Whether the latest step ended an episode.
 
     def _checkpoint_path(self, checkpoint_type: str = "", extension: str = "") -> str:
         return str(self._run.checkpoint / f"{checkpoint_type.rstrip('_') or 'model'}.{extension}")
 
     def _on_training_start(self) -> None:
-        self.n_calls = self.num_timesteps  # The run's grid, after a resume too.
+        self._due = (self.num_timesteps // self.save_freq + 1) * self.save_freq
 
     def _on_step(self) -> bool:
-        if self.n_calls % self.save_freq == 0:
-            self.save()
+        # Before SB3 stores the step's transition and trains on it: the checkpoint waits
+        # for the next rollout's start.
+        self.episode_ended = bool(self.locals["dones"][0])
         return True
 
-    def save(self) -> None:
-        """Writes the checkpoint now (also on an interrupt and at the end): SB3 saves the
-        model and the replay buffer, then the state file marks the checkpoint complete."""
+    def _on_rollout_start(self) -> None:
+        if not self.episode_ended:
+            return
+        if self.num_timesteps >= self._due or self.stop_requested:
+            self.save(exact=True)
+            self._due = (self.num_timesteps // self.save_freq + 1) * self.save_freq
+        if self.stop_requested:
+            raise StoppedAtCheckpoint
+
+    def save(self, *, exact: bool) -> None:
+        """Writes the checkpoint now: SB3 saves the model and the replay buffer, then the
+        generators, then the state file marks the checkpoint complete. `exact`: whether
+        this is a point a resume goes on from exactly (see the class)."""
         run = self._run
         run.checkpoint.mkdir(parents=True, exist_ok=True)
         run.checkpoint_state.unlink(missing_ok=True)
+        run.checkpoint_generators.unlink(missing_ok=True)
         calls, self.n_calls = self.n_calls, 0  # 0 is on every grid.
         super()._on_step()
         self.n_calls = calls
+        if exact:
+            exact_resume.save(self.model, self.stream, run.checkpoint_generators)
         run.checkpoint_state.write_text(json.dumps(
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
-             "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq}) + "\n")
+             "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
+             "exact": exact}) + "\n")

@@ -1,7 +1,9 @@
 """A training run from start (or from its last checkpoint) to its total step count.
 
-Interrupting it (Ctrl-C, or SIGTERM from a scheduler) writes a checkpoint first, so
-`resume` continues with the same step counter, replay buffer and eval.csv.
+Interrupting it (Ctrl-C, or SIGTERM from a scheduler) writes a checkpoint at the episode's
+end first, so `resume` continues with the same step counter, replay buffer and eval.csv,
+exactly as the uninterrupted run would (`exact_resume`); a second Ctrl-C or SIGTERM stops
+it at once, with a checkpoint from which the run goes on with a fresh episode stream.
 """
 
 from __future__ import annotations
@@ -10,18 +12,20 @@ import dataclasses
 import importlib.util
 import pathlib
 import signal
+import warnings
 
 from stable_baselines3.common.callbacks import CallbackList
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from franka_composer.training import demos
-from franka_composer.training.callbacks import Evaluation, LatestCheckpoint, WallClock
+from franka_composer.training import demos, exact_resume
+from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
+                                                StoppedAtCheckpoint, WallClock)
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunConfig, RunDir,
                                           write_eval_rows)
-from franka_composer.training.signals import interrupt_on
+from franka_composer.training.signals import stop_requests
 from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.
@@ -35,6 +39,34 @@ def _skip_evaluated_episodes(eval_env, evaluations: int, episodes: int) -> None:
     this a resumed run would evaluate the episodes of its first evaluations again."""
     for _ in range(evaluations * (episodes + 1)):
         eval_env.reset()
+
+
+def _stop_signals() -> list[int]:
+    """SIGTERM, and SIGINT where Ctrl-C reaches the process (not a background job's SIG_IGN)."""
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        return [signal.SIGTERM, signal.SIGINT]
+    return [signal.SIGTERM]
+
+
+def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
+    """The model and the training env's episode stream at the run's checkpoint: exactly as
+    the run left them where the checkpoint allows (`exact_resume`), else with a fresh
+    episode stream, seeded by the run's seed and step."""
+    exact = bool(state.get("exact")) and run.checkpoint_generators.is_file()
+    model = load_model(config.algo, run.checkpoint_model, env=env, device=device,
+                       backend=config.backend, force_reset=not exact)
+    model.load_replay_buffer(run.checkpoint_buffer)
+    stream = exact_resume.restore(model, run.checkpoint_generators) if exact else None
+    if stream is None:
+        if exact:
+            warnings.warn(f"{run.root}'s training env did not come back as its checkpoint "
+                          "saw it: the run goes on with a fresh episode stream",
+                          RuntimeWarning, stacklevel=2)
+        model._last_obs = None  # SB3 resets the env, with the new stream's seed.
+        stream = exact_resume.EpisodeStream(config.seed + int(state["steps"]),
+                                            model._episode_num)
+        model.set_random_seed(stream.seed)
+    return model, stream
 
 
 def start(root: pathlib.Path, config: RunConfig) -> RunDir:
@@ -69,16 +101,12 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         if not state:
             raise ValueError(f"{run.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
-        model = load_model(config.algo, run.checkpoint_model, env=env, device=device,
-                           backend=config.backend)
-        model.load_replay_buffer(run.checkpoint_buffer)
+        model, stream = _resume(run, config, state, env, device)
         rows = run.kept_evaluations()
         write_eval_rows(run.eval_csv, rows)
         # The evaluations go on with the episodes an uninterrupted run would see next.
         _skip_evaluated_episodes(eval_env, sum(r["steps"] % hp.eval_every == 0 for r in rows),
                                  hp.eval_episodes)
-        # Fresh episodes for the resumed stream, still a function of the seed.
-        model.set_random_seed(config.seed + int(state["steps"]))
     else:
         model = build_model(config.task, config.algo, hp, env, seed=config.seed,
                             device=device, tensorboard_log=tensorboard,
@@ -86,6 +114,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
         if config.demos is not None:
             episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
             demos.prefill(model, episodes, hp.total_steps)
+        stream = exact_resume.EpisodeStream(config.seed)  # SB3 seeds the env's first reset.
     if hp.clip_q_targets:
         clip_target_critic(model, hp.gamma)
     # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
@@ -99,7 +128,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     if checkpoint_every is None:
         checkpoint_every = state.get("checkpoint_every", DEFAULT_CHECKPOINT_EVERY) if resume \
             else DEFAULT_CHECKPOINT_EVERY
-    checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every)
+    checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream)
     precision = GradientStepPrecision(config.precision)
     callbacks = CallbackList([precision, evaluation, checkpoint])
     remaining = hp.total_steps - model.num_timesteps
@@ -108,23 +137,26 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     elif remaining > 0:
         run.outcome_path.unlink(missing_ok=True)  # A raised budget: it has not ended now.
     try:
-        with interrupt_on(signal.SIGTERM):
+        with stop_requests(lambda: setattr(checkpoint, "stop_requested", True),
+                           *_stop_signals()):
             if remaining > 0:
                 model.learn(total_timesteps=remaining, callback=callbacks,
                             reset_num_timesteps=not resume, tb_log_name="run",
                             progress_bar=progress)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupt:
         precision.close()
-        if getattr(checkpoint, "model", None) is not None:  # Interrupted inside learn.
-            checkpoint.save()
+        trained = getattr(checkpoint, "model", None) is not None
+        if trained and not isinstance(interrupt, StoppedAtCheckpoint):  # Stopped at once.
+            checkpoint.save(exact=False)
         raise
     finally:
         precision.close()
         env.close()
         eval_env.close()
-    if getattr(checkpoint, "model", None) is None:  # Nothing trained (a finished run resumed).
-        checkpoint.init_callback(model)
-    checkpoint.save()  # Again on the grid too: SB3 checkpoints before storing the transition.
+    if remaining > 0:
+        # Where training ended: exact at an episode's end, unless the stopping rule ended it
+        # inside a step (before SB3 stored the transition).
+        checkpoint.save(exact=checkpoint.episode_ended and not evaluation.stopped_early)
     model.save(run.final_model)
     save_policy(model, run.policy_file)
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)

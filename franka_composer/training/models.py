@@ -141,6 +141,9 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
     return algo_class(_policy(algo_class, backend), env, **kwargs)
 
 
-def load_model(algo: str, path, *, env: gym.Env, device: str = "auto", backend: str = "sb3"):
-    """A saved model on `env` (HER models cannot be loaded without their env)."""
-    return algorithm_class(algo, backend).load(path, env=env, device=resolve_device(device))
+def load_model(algo: str, path, *, env: gym.Env, device: str = "auto", backend: str = "sb3",
+               force_reset: bool = True):
+    """A saved model on `env` (HER models cannot be loaded without their env). Without
+    `force_reset` it keeps its last observation: `env` must be brought to it."""
+    return algorithm_class(algo, backend).load(path, env=env, device=resolve_device(device),
+                                               force_reset=force_reset)

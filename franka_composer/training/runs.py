@@ -198,6 +198,11 @@ class RunDir:
         return self.checkpoint / "replay_buffer.pkl"
 
     @property
+    def checkpoint_generators(self) -> pathlib.Path:
+        """The random generators' states and the episode stream (`exact_resume`)."""
+        return self.checkpoint / "generators.pkl"
+
+    @property
     def checkpoint_state(self) -> pathlib.Path:
         return self.checkpoint / "state.json"
 
@@ -215,8 +220,9 @@ class RunDir:
         self.config_path.write_text(json.dumps(config.to_dict(), indent=2) + "\n")
 
     def read_state(self) -> dict:
-        """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s"} (no CPU time in
-        checkpoints written before it was recorded); {} without a checkpoint."""
+        """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
+        "exact"} (no CPU time in checkpoints written before it was recorded, no "exact" in
+        those written before resumes could be exact); {} without a checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
         return json.loads(self.checkpoint_state.read_text())
