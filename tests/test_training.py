@@ -256,16 +256,18 @@ def _trained_state(out, algo, backend):
     if backend == "sbx":
         import jax
 
-        parameters = [np.asarray(leaf) for leaf in jax.tree_util.tree_leaves(
-            (model.policy.actor_state.params, model.policy.qf_state.params))]
+        states = {name: state.params for name, state in vars(model.policy).items()
+                  if name.endswith("_state")}  # The actor's and the critics' TrainStates.
+        assert "actor_state" in states and len(states) >= 2
+        parameters = [np.asarray(leaf) for leaf in jax.tree_util.tree_leaves(states)]
     else:
         parameters = [p.detach().numpy().copy() for p in model.policy.parameters()]
     env.close()
     return read_eval_rows(RunDir(out).eval_csv), parameters, stored
 
 
-@pytest.mark.parametrize("algo, backend", [("sac", "sb3"), ("tqc", "sb3"), ("ddpg", "sb3"),
-                                           ("sac", "sbx")])
+@pytest.mark.parametrize("algo, backend", [(algo, backend) for backend in ("sb3", "sbx")
+                                           for algo in ALGOS])
 def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, monkeypatch,
                                                                    algo, backend):
     """Stopped (SIGTERM, Ctrl-C) inside an episode, a run checkpoints at that episode's end
@@ -310,15 +312,24 @@ def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, mon
     assert RunDir(out).read_state() == {**RunDir(out).read_state(), "steps": 130,
                                         "exact": False}
     assert not RunDir(out).checkpoint_generators.exists()
-    seeds = []
+    seeds, threads = [], []
     with monkeypatch.context() as patch:
         from stable_baselines3 import SAC
+
+        from franka_composer.cli import train as train_command
 
         set_random_seed = SAC.set_random_seed
         patch.setattr(SAC, "set_random_seed",
                       lambda self, seed: seeds.append(seed) or set_random_seed(self, seed))
-        assert _train(out, "sac", 200, "--resume") == 0
+        limit_threads = train_command._limit_threads
+        patch.setattr(train_command, "_limit_threads",
+                      lambda count, backend: threads.append(count) or limit_threads(count,
+                                                                                  backend))
+        # Without --threads: the run's own (TINY's 1), which its checkpoint recorded.
+        assert cli.main(["train", "--resume", "--out", str(out), "--total-steps", "200",
+                         "--no-progress", "--device", "cpu"]) == 0
     assert seeds[-1] == 1 + 130  # The run's seed and step.
+    assert threads == [1] and RunDir(out).read_state()["threads"] == 1
     assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
 
 

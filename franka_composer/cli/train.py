@@ -143,7 +143,9 @@ def add_parser(subparsers) -> None:
                              "episode's end)")
     parser.add_argument("--threads", type=positive_int, default=None,
                         help="CPU threads for the networks (default: the library's, or "
-                             "OMP_NUM_THREADS). torch's thread count with sb3; with sbx, "
+                             "OMP_NUM_THREADS; a --resume keeps the run's own, since the "
+                             "thread count changes the results' last bits). torch's thread "
+                             "count with sb3; with sbx, "
                              "whose XLA CPU runtime has no thread-count setting, the process "
                              "is pinned to this many cores")
     parser.add_argument("--no-progress", dest="progress", action="store_false",
@@ -203,11 +205,14 @@ def run(args: argparse.Namespace) -> int:
         _check_demos(args, config.hyperparameters.buffer_size,
                      args.total_steps or config.hyperparameters.total_steps)
         run_dir = loop.start(out, config)
+    threads = args.threads
+    if threads is None and args.resume:
+        threads = run_dir.read_state().get("threads")
     try:
-        with _limit_threads(args.threads, run_dir.read_config().backend):
+        with _limit_threads(threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
                                device=args.device, checkpoint_every=args.checkpoint_every,
-                               progress=args.progress)
+                               threads=threads, progress=args.progress)
     except KeyboardInterrupt:
         print(f"interrupted: checkpoint saved; continue with "
               f"franka-composer train --resume --out {run_dir.root}")

@@ -132,13 +132,14 @@ class LatestCheckpoint(CheckpointCallback):
     run's grid, after a resume too), and at the first episode end after `stop_requested` is
     set, which then stops the run (`StoppedAtCheckpoint`): there, with the step's transition
     stored and its gradient steps done, a resume goes on exactly (`exact_resume`). The
-    episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop."""
+    episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop;
+    `threads`, the CPU threads the networks are computed with, recorded for a resume."""
 
-    def __init__(self, run: RunDir, clock: WallClock, *, every: int,
-                 stream: EpisodeStream) -> None:
+    def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
+                 threads: int | None = None) -> None:
         super().__init__(every, str(run.checkpoint), name_prefix="model",
                          save_replay_buffer=True)
-        self._run, self._clock, self.stream = run, clock, stream
+        self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
         self.stop_requested = False
         self.episode_ended = False  # Whether the latest step ended an episode.
 
@@ -179,4 +180,4 @@ class LatestCheckpoint(CheckpointCallback):
         run.checkpoint_state.write_text(json.dumps(
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
              "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
-             "exact": exact}) + "\n")
+             "exact": exact, "threads": self._threads}) + "\n")

@@ -80,11 +80,14 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
 
 
 def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
-          device: str = "auto", checkpoint_every: int | None = None, progress: bool = True):
+          device: str = "auto", checkpoint_every: int | None = None,
+          threads: int | None = None, progress: bool = True):
     """Trains `run` up to its total steps (`total_steps` overrides and is saved); returns the
     model. With `resume`, starts from the latest checkpoint. `checkpoint_every` defaults to
     the cadence the run's checkpoints were written at (DEFAULT_CHECKPOINT_EVERY for a new
-    run), so a resumed run does not quietly checkpoint less often than it was started to."""
+    run), so a resumed run does not quietly checkpoint less often than it was started to.
+    `threads`: the CPU threads the caller limited the networks to (None: not limited),
+    recorded in the checkpoints for a resume to compute with."""
     config = run.read_config()
     if total_steps is not None:
         config = dataclasses.replace(
@@ -128,7 +131,8 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     if checkpoint_every is None:
         checkpoint_every = state.get("checkpoint_every", DEFAULT_CHECKPOINT_EVERY) if resume \
             else DEFAULT_CHECKPOINT_EVERY
-    checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream)
+    checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream,
+                                  threads=threads)
     precision = GradientStepPrecision(config.precision)
     callbacks = CallbackList([precision, evaluation, checkpoint])
     remaining = hp.total_steps - model.num_timesteps

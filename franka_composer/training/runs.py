@@ -221,8 +221,9 @@ class RunDir:
 
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
-        "exact"} (no CPU time in checkpoints written before it was recorded, no "exact" in
-        those written before resumes could be exact); {} without a checkpoint."""
+        "exact", "threads"} (no CPU time in checkpoints written before it was recorded, no
+        "exact" or "threads" in those written before resumes could be exact); {} without a
+        checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
         return json.loads(self.checkpoint_state.read_text())
