@@ -147,6 +147,10 @@ class LatestCheckpoint(CheckpointCallback):
         return str(self._run.checkpoint / f"{checkpoint_type.rstrip('_') or 'model'}.{extension}")
 
     def _on_training_start(self) -> None:
+        self._set_next_due()
+
+    def _set_next_due(self) -> None:
+        """The next multiple of `every` after this step (the run's grid)."""
         self._due = (self.num_timesteps // self.save_freq + 1) * self.save_freq
 
     def _on_step(self) -> bool:
@@ -160,7 +164,7 @@ class LatestCheckpoint(CheckpointCallback):
             return
         if self.num_timesteps >= self._due or self.stop_requested:
             self.save(exact=True)
-            self._due = (self.num_timesteps // self.save_freq + 1) * self.save_freq
+            self._set_next_due()
         if self.stop_requested:
             raise StoppedAtCheckpoint
 
