@@ -266,13 +266,15 @@ def _trained_state(out, algo, backend):
     return read_eval_rows(RunDir(out).eval_csv), parameters, stored
 
 
-@pytest.mark.parametrize("algo, backend", [(algo, backend) for backend in ("sb3", "sbx")
-                                           for algo in ALGOS])
+@pytest.mark.parametrize("algo, backend, schedule", [
+    *((algo, backend, "step") for backend in ("sb3", "sbx") for algo in ALGOS),
+    ("sac", "sb3", "episode")])
 def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, monkeypatch,
-                                                                   algo, backend):
+                                                                   algo, backend, schedule):
     """Stopped (SIGTERM, Ctrl-C) inside an episode, a run checkpoints at that episode's end
     and exits; resumed, it trains, evaluates and stores what the uninterrupted run does."""
-    options = ["--backend", backend, "--checkpoint-every", "100000"]
+    options = ["--backend", backend, "--checkpoint-every", "100000",
+               "--update-schedule", schedule]
     assert _train(tmp_path / "whole", algo, 400, *options) == 0
     with monkeypatch.context() as patch:
         _stop_asked_at(patch, 160)  # Inside the fourth episode (learning began at 100).
@@ -285,12 +287,14 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, mon
     resumed = _trained_state(tmp_path / "stopped", algo, backend)
     for row in (*whole[0], *resumed[0]):
         del row["wall_time_s"]
-    assert [r["steps"] for r in whole[0]] == [0, 100, 200, 300, 400]
+    # The episode schedule trains on whole episodes: its run ends with its episode, at 401.
+    ended = {"step": 400, "episode": 401}[schedule]
+    assert [r["steps"] for r in whole[0]] == sorted({0, 100, 200, 300, 400, ended})
     assert resumed[0] == whole[0]
     assert len(resumed[1]) == len(whole[1]) > 0
     for a, b in zip(resumed[1], whole[1]):
         np.testing.assert_array_equal(a, b)
-    assert resumed[2].keys() == whole[2].keys() and len(whole[2]["actions"]) == 400
+    assert resumed[2].keys() == whole[2].keys() and len(whole[2]["actions"]) == ended
     for name in whole[2]:
         np.testing.assert_array_equal(resumed[2][name], whole[2][name])
 
