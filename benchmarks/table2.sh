@@ -5,7 +5,10 @@
 #
 #   benchmarks/table2.sh run      train the cells, WORKERS at a time (default 1), each
 #                                 resumed from its checkpoint if it has one, skipped if done;
-#                                 CELLS='push-sac-* ...' runs only the cells it names
+#                                 CELLS='push-sac-* ...' runs only the cells it names;
+#                                 FROZEN=COMMIT runs that commit's code (a worktree beside
+#                                 $RUNS, on PYTHONPATH, with this checkout's venv), so the
+#                                 work tree can change while the cells train
 #   benchmarks/table2.sh stop     stop a `run` in the background as Ctrl-C does: each running
 #                                 cell checkpoints, then exits (waits for them, up to 5 min)
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
@@ -27,6 +30,17 @@ export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared
 
 case "${1:-}" in
   run)
+    if [ -n "${FROZEN:-}" ]; then
+      tree=$(dirname "$RUNS")/code-$FROZEN
+      [ -d "$tree" ] || git worktree add --detach "$tree" "$FROZEN" >/dev/null || exit 1
+      export PYTHONPATH=$tree
+    fi
+    # Where Linux groups processes by session (autogroup), nice acts only within the group:
+    # the group's own niceness is what leaves the machine to other work. Only a session of
+    # the campaign's own (`setsid benchmarks/table2.sh run`), not the caller's terminal.
+    if [ "$(ps -o sid= -p $$ | tr -d ' ')" = "$$" ]; then
+      echo 19 2>/dev/null > /proc/self/autogroup || true
+    fi
     nice -n 10 "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --num-cpus "$WORKERS" \
       ${cells[@]+--cells "${cells[@]}"} --refresh 600 -- --checkpoint-every 10000 --threads 1 \
       --device cpu
@@ -72,5 +86,5 @@ for cell in GRIDS["table2"]:
 PY
     ls results/table2
     ;;
-  *) sed -n '2,19p' "$0"; exit 2 ;;
+  *) sed -n '2,22p' "$0"; exit 2 ;;
 esac
