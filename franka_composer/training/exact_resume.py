@@ -53,11 +53,12 @@ def save(model, stream: EpisodeStream, path: pathlib.Path) -> None:
     """Writes the generators' states and the episode stream of `model`, now."""
     import torch
 
+    owners = _owners(model)
     state = {"stream": dataclasses.asdict(stream), "torch": torch.get_rng_state(),
              "numpy": np.random.get_state(), "python": random.getstate(),
              "action_space": model.action_space.np_random.bit_generator.state,
-             "jax": {f"{owner}.{name}": np.asarray(getattr(_owners(model)[owner], name))
-                     for owner, name in _JAX_KEYS if hasattr(_owners(model)[owner], name)}}
+             "jax": {f"{owner}.{name}": np.asarray(getattr(owners[owner], name))
+                     for owner, name in _JAX_KEYS if hasattr(owners[owner], name)}}
     if torch.cuda.is_available():
         state["cuda"] = torch.cuda.get_rng_state_all()
     path.write_bytes(pickle.dumps(state))
