@@ -184,3 +184,108 @@ def test_object_options_do_not_apply_to_reach():
 def test_an_object_option_sets_every_object():
     config = franka_composer.load("stack", object_mass=0.2).task.config
     assert [spec.mass for spec in config.objects] == [0.2, 0.2]
+
+
+@pytest.mark.parametrize("override, message", [
+    (dict(learning_starts=-1), "learning_starts must be >= 0, got -1"),
+    (dict(learning_starts=100.5), "learning_starts must be a whole number >= 0, got 100.5"),
+    (dict(batch_size=0), "batch_size must be >= 1, got 0"),
+    (dict(buffer_size=2.5), "buffer_size must be a whole number >= 1, got 2.5"),
+    (dict(net_arch=[]), r"net_arch must be a non-empty tuple of layer sizes, got \(\)"),
+    (dict(net_arch=[64, 0]), r"net_arch\[1\] must be >= 1, got 0"),
+    (dict(learning_rate=NAN), "learning_rate must be a finite number > 0, got nan"),
+    (dict(learning_rate=0), "learning_rate must be > 0, got 0"),
+    (dict(tau=1.5), "tau must be > 0 and <= 1, got 1.5"),
+    (dict(gamma=1.0), "gamma must be < 1, got 1.0"),
+    (dict(gamma=-0.1), "gamma must be >= 0, got -0.1"),
+    (dict(action_noise_std=-0.2), "action_noise_std must be >= 0, got -0.2"),
+    (dict(ent_coef="autox"), "ent_coef must be a number > 0, 'auto' or 'auto_X'"),
+    (dict(ent_coef="auto_-1"), "ent_coef must be a number > 0, 'auto' or 'auto_X'"),
+    (dict(ent_coef=0), "ent_coef must be a number > 0, 'auto' or 'auto_X'"),
+    (dict(n_quantiles=2), r"top_quantiles_to_drop_per_net \(2\) must be below n_quantiles "
+                          r"\(2\)"),
+    (dict(n_critics=0), "n_critics must be >= 1, got 0"),
+    (dict(her_n_sampled_goal=0), "her_n_sampled_goal must be >= 1, got 0"),
+    (dict(her_goal_selection_strategy="last"), "unknown her_goal_selection_strategy value "
+                                               "'last'; valid .* values: future, final, "
+                                               "episode"),
+    (dict(update_schedule="batch"), "unknown update_schedule 'batch'"),
+    (dict(update_schedule="episode", train_every=4), "train_every > 1 needs update_schedule "
+                                                     "'step'"),
+    (dict(stop_success_rate=0), "stop_success_rate must be > 0 and <= 1, got 0"),
+    (dict(stop_after_evaluations=0), "stop_after_evaluations must be >= 1, got 0"),
+    (dict(clip_q_targets="yes"), "clip_q_targets must be True or False, got 'yes'"),
+])
+def test_bad_hyperparameters_are_refused_by_name(override, message):
+    """Every record is checked where it is made: `replace`, a config.json, Table I."""
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.hyperparams import Hyperparameters
+
+    table_i = hyperparameters("push", "tqc")
+    with pytest.raises(ValueError, match=message):
+        table_i.replace(**override)
+    with pytest.raises(ValueError, match=message):
+        Hyperparameters.from_dict({**table_i.to_dict(), **override})
+
+
+def test_good_hyperparameters_are_kept_as_given():
+    from franka_composer.training import hyperparameters
+
+    hp = hyperparameters("push", "sac").replace(net_arch=[64, 32], ent_coef="auto_0.1",
+                                                gamma=0.0, learning_starts=0,
+                                                update_schedule="episode")
+    assert (hp.net_arch, hp.ent_coef, hp.gamma, hp.learning_starts) == ((64, 32), "auto_0.1",
+                                                                        0.0, 0)
+    assert hyperparameters("push", "sac").replace(ent_coef=0.2).ent_coef == 0.2
+
+
+@pytest.mark.parametrize("task, horizon", [("push", 50), ("stack", 100)])
+def test_learning_must_start_after_an_episode_with_an_update_every_step(task, horizon):
+    """HER samples from ended episodes only: SB3 raises at its first gradient step, with
+    the run's directory made, if that step (after step learning_starts + 1) comes first."""
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.runs import RunConfig
+
+    table_i = hyperparameters(task, "sac")
+    with pytest.raises(ValueError, match=f"learning_starts must be >= {horizon - 1} for "
+                                         f"{task} with an update every step, got 7"):
+        RunConfig(task, "sac", 0, table_i.replace(learning_starts=7))
+    RunConfig(task, "sac", 0, table_i.replace(learning_starts=horizon - 1))
+    RunConfig(task, "sac", 0, table_i.replace(learning_starts=0, update_schedule="episode"))
+    RunConfig(task, "sac", 0, table_i.replace(learning_starts=0), demos="demos.npz")
+
+
+def test_a_run_config_names_an_unknown_task_or_algorithm():
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.runs import RunConfig
+
+    with pytest.raises(ValueError, match="unknown task 'lift'; valid tasks: push"):
+        RunConfig("lift", "sac", 0, hyperparameters("push", "sac"))
+    with pytest.raises(ValueError, match="unknown algorithm 'ppo'; valid algorithms: ddpg"):
+        RunConfig("push", "ppo", 0, hyperparameters("push", "sac"))
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["train", "--learning-starts", "-1"], "argument --learning-starts: must be an integer "
+                                           ">= 0, got '-1'"),
+    (["demo", "--seed", "-3"], "argument --seed: must be an integer >= 0, got '-3'"),
+    (["evaluate", "RUN", "--seed", "-5"], "argument --seed: must be an integer >= 0, "
+                                          "got '-5'"),
+])
+def test_bad_command_line_values_are_refused_before_anything_runs(argv, message, capsys):
+    from franka_composer import cli
+
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(argv)
+    assert exit_.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_train_refuses_a_learning_start_inside_the_first_episode_and_leaves_nothing(tmp_path,
+                                                                                   capsys):
+    from franka_composer import cli
+
+    out = tmp_path / "run"
+    assert cli.console(["train", "--task", "push", "--algo", "sac", "--learning-starts", "7",
+                        "--out", str(out)]) == 2
+    assert "learning_starts must be >= 49 for push" in capsys.readouterr().err
+    assert not out.exists()

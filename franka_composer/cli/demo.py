@@ -14,7 +14,7 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import episode_seed, positive_int
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -42,7 +42,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="play the policy trained in RUN_DIR (a `train` run, or one as "
                              "committed with config.json and policy.pt) instead of the experts")
-    parser.add_argument("--seed", type=int, default=0,
+    parser.add_argument("--seed", type=episode_seed, default=0,
                         help="episode i of each task is reset with seed + i (default: 0)")
     parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path(DEFAULT_OUT),
                         help=f"folder for the videos and first frames (default: {DEFAULT_OUT}/)")

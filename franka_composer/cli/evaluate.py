@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs, positive_int
+from franka_composer.cli.options import add_run_dirs, episode_seed, positive_int
 from franka_composer.training.models import DEVICES
 
 
@@ -21,7 +21,7 @@ def add_parser(subparsers) -> None:
     add_run_dirs(parser)
     parser.add_argument("--episodes", type=positive_int, default=20,
                         help="test episodes per model (paper: 20)")
-    parser.add_argument("--seed", type=int, default=2024,
+    parser.add_argument("--seed", type=episode_seed, default=2024,
                         help="seed of the test episodes (the same for every run)")
     parser.add_argument("--device", choices=DEVICES, default="auto",
                         help="where the policy runs")

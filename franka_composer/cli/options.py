@@ -27,6 +27,14 @@ def positive_int(text: str) -> int:
 MAX_TRAINING_SEED = 2**31 - 1
 
 
+def non_negative_int(text: str) -> int:
+    """An integer >= 0; a whole number in scientific notation (1e4) is accepted too."""
+    value = number(text)
+    if not (value >= 0 and value.is_integer()):
+        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
+    return int(value)
+
+
 def training_seed(text: str) -> int:
     """A training run's seed: an integer in [0, MAX_TRAINING_SEED]."""
     try:

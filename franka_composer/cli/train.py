@@ -7,7 +7,8 @@ import contextlib
 import os
 import pathlib
 
-from franka_composer.cli.options import number, positive_int, training_seed
+from franka_composer.cli.options import (non_negative_int, number, positive_int,
+                                         training_seed)
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
@@ -118,8 +119,9 @@ def add_parser(subparsers) -> None:
                         help="minibatch size (Table I: 512, slide 2048)")
     parser.add_argument("--buffer-size", type=positive_int, default=None,
                         help="replay buffer transitions (Table I: 1e6)")
-    parser.add_argument("--learning-starts", type=int, default=None,
-                        help="random-action steps before learning (SB3's default 100)")
+    parser.add_argument("--learning-starts", type=non_negative_int, default=None,
+                        help="random-action steps before learning (SB3's default 100; with "
+                             "an update every step at least an episode's steps less one)")
     parser.add_argument("--eval-every", type=positive_int, default=None,
                         help="steps between evaluations (Table I: 2000)")
     parser.add_argument("--eval-episodes", type=positive_int, default=None,

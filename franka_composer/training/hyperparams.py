@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 
 from franka_composer.tasks import ALL_TASKS
-from franka_composer.validation import check_choice, check_names
+from franka_composer.validation import check_bool, check_choice, check_names, check_number
 
 #: Learning algorithms, in the column order of the paper's Table II.
 ALGOS = ("ddpg", "sac", "tqc")
@@ -28,6 +28,30 @@ BACKENDS = ("sb3", "sbx")
 #: under torch.autocast in bfloat16, weights and optimiser state kept in fp32
 #: (`training/precision.py`).
 PRECISIONS = ("fp32", "bf16")
+
+#: Where HER takes a transition's substitute goals from (SB3's `GoalSelectionStrategy`).
+HER_GOAL_SELECTION_STRATEGIES = ("future", "final", "episode")
+
+#: The hyperparameters that count something, each at least 1.
+_COUNTS = ("batch_size", "buffer_size", "her_n_sampled_goal", "total_steps", "eval_every",
+           "eval_episodes", "train_every", "stop_after_evaluations")
+#: TQC's, None for the other algorithms.
+_TQC_COUNTS = ("n_critics", "n_quantiles", "top_quantiles_to_drop_per_net")
+
+
+def _check_ent_coef(value) -> None:
+    """SB3's entropy coefficients: a number > 0, "auto", or "auto_X" (X > 0, the start)."""
+    if isinstance(value, str) and value.startswith("auto"):
+        start = value[len("auto_"):] if value.startswith("auto_") else None
+        try:
+            if value == "auto" or float(start) > 0:
+                return
+        except (TypeError, ValueError):
+            pass
+    elif isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
+        return
+    raise ValueError(f"ent_coef must be a number > 0, 'auto' or 'auto_X' (X > 0, its "
+                     f"start), got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,22 +108,51 @@ class Hyperparameters:
     stop_after_evaluations: int = 5
     clip_q_targets: bool = False
 
+    def __post_init__(self) -> None:
+        # Every record is checked where it is made (Table I, `replace`, a run's config.json),
+        # so a bad value is named here, not by SB3 or MuJoCo partway into a run.
+        if isinstance(self.net_arch, (str, bytes)) or not isinstance(self.net_arch, tuple) \
+                or not self.net_arch:
+            raise ValueError(f"net_arch must be a non-empty tuple of layer sizes, "
+                             f"got {self.net_arch!r}")
+        object.__setattr__(self, "net_arch", tuple(
+            check_number(f"net_arch[{i}]", size, minimum=1, integer=True)
+            for i, size in enumerate(self.net_arch)))
+        for name in _COUNTS:
+            check_number(name, getattr(self, name), minimum=1, integer=True)
+        check_number("learning_starts", self.learning_starts, minimum=0, integer=True)
+        check_number("learning_rate", self.learning_rate, above=0)
+        check_number("tau", self.tau, above=0, maximum=1)
+        check_number("gamma", self.gamma, minimum=0)
+        if self.gamma >= 1:  # The sparse returns' bound -1/(1 - gamma) must be finite.
+            raise ValueError(f"gamma must be < 1, got {self.gamma!r}")
+        if self.action_noise_std is not None:
+            check_number("action_noise_std", self.action_noise_std, minimum=0)
+        if self.ent_coef is not None:
+            _check_ent_coef(self.ent_coef)
+        for name in _TQC_COUNTS:
+            if getattr(self, name) is not None:
+                check_number(name, getattr(self, name), minimum=1, integer=True)
+        if self.n_quantiles is not None and self.top_quantiles_to_drop_per_net is not None \
+                and self.top_quantiles_to_drop_per_net >= self.n_quantiles:
+            raise ValueError(f"top_quantiles_to_drop_per_net ({self.top_quantiles_to_drop_per_net})"
+                             f" must be below n_quantiles ({self.n_quantiles})")
+        check_choice("her_goal_selection_strategy value", self.her_goal_selection_strategy,
+                     HER_GOAL_SELECTION_STRATEGIES)
+        check_choice("update_schedule", self.update_schedule, UPDATE_SCHEDULES)
+        if self.train_every != 1 and self.update_schedule != "step":
+            raise ValueError("train_every > 1 needs update_schedule 'step'")
+        if self.stop_success_rate is not None:
+            check_number("stop_success_rate", self.stop_success_rate, above=0, maximum=1)
+        check_bool("clip_q_targets", self.clip_q_targets)
+
     def replace(self, **overrides) -> "Hyperparameters":
-        """A copy with `overrides` (None values are ignored); unknown names are a ValueError."""
+        """A copy with `overrides` (None values are ignored); unknown names and bad values
+        are a ValueError."""
         overrides = {k: v for k, v in overrides.items() if v is not None}
         check_names("hyperparameter", overrides, (f.name for f in dataclasses.fields(self)))
-        if "net_arch" in overrides:
-            overrides["net_arch"] = tuple(int(n) for n in overrides["net_arch"])
-        schedule = check_choice("update_schedule",
-                                overrides.get("update_schedule", self.update_schedule),
-                                UPDATE_SCHEDULES)
-        if overrides.get("train_every", self.train_every) != 1 and schedule != "step":
-            raise ValueError("train_every > 1 needs update_schedule 'step'")
-        rate = overrides.get("stop_success_rate", self.stop_success_rate)
-        if rate is not None and not 0.0 < rate <= 1.0:
-            raise ValueError(f"stop_success_rate must be in (0, 1], got {rate}")
-        if overrides.get("stop_after_evaluations", self.stop_after_evaluations) < 1:
-            raise ValueError("stop_after_evaluations must be >= 1")
+        if isinstance(overrides.get("net_arch"), list):  # As config.json holds it.
+            overrides["net_arch"] = tuple(overrides["net_arch"])
         return dataclasses.replace(self, **overrides)
 
     def to_dict(self) -> dict:

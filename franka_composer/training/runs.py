@@ -17,8 +17,9 @@ import pathlib
 
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
-from franka_composer.training.hyperparams import (BACKENDS, PRECISIONS, Hyperparameters,
-                                                  hyperparameters)
+from franka_composer.tasks import TASK_CONFIGS
+from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
+                                                  Hyperparameters, hyperparameters)
 from franka_composer.validation import check_choice
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
@@ -62,6 +63,8 @@ class RunConfig:
     demo_episodes: int | None = None
 
     def __post_init__(self) -> None:
+        check_choice("task", self.task, tuple(TASK_CONFIGS))
+        check_choice("algorithm", self.algo, ALGOS)
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
         check_choice("precision", self.precision, PRECISIONS)
@@ -74,6 +77,22 @@ class RunConfig:
         if self.hyperparameters.clip_q_targets and self.backend != "sb3":
             raise ValueError(f"clip_q_targets clamps a PyTorch target critic: it needs "
                              f"backend sb3, not {self.backend}")
+        self._check_first_update()
+
+    def _check_first_update(self) -> None:
+        """HER samples from finished episodes only, and SB3 stops a run whose first gradient
+        step comes before one has ended (after its directory is made). With an update
+        every step, that step follows step `learning_starts` + 1, and the first episode may
+        last its whole horizon."""
+        hp = self.hyperparameters
+        horizon = TASK_CONFIGS[self.task].max_episode_steps
+        if hp.update_schedule == "step" and self.demos is None \
+                and hp.learning_starts + 1 < horizon:
+            raise ValueError(
+                f"learning_starts must be >= {horizon - 1} for {self.task} with an update "
+                f"every step, got {hp.learning_starts}: the first gradient step would come "
+                f"before the first episode ends (it may last {horizon} steps), and HER "
+                "samples from ended episodes only; or use update_schedule 'episode' or demos")
 
     def to_dict(self) -> dict:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,
