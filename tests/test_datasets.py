@@ -115,6 +115,13 @@ def test_bad_rollout_options_are_refused_before_anything_is_written(tmp_path, ca
     assert not (tmp_path / "x").exists()
 
 
+def test_an_npz_dataset_path_must_end_in_npz(tmp_path):
+    """numpy adds ".npz" to any other name: the file would not be where it was asked for."""
+    with pytest.raises(ValueError, match="an npz dataset's path must end in .npz, got '.*x.txt'"):
+        record("push", 1, tmp_path / "x.txt")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_joint_control_needs_a_trained_policy(tmp_path):
     with pytest.raises(ValueError, match="the scripted experts act on dx, dy, dz"):
         record("push", 1, tmp_path / "x", format="minari", control="joints")
@@ -137,4 +144,4 @@ def test_a_trained_policy_records_deterministically(tmp_path):
     for a, b in zip(first["episodes"], second["episodes"]):
         np.testing.assert_array_equal(np.array(a["actions"]), np.array(b["actions"]))
     with pytest.raises(ValueError, match="trained push, not slide"):
-        record("slide", 1, tmp_path / "c", policy_dir=tmp_path / "run")
+        record("slide", 1, tmp_path / "c.npz", policy_dir=tmp_path / "run")

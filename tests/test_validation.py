@@ -269,6 +269,10 @@ def test_a_run_config_names_an_unknown_task_or_algorithm():
     (["train", "--learning-starts", "-1"], "argument --learning-starts: must be an integer "
                                            ">= 0, got '-1'"),
     (["demo", "--seed", "-3"], "argument --seed: must be an integer >= 0, got '-3'"),
+    (["demo", "--width", "5000"], "argument --width: must be a whole number of pixels from 1 "
+                                  "to 1024, got '5000'"),
+    (["demo", "--height", "0"], "argument --height: must be a whole number of pixels from 1 "
+                                "to 1024, got '0'"),
     (["evaluate", "RUN", "--seed", "-5"], "argument --seed: must be an integer >= 0, "
                                           "got '-5'"),
 ])

@@ -14,7 +14,7 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import episode_seed, positive_int
+from franka_composer.cli.options import episode_seed, frame_size, positive_int
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -51,9 +51,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--video-episodes", type=positive_int, default=3,
                         help="how many of the first episodes each task's video shows "
                              "(default: 3)")
-    parser.add_argument("--width", type=positive_int, default=480,
+    parser.add_argument("--width", type=frame_size, default=480,
                         help="frame width in pixels, at most 1024 (default: 480)")
-    parser.add_argument("--height", type=positive_int, default=480,
+    parser.add_argument("--height", type=frame_size, default=480,
                         help="frame height in pixels, at most 1024 (default: 480)")
     parser.set_defaults(func=run)
 

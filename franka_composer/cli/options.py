@@ -35,6 +35,17 @@ def non_negative_int(text: str) -> int:
     return int(value)
 
 
+def frame_size(text: str) -> int:
+    """A frame's width or height in pixels: 1 to MuJoCo's offscreen buffer's side."""
+    from franka_composer.arenas.floor import MAX_RENDER_SIZE
+
+    value = number(text)
+    if not (1 <= value <= MAX_RENDER_SIZE and value.is_integer()):
+        raise argparse.ArgumentTypeError(
+            f"must be a whole number of pixels from 1 to {MAX_RENDER_SIZE}, got {text!r}")
+    return int(value)
+
+
 def training_seed(text: str) -> int:
     """A training run's seed: an integer in [0, MAX_TRAINING_SEED]."""
     try:

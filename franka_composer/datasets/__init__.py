@@ -41,11 +41,13 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     check_choice("format", format, FORMATS)
     check_number("episodes", episodes, minimum=1, integer=True)
     check_number("seed", seed, minimum=0, integer=True)
+    out = pathlib.Path(out)
+    if format == "npz" and out.suffix != ".npz":  # numpy would write to out + ".npz".
+        raise ValueError(f"an npz dataset's path must end in .npz, got {str(out)!r}")
     env = gym.make(env_id(task, reward_type, control), **options)
     try:
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)
         source = source_name(policy_dir, action_noise)
-        out = pathlib.Path(out)
         if format == "npz":
             trajectories = rollout(env, policy, episodes, seed=seed)
             out.parent.mkdir(parents=True, exist_ok=True)

@@ -18,6 +18,7 @@ from typing import Any, Callable, Union
 
 import numpy as np
 
+from franka_composer.arenas.floor import MAX_RENDER_SIZE
 from franka_composer.controllers import CONTROLS, ControlSettings
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
@@ -117,8 +118,6 @@ OBSERVATION_MODES = ("state", "pixels", "state+pixels")
 #: Cameras that can give pixel observations: the arena's fixed view of the workspace, and
 #: one on the hand looking past the fingers (the usual view for grasping).
 PIXEL_CAMERAS = ("workspace", "wrist")
-#: Largest camera image (pixels a side): MuJoCo's offscreen buffer (`arenas/floor.py`).
-MAX_PIXELS = 1024
 #: How the Panda is drawn in camera observations: "hulls", its collision hulls (3k
 #: triangles; with one 84 x 84 camera an env step is 6x faster on software GL,
 #: `benchmarks/pixels.py`, and at that size it looks the same), or "visual", Menagerie's
@@ -336,7 +335,7 @@ def _cameras(name, value):
 
 
 def _pixels(name, value):
-    return check_number(name, value, minimum=1, maximum=MAX_PIXELS, integer=True)
+    return check_number(name, value, minimum=1, maximum=MAX_RENDER_SIZE, integer=True)
 
 
 def _physics(name, value):
