@@ -28,8 +28,8 @@ import subprocess
 
 import numpy as np
 
-from franka_composer.training.learning_report import (THRESHOLDS, first_reaching, smoothed,
-                                                      steps_text)
+from franka_composer.training.learning_report import (PAPER_CURVE_COLUMNS, THRESHOLDS,
+                                                      first_reaching, smoothed, steps_text)
 
 #: seaborn's "deep" palette, in the order the paper's legends list the algorithms.
 LINE_COLOURS = {"ddpg": (76, 114, 176), "sac": (221, 132, 82), "tqc": (85, 168, 104)}
@@ -196,7 +196,7 @@ def main() -> None:
             _overlay(image, args.out / f"overlay-{task}.png")
     with open(args.out / "curves.csv", "w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["task", "algo", "steps", "success"])
+        writer.writerow(PAPER_CURVE_COLUMNS)
         for task, by_algo in curves.items():
             for algo, curve in by_algo.items():
                 writer.writerows((task, algo, s, f"{v:.3f}") for s, v in sorted(curve.items()))

@@ -99,6 +99,24 @@ def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
     assert rows[3] == "| reach | SAC | 0 | 8,000 | 1 of 1 | 8,000 | 8,000 |  |  | 0.0 | 0.0 |"
     with pytest.raises(ValueError, match="--paper-curves: .*nowhere.csv is not a file"):
         cli.main(["report", str(runs), "--paper-curves", str(tmp_path / "nowhere.csv")])
+    other = tmp_path / "other.csv"
+    other.write_text("task,algorithm,steps,rate\npush,tqc,0,0.5\n")
+    with pytest.raises(ValueError, match="other.csv is not a CSV of curves: it has no algo, "
+                                         r"success column\(s\) \(it needs task, algo, steps, "
+                                         r"success\)"):
+        read_paper_curves(other)
+    other.write_text("task,algo,steps,success\npush,tqc,0,0.5\npush,tqc,2k,0.6\n")
+    with pytest.raises(ValueError, match="other.csv, line 3: steps must be a whole number and "
+                                         "success a number, got '2k', '0.6'"):
+        read_paper_curves(other)
+
+
+def test_a_report_written_to_a_new_folder_makes_it(tmp_path, capsys):
+    runs = tmp_path / "runs"
+    _write_run(runs, "push", "tqc", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))
+    out = tmp_path / "new" / "folder" / "report.md"
+    assert cli.main(["report", str(runs), "--out", str(out)]) == 0
+    assert out.read_text() == capsys.readouterr().out
 
 
 def test_a_run_without_evaluations_is_refused_by_name(tmp_path):

@@ -435,7 +435,7 @@ def test_a_randomised_run_trains_resumes_and_evaluates_on_randomised_envs(tmp_pa
 
 
 def test_evaluate_prints_table_ii_layout(runs, tmp_path, capsys):
-    table = tmp_path / "table.md"
+    table = tmp_path / "new folder" / "table.md"  # Made when the table is written.
     assert cli.main(["evaluate", *map(str, runs.values()), "--episodes", "2",
                      "--device", "cpu", "--out", str(table)]) == 0
     printed = capsys.readouterr().out

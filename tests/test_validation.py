@@ -271,6 +271,11 @@ def test_a_run_config_names_an_unknown_task_or_algorithm():
     (["demo", "--seed", "-3"], "argument --seed: must be an integer >= 0, got '-3'"),
     (["demo", "--width", "5000"], "argument --width: must be a whole number of pixels from 1 "
                                   "to 1024, got '5000'"),
+    (["plot", "RUN", "--out", "curves.txt"], "argument --out: must end in an image format's "
+                                             "extension (avif, eps, gif, jpeg, jpg, pdf, "),
+    (["plot", "RUN", "--out", "."], "argument --out: must be a file, got the folder '.'"),
+    (["evaluate", "RUN", "--out", "."], "argument --out: must be a file, got the folder '.'"),
+    (["report", "RUN", "--out", "."], "argument --out: must be a file, got the folder '.'"),
     (["demo", "--height", "0"], "argument --height: must be a whole number of pixels from 1 "
                                 "to 1024, got '0'"),
     (["evaluate", "RUN", "--seed", "-5"], "argument --seed: must be an integer >= 0, "

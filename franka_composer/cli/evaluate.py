@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs, episode_seed, positive_int
+from franka_composer.cli.options import add_run_dirs, episode_seed, output_file, positive_int
 from franka_composer.training.models import DEVICES
 
 
@@ -25,7 +25,7 @@ def add_parser(subparsers) -> None:
                         help="seed of the test episodes (the same for every run)")
     parser.add_argument("--device", choices=DEVICES, default="auto",
                         help="where the policy runs")
-    parser.add_argument("--out", type=pathlib.Path, default=None,
+    parser.add_argument("--out", type=output_file, default=None,
                         help="also write the Markdown table (and per-seed notes) here")
     parser.set_defaults(func=run)
 
@@ -61,5 +61,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nSuccess rate %, mean ± std over seeds, {args.episodes} episodes per model:\n")
     print(table + "\n" + notes, end="")
     if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(table + "\n" + notes)
     return 0

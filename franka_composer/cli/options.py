@@ -46,6 +46,28 @@ def frame_size(text: str) -> int:
     return int(value)
 
 
+def output_file(text: str) -> pathlib.Path:
+    """A file to write at the end of a command: not a folder (missing parent folders are
+    made when it is written), so a long evaluation is not lost to a bad path."""
+    path = pathlib.Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"must be a file, got the folder {text!r}")
+    return path
+
+
+def figure_file(text: str) -> pathlib.Path:
+    """An image file whose extension names a format matplotlib writes (png, pdf, svg, ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    path = output_file(text)
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if path.suffix[1:].lower() not in formats:
+        raise argparse.ArgumentTypeError(
+            f"must end in an image format's extension ({', '.join(sorted(formats))}), "
+            f"got {text!r}")
+    return path
+
+
 def training_seed(text: str) -> int:
     """A training run's seed: an integer in [0, MAX_TRAINING_SEED]."""
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs
+from franka_composer.cli.options import add_run_dirs, figure_file
 
 
 def add_parser(subparsers) -> None:
@@ -16,7 +16,7 @@ def add_parser(subparsers) -> None:
                     "one panel per task and one line per algorithm and setup, as in the "
                     "paper's Fig. 4.")
     add_run_dirs(parser)
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path("curves.png"),
+    parser.add_argument("--out", type=figure_file, default=pathlib.Path("curves.png"),
                         help="image file to write (PNG, PDF or SVG by extension)")
     parser.set_defaults(func=run)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs
+from franka_composer.cli.options import add_run_dirs, output_file
 
 
 def add_parser(subparsers) -> None:
@@ -23,7 +23,7 @@ def add_parser(subparsers) -> None:
                         help="the paper's published curves (results/paper-curves/curves.csv, "
                              "from benchmarks/paper_curves.py): its steps to 80 %% and 90 %% "
                              "beside each cell's")
-    parser.add_argument("--out", type=pathlib.Path, default=None,
+    parser.add_argument("--out", type=output_file, default=None,
                         help="also write the Markdown table here")
     parser.set_defaults(func=run)
 
@@ -39,5 +39,6 @@ def run(args: argparse.Namespace) -> int:
     table = markdown_table([read_run(root) for root in run_directories(args.runs)], paper)
     print(table, end="")
     if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(table)
     return 0

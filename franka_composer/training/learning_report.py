@@ -86,14 +86,29 @@ def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
     return next((step for step in sorted(curve) if curve[step] >= threshold), None)
 
 
+#: The columns of the paper's curves as `benchmarks/paper_curves.py` writes them.
+PAPER_CURVE_COLUMNS = ("task", "algo", "steps", "success")
+
+
 def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, float]]:
     """The paper's published curves as `benchmarks/paper_curves.py` writes them (a CSV of
     task, algo, steps, success): {(task, algo): {steps: success}}."""
     curves: dict[tuple[str, str], dict[int, float]] = {}
     with open(path, newline="") as handle:
-        for row in csv.DictReader(handle):
-            curves.setdefault((row["task"], row["algo"]), {})[int(row["steps"])] = float(
-                row["success"])
+        reader = csv.DictReader(handle)
+        missing = [c for c in PAPER_CURVE_COLUMNS if c not in (reader.fieldnames or ())]
+        if missing:
+            raise ValueError(f"{path} is not a CSV of curves: it has no "
+                             f"{', '.join(missing)} column(s) (it needs "
+                             f"{', '.join(PAPER_CURVE_COLUMNS)})")
+        for line, row in enumerate(reader, start=2):
+            try:
+                steps, success = int(row["steps"]), float(row["success"])
+            except (TypeError, ValueError):
+                raise ValueError(f"{path}, line {line}: steps must be a whole number and "
+                                 f"success a number, got {row['steps']!r}, "
+                                 f"{row['success']!r}") from None
+            curves.setdefault((row["task"], row["algo"]), {})[steps] = success
     return curves
 
 
