@@ -144,6 +144,10 @@ def test_a_seed_given_twice_is_refused_before_it_counts_twice(tmp_path):
     (["--tasks", "push", "slide", "--algos", "sac", "--seeds", "0", "--steps", "push=10"],
      "--steps has no budget for slide"),
     (["--grid", "table2", "--", "--seed", "3"], "--seed is set by the sweep for each cell"),
+    (["--tasks", "push", "--algos", "sac", "--seeds", "0", "1", "0", "--steps", "10"],
+     r"seed\(s\) 0 given more than once: each cell is one run directory"),
+    (["--tasks", "push", "--algos", "sac", "tqc", "sac", "--seeds", "0", "--steps", "10",
+      "--status"], r"algorithm\(s\) sac given more than once"),
 ])
 def test_a_bad_sweep_is_refused_before_anything_runs(tmp_path, argv, message):
     with pytest.raises(ValueError, match=message):

@@ -42,7 +42,13 @@ class Cell:
 
 
 def grid(tasks, algos, seeds, steps, options: tuple[str, ...] = ()) -> list[Cell]:
-    """Every (task, algorithm, seed); `steps` is one budget or {task: budget}."""
+    """Every (task, algorithm, seed); `steps` is one budget or {task: budget}. A value given
+    twice is refused: its cells would train at once into one directory."""
+    for kind, values in (("task", tasks), ("algorithm", algos), ("seed", seeds)):
+        repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
+        if repeated:
+            raise ValueError(f"{kind}(s) {', '.join(repeated)} given more than once: each "
+                             "cell is one run directory")
     budget = steps if isinstance(steps, dict) else dict.fromkeys(tasks, steps)
     return [Cell(task, algo, int(seed), int(budget[task]), options)
             for task in tasks for algo in algos for seed in seeds]
