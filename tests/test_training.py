@@ -378,6 +378,26 @@ def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
         _train(tmp_path / "bare", "ddpg", 300, "--resume")
 
 
+def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):
+    """Rather than go on with the run's settings and ignore the option given."""
+    run = RunDir(runs["sac"])
+    before = run.eval_csv.read_text()
+    for extra, message in (
+            (["--precision", "bf16"], "has precision fp32, not --precision's bf16"),
+            (["--algo", "tqc"], "has algo sac, not --algo's tqc"),
+            (["--batch-size", "64", "--stop-at-success", "0.9"],
+             "has batch_size 32, not --batch-size's 64; stop_success_rate None, not "
+             "--stop-at-success's 0.9"),
+            (["--no-terminate-on-success"], "has terminate_on_success True, not "
+                                            "--no-terminate-on-success's False")):
+        with pytest.raises(ValueError, match=f"--resume goes on with the run's own settings, "
+                                             f"and .* {message}: only --total-steps, "
+                                             "--device, --threads and --checkpoint-every may "
+                                             "change"):
+            cli.main(["train", "--resume", "--out", str(run.root), *extra])
+    assert run.eval_csv.read_text() == before
+
+
 def test_no_terminate_on_success_reaches_the_env(tmp_path):
     out = tmp_path / "fetch_semantics"
     assert _train(out, "ddpg", 100, "--no-terminate-on-success") == 0

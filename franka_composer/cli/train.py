@@ -17,6 +17,23 @@ from franka_composer.training.models import DEVICES
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
 
 
+#: The run's settings when their options are not given: filled in here, not by argparse, so
+#: that a --resume can tell an option given from one left out.
+RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, control="mocap", backend="sb3",
+                    precision="fp32", terminate_on_success=True)
+#: What a --resume may change; every other option describes the run, which keeps its own.
+RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
+#: Options named otherwise than the setting they give (`run_config`).
+_OPTION_OF_SETTING = {"stop_success_rate": "stop_at_success",
+                      "stop_after_evaluations": "stop_after"}
+_FLAGS = {"terminate_on_success": "--no-terminate-on-success"}
+
+
+def _flag(option: str) -> str:
+    """The command-line flag of option `option` (an argparse dest)."""
+    return _FLAGS.get(option, "--" + option.replace("_", "-"))
+
+
 def _net_arch(text: str) -> tuple[int, ...]:
     try:
         sizes = tuple(int(n) for n in text.split(","))
@@ -64,9 +81,11 @@ def add_parser(subparsers) -> None:
                     "task and algorithm; the options below override them). Writes "
                     "config.json, eval.csv (steps, wall time, success rate, mean reward), "
                     "checkpoints and the final model.zip to the run directory.")
-    parser.add_argument("--task", choices=ALL_TASKS, default="push", help="task to learn")
-    parser.add_argument("--algo", choices=ALGOS, default="tqc", help="learning algorithm")
-    parser.add_argument("--control", choices=CONTROLS, default="mocap",
+    parser.add_argument("--task", choices=ALL_TASKS, default=None,
+                        help="task to learn (default: push)")
+    parser.add_argument("--algo", choices=ALGOS, default=None,
+                        help="learning algorithm (default: tqc)")
+    parser.add_argument("--control", choices=CONTROLS, default=None,
                         help="how actions move the arm (default: mocap, the paper's)")
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
@@ -77,29 +96,31 @@ def add_parser(subparsers) -> None:
                              "(franka-composer rollout)")
     parser.add_argument("--demo-episodes", type=positive_int, default=None, metavar="K",
                         help="take the dataset's first K episodes (default: all)")
-    parser.add_argument("--backend", choices=BACKENDS, default="sb3",
+    parser.add_argument("--backend", choices=BACKENDS, default=None,
                         help="'sb3' (default, the paper's): Stable-Baselines3 on PyTorch; "
                              "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
                              "Table I settings (RESULTS.md compares their speed). A resumed "
                              "run keeps the backend it was started with")
-    parser.add_argument("--precision", choices=PRECISIONS, default="fp32",
+    parser.add_argument("--precision", choices=PRECISIONS, default=None,
                         help="the networks' arithmetic while training (sb3): fp32 (the "
                              "paper's) or bf16 (torch.autocast; weights, optimiser state and "
                              "evaluations stay fp32). A resumed run keeps its precision")
-    parser.add_argument("--seed", type=training_seed, default=0,
-                        help="random seed of the run (0 to 2**31 - 1)")
+    parser.add_argument("--seed", type=training_seed, default=None,
+                        help="random seed of the run (0 to 2**31 - 1; default: 0)")
     parser.add_argument("--out", type=pathlib.Path, default=None,
                         help="run directory (default runs/TASK-ALGO-seedSEED)")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --out from its latest checkpoint: same "
                              "step counter, replay buffer and eval.csv; its saved settings "
-                             "are used (only --total-steps and --device may change)")
+                             "are used: only --total-steps, --device, --threads and "
+                             "--checkpoint-every may change, and an option that says "
+                             "otherwise is refused")
     parser.add_argument("--total-steps", type=positive_int, default=None,
                         help="environment steps to train (Table I: 5e5, slide 1e6)")
     parser.add_argument("--device", choices=DEVICES, default="auto",
                         help="where the networks run: auto picks cuda when torch sees a GPU")
     parser.add_argument("--no-terminate-on-success", dest="terminate_on_success",
-                        action="store_false",
+                        action="store_false", default=None,
                         help="episodes always last 50 steps (Fetch semantics). The paper's "
                              "ids end an episode on success, which makes HER relabelling "
                              "inexact: a relabelled transition never gets done=True and "
@@ -176,11 +197,18 @@ def _limit_threads(threads: int | None, backend: str):
             os.sched_setaffinity(0, pinned)
 
 
+def with_defaults(args: argparse.Namespace) -> argparse.Namespace:
+    """`args` with `RUN_DEFAULTS` for the run settings not given."""
+    return argparse.Namespace(**{**vars(args), **{
+        name: value for name, value in RUN_DEFAULTS.items() if getattr(args, name) is None}})
+
+
 def run_config(args: argparse.Namespace):
     """The run these `train` arguments start (what its config.json will hold)."""
     from franka_composer.training import hyperparameters
     from franka_composer.training.runs import RunConfig
 
+    args = with_defaults(args)
     hp = hyperparameters(args.task, args.algo).replace(
         update_schedule=args.update_schedule, train_every=args.train_every,
         net_arch=args.net_arch,
@@ -193,18 +221,42 @@ def run_config(args: argparse.Namespace):
                      str(args.demos.resolve()) if args.demos else None, args.demo_episodes)
 
 
+def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
+    """A resumed run goes on with its own settings: an option given with --resume that says
+    otherwise is refused, not ignored (one that agrees, such as the --task that names the
+    default --out, is fine)."""
+    given = {name for name, value in vars(args).items() if value is not None
+             and name not in (*RESUME_OPTIONS, "out", "resume", "func")}
+    if not given:
+        return
+    differing = run_config(args).differing(run_dir.read_config())
+    conflicts = [(_OPTION_OF_SETTING.get(name, name), name, ours, theirs)
+                 for name, (ours, theirs) in differing.items()
+                 if _OPTION_OF_SETTING.get(name, name) in given]
+    if conflicts:
+        raise ValueError(
+            f"--resume goes on with the run's own settings, and {run_dir.root} has "
+            + "; ".join(f"{name} {theirs}, not {_flag(option)}'s {ours}"
+                        for option, name, ours, theirs in conflicts)
+            + ": only --total-steps, --device, --threads and --checkpoint-every may change")
+
+
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training import loop
     from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunDir
 
-    out = args.out or pathlib.Path("runs") / f"{args.task}-{args.algo}-seed{args.seed}"
+    settings = with_defaults(args)
+    out = args.out or pathlib.Path("runs") / (
+        f"{settings.task}-{settings.algo}-seed{settings.seed}")
     if args.resume:
         run_dir = RunDir(out)
+        _check_resumed_as_given(args, run_dir)
     else:
-        algorithm_class(args.algo, args.backend)  # A missing sbx fails before the run exists.
+        # A missing sbx fails before the run exists.
+        algorithm_class(settings.algo, settings.backend)
         config = run_config(args)
-        _check_demos(args, config.hyperparameters.buffer_size,
+        _check_demos(settings, config.hyperparameters.buffer_size,
                      args.total_steps or config.hyperparameters.total_steps)
         run_dir = loop.start(out, config)
     threads = args.threads

@@ -132,16 +132,20 @@ class RunConfig:
         cell (`evaluate`, `plot` and `report` keep them apart)."""
         return variant_label(self.setup, self.computation)
 
-    def differences(self, other: "RunConfig") -> list[str]:
-        """What makes `other` a different run from this one, as "name: ours, not theirs";
+    def differing(self, other: "RunConfig") -> dict[str, tuple]:
+        """What makes `other` a different run from this one: {setting: (ours, theirs)};
         the step budget is not among them (a run may go on to a larger one)."""
         def settings(config: RunConfig) -> dict:
             flat = {**config.to_dict(), **config.hyperparameters.to_dict()}
             del flat["hyperparameters"], flat["total_steps"]
             return flat
         ours, theirs = settings(self), settings(other)
-        return [f"{name}: {ours[name]}, not {theirs[name]}" for name in ours
-                if ours[name] != theirs[name]]
+        return {name: (ours[name], theirs[name]) for name in ours if ours[name] != theirs[name]}
+
+    def differences(self, other: "RunConfig") -> list[str]:
+        """`differing` as "name: ours, not theirs"."""
+        return [f"{name}: {ours}, not {theirs}"
+                for name, (ours, theirs) in self.differing(other).items()]
 
     @property
     def env_options(self) -> dict:
