@@ -145,3 +145,6 @@ def test_a_trained_policy_records_deterministically(tmp_path):
         np.testing.assert_array_equal(np.array(a["actions"]), np.array(b["actions"]))
     with pytest.raises(ValueError, match="trained push, not slide"):
         record("slide", 1, tmp_path / "c.npz", policy_dir=tmp_path / "run")
+    with pytest.raises(ValueError, match="acts through mocap control, not osc"):
+        record("push", 1, tmp_path / "d.npz", control="osc", policy_dir=tmp_path / "run")
+    assert not (tmp_path / "d.npz").exists()

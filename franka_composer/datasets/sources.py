@@ -46,6 +46,10 @@ class TrainedPolicy:
         task = env.unwrapped.task.config.name
         if config.task != task:
             raise ValueError(f"{run_dir} trained {config.task}, not {task}")
+        control = env.unwrapped.task.config.control.kind
+        if config.control != control:  # Its actions mean what they did in training.
+            raise ValueError(f"{run_dir} acts through {config.control} control, not "
+                             f"{control}")
         self._model = load_trained(run, env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:
