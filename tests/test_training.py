@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 
 import numpy as np
 import pytest
@@ -836,14 +837,25 @@ def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
 
     record("pick_and_place", 2, tmp_path / "pnp.npz", seed=0)
     record("push", 2, tmp_path / "push.npz", seed=0)
+    record("push", 1, tmp_path / "dense.npz", seed=0, reward_type="dense")
+    record("push", 1, tmp_path / "osc", format="rlds", seed=0, control="osc")
+    record("slide", 1, tmp_path / "slide", format="minari", seed=0)
     for extra, message in (
+            (["--demos", str(tmp_path / "dense.npz")], "holds rewards other than the sparse "
+                                                       "[-1.0, 0.0] that training uses "
+                                                       "(episode 0; recorded with "
+                                                       "--reward-type dense?)"),
+            (["--demos", str(tmp_path / "osc")], "was recorded through osc control, and this "
+                                                 "run trains through mocap"),
+            (["--demos", str(tmp_path / "slide" / "franka_composer" / "slide" / "expert-v0")],
+             "holds demonstrations of slide, not push"),
             (["--demos", str(tmp_path / "pnp.npz")], "holds observation of shape (19,), but "
                                                      "this task's is (18,)"),
             (["--demos", str(tmp_path / "push.npz"), "--demo-episodes", "3"],
              "--demo-episodes 3, but"),
             (["--demo-episodes", "2"], "--demo-episodes takes the first episodes of --demos"),
             (["--demos", str(tmp_path)], "is not a dataset")):
-        with pytest.raises(ValueError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        with pytest.raises(ValueError, match=re.escape(message)):
             _train(tmp_path / "run", "sac", 100, *extra)
         assert not (tmp_path / "run").exists()
     with pytest.raises(ValueError, match="would overwrite demonstrations"):

@@ -16,6 +16,7 @@ import pathlib
 import numpy as np
 
 from franka_composer.policies.rollout import OBSERVATION_KEYS, Trajectories
+from franka_composer.tasks.rewards import reward_from_distance
 
 
 def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
@@ -24,11 +25,11 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     against `env`'s observation space."""
     path = pathlib.Path(path)
     if path.is_file() and path.suffix == ".npz":
-        episodes = Trajectories.load(path).episodes
+        episodes, recorded = Trajectories.load(path).episodes, {}
     elif (path / "metadata.riegeli").is_file():
-        episodes = _rlds_episodes(path, env)
+        episodes, recorded = _rlds_episodes(path, env)
     elif (path / "data").is_dir() or (path / "metadata.json").is_file():
-        episodes = _minari_episodes(path)
+        episodes, recorded = _minari_episodes(path)
     else:
         raise ValueError(f"{path} is not a dataset: expected a .npz file, a Minari dataset "
                          f"folder (holding data/) or an RLDS folder (holding metadata.riegeli)")
@@ -38,15 +39,41 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
         if shape != spaces[key].shape:
             raise ValueError(f"{path} holds {key} of shape {shape}, but this task's is "
                              f"{spaces[key].shape}: demonstrations of another task?")
+    _check_recorded_as_trained(path, episodes, recorded, env)
     return episodes
 
 
-def _minari_episodes(path: pathlib.Path) -> list[dict]:
+def _check_recorded_as_trained(path, episodes: list[dict], recorded: dict, env) -> None:
+    """The transitions go into the buffer as they are, so they must be of the task and the
+    controller being trained, with the sparse rewards training uses. `recorded` is what the
+    dataset says it was recorded with (Minari and RLDS keep it; npz does not)."""
+    config = env.unwrapped.task.config
+    if recorded.get("task", config.name) != config.name:
+        raise ValueError(f"{path} holds demonstrations of {recorded['task']}, not "
+                         f"{config.name}")
+    control = config.control.kind
+    if recorded.get("control", control) != control:
+        raise ValueError(f"{path} was recorded through {recorded['control']} control, and "
+                         f"this run trains through {control}: its actions would mean other "
+                         "motions")
+    sparse = np.unique(reward_from_distance(np.array([0.0, np.inf]), "sparse", 1.0))
+    for index, episode in enumerate(episodes):
+        if recorded.get("reward_type", "sparse") != "sparse" or not np.isin(
+                episode["reward"], sparse).all():
+            raise ValueError(f"{path} holds rewards other than the sparse {sparse.tolist()} "
+                             f"that training uses (episode {index}; recorded with "
+                             "--reward-type dense?)")
+
+
+def _minari_episodes(path: pathlib.Path) -> tuple[list[dict], dict]:
+    """The episodes, and what the dataset's env spec says they were recorded with."""
     import minari
 
     data = path / "data" if (path / "data").is_dir() else path
+    dataset = minari.MinariDataset(data)
+    env_spec = dataset.spec.env_spec
     episodes = []
-    for episode in minari.MinariDataset(data).iterate_episodes():
+    for episode in dataset.iterate_episodes():
         episodes.append({**{key: np.asarray(episode.observations[key])
                             for key in OBSERVATION_KEYS},
                          "action": np.asarray(episode.actions, dtype=np.float32),
@@ -55,15 +82,17 @@ def _minari_episodes(path: pathlib.Path) -> list[dict]:
                          "truncated": np.asarray(episode.truncations, dtype=bool),
                          "is_success": np.asarray(episode.infos["is_success"][1:],
                                                   dtype=bool)})
-    return episodes
+    return episodes, dict(env_spec.kwargs) if env_spec is not None else {}
 
 
-def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
+def _rlds_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
+    """The episodes, and the dataset's metadata (task, control, reward type, ...)."""
     from franka_composer.datasets import rlds_format
 
     adapter = env.unwrapped
     task, episodes = adapter.task, []
-    for episode in rlds_format.read(path)["episodes"]:
+    dataset = rlds_format.read(path)
+    for episode in dataset["episodes"]:
         observations = [adapter.goal_observation(o) for o in episode["observations"]]
         steps = len(episode["actions"])
         goals = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
@@ -75,7 +104,7 @@ def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
                          "terminated": terminated, "truncated": ~terminated & (
                              np.arange(steps) == steps - 1),
                          "is_success": np.asarray(success, dtype=bool)})
-    return episodes
+    return episodes, dict(dataset["metadata"] or {})
 
 
 def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> int:
