@@ -155,6 +155,27 @@ def test_a_bad_sweep_is_refused_before_anything_runs(tmp_path, argv, message):
     assert not (tmp_path / "sweep").exists()
 
 
+def test_an_address_where_no_ray_cluster_answers_is_refused_at_once(tmp_path):
+    """Ray retries an unreachable head for minutes; the sweep says so within seconds."""
+    import socket
+
+    with socket.socket() as probe:  # A port nothing listens on once closed.
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    argv = ["sweep", "--out", str(tmp_path / "sweep"), "--tasks", "push", "--algos", "sac",
+            "--seeds", "0", "--steps", "100"]
+    start = time.monotonic()
+    for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
+        with pytest.raises(ValueError, match=f"no Ray cluster answers at --address "
+                                             f"{re.escape(address)} .*ray start --head"):
+            cli.main([*argv, "--address", address])
+    assert time.monotonic() - start < 30
+    with pytest.raises(ValueError, match="--address 'head' is not HOST:PORT, "
+                                         "ray://HOST:PORT, auto or local"):
+        cli.main([*argv, "--address", "head"])
+    assert not (tmp_path / "sweep").exists()
+
+
 def test_a_cell_trained_as_another_run_is_refused_before_anything_runs(tmp_path):
     """Changing a grid's options (say, a backend) under a sweep that has trained would
     otherwise resume its cells with their old settings under the new grid's name."""

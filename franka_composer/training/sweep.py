@@ -16,6 +16,7 @@ import dataclasses
 import pathlib
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -199,6 +200,28 @@ def status_table(statuses: list[CellStatus]) -> str:
     return "\n".join(lines)
 
 
+#: Seconds to wait for a Ray cluster's head to accept a connection.
+RAY_CONNECT_TIMEOUT_S = 5.0
+
+
+def check_ray_address(address: str) -> None:
+    """A ValueError unless something answers at a HOST:PORT (or ray://HOST:PORT) address:
+    Ray itself retries an unreachable head for minutes. "auto" and "local" are Ray's to
+    find."""
+    if address in ("auto", "local"):
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ValueError(f"--address {address!r} is not HOST:PORT, ray://HOST:PORT, auto or "
+                         "local")
+    try:
+        socket.create_connection((host, int(port)), timeout=RAY_CONNECT_TIMEOUT_S).close()
+    except OSError as error:
+        raise ValueError(f"no Ray cluster answers at --address {address} ({error}): start "
+                         "one there (`ray start --head`), or leave --address out for a "
+                         "local Ray") from None
+
+
 def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...] = (), *,
               address: str | None = None, num_cpus: int | None = None,
               refresh_s: float = 30.0, show=print) -> list[CellStatus]:
@@ -211,6 +234,8 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise ValueError(f"a sweep's cells must differ: {', '.join(repeated)} repeat")
+    if address is not None:
+        check_ray_address(address)
     root.mkdir(parents=True, exist_ok=True)
     todo = [cell for cell in cells if not cell_finished(RunDir(root / cell.name), cell)]
     failed: set[str] = set()
