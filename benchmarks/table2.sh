@@ -17,6 +17,12 @@
 #                                 budget, outcome.json and policy.pt into results/table2/<cell>/,
 #                                 from which `franka-composer evaluate results/table2` and
 #                                 `franka-composer demo --policy results/table2/<cell>` run
+#   benchmarks/table2.sh report   from what sync committed, once every cell has finished:
+#                                 Table II (`evaluate --episodes 20`, table2.md), Fig. 4
+#                                 (`plot`, curves.png) and the steps to 80/90 % beside the
+#                                 paper's with the costs (`report`, report.md), written into
+#                                 results/table2/; PARTIAL=1 makes them of the finished
+#                                 cells (evaluate) and every cell's evaluations so far
 #
 # Runs live in $RUNS (default ~/franka_runs/table2), so an interrupted cell resumes in a
 # later session.
@@ -86,5 +92,26 @@ for cell in GRIDS["table2"]:
 PY
     ls results/table2
     ;;
-  *) sed -n '2,22p' "$0"; exit 2 ;;
+  report)
+    kept=${KEPT:-results/table2}
+    read -ra finished < <("$BIN/python" - "$kept" "${PARTIAL:-0}" <<'PY'
+import pathlib
+import sys
+from franka_composer.training.runs import RunDir
+from franka_composer.training.sweep import GRIDS
+kept, partial = pathlib.Path(sys.argv[1]), sys.argv[2] == "1"
+unfinished = [c.name for c in GRIDS["table2"] if not RunDir(kept / c.name).outcome_path.is_file()]
+if unfinished and not partial:
+    sys.exit(f"not finished (PARTIAL=1 reports the rest): {', '.join(unfinished)}")
+print(" ".join(str(kept / c.name) for c in GRIDS["table2"] if c.name not in unfinished))
+PY
+    ) || exit 1
+    [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished" >&2; exit 1; }
+    "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 20 --device cpu \
+      --out "$kept/table2.md" || exit 1
+    "$BIN/franka-composer" plot "$kept" --out "$kept/curves.png" || exit 1
+    "$BIN/franka-composer" report "$kept" --paper-curves results/paper-curves/curves.csv \
+      --out "$kept/report.md"
+    ;;
+  *) sed -n '2,28p' "$0"; exit 2 ;;
 esac
