@@ -115,6 +115,28 @@ def test_bad_rollout_options_are_refused_before_anything_is_written(tmp_path, ca
     assert not (tmp_path / "x").exists()
 
 
+def test_a_dataset_is_not_written_over_another_or_onto_a_file(tmp_path):
+    """Found out before any episode is recorded: envlogger would append to an RLDS
+    dataset there, and Minari refuses an existing id only at the end."""
+    record("push", 1, tmp_path / "minari", format="minari", seed=0)
+    record("push", 1, tmp_path / "rlds", format="rlds", seed=0)
+    (tmp_path / "file").write_text("kept")
+    for out, format, message in (
+            ("minari", "minari", "already holds the Minari dataset "
+                                 "franka_composer/push/expert-v0: choose another --out or "
+                                 "--dataset-id"),
+            ("rlds", "rlds", "is not empty: an RLDS dataset takes a folder of its own"),
+            ("file", "rlds", "a rlds dataset is a folder, and .*file is a file"),
+            ("file", "minari", "a minari dataset is a folder, and .*file is a file")):
+        with pytest.raises(ValueError, match=message):
+            record("push", 1, tmp_path / out, format=format, seed=0)
+    assert len(rlds_format.read(tmp_path / "rlds")["episodes"]) == 1
+    assert (tmp_path / "file").read_text() == "kept"
+    # Another id in the same root is a dataset of its own.
+    assert record("push", 1, tmp_path / "minari", format="minari", seed=0,
+                  dataset_id="franka_composer/push/expert-v1")["episodes"] == 1
+
+
 def test_an_npz_dataset_path_must_end_in_npz(tmp_path):
     """numpy adds ".npz" to any other name: the file would not be where it was asked for."""
     with pytest.raises(ValueError, match="an npz dataset's path must end in .npz, got '.*x.txt'"):

@@ -289,6 +289,18 @@ def test_bad_command_line_values_are_refused_before_anything_runs(argv, message,
     assert exit_.value.code == 2 and message in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("command", [["demo"], ["train"], ["sweep", "--grid", "table2"]])
+def test_an_output_folder_that_is_a_file_is_refused_as_parsed(command, tmp_path, capsys):
+    from franka_composer import cli
+
+    path = tmp_path / "a_file"
+    path.write_text("kept")
+    with pytest.raises(SystemExit):
+        cli.main([*command, "--out", str(path)])
+    assert f"argument --out: must be a folder, got the file '{path}'" in capsys.readouterr().err
+    assert path.read_text() == "kept"
+
+
 def test_train_refuses_a_learning_start_inside_the_first_episode_and_leaves_nothing(tmp_path,
                                                                                    capsys):
     from franka_composer import cli

@@ -14,7 +14,7 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import episode_seed, frame_size, positive_int
+from franka_composer.cli.options import episode_seed, frame_size, output_folder, positive_int
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -44,7 +44,7 @@ def add_parser(subparsers) -> None:
                              "committed with config.json and policy.pt) instead of the experts")
     parser.add_argument("--seed", type=episode_seed, default=0,
                         help="episode i of each task is reset with seed + i (default: 0)")
-    parser.add_argument("--out", type=pathlib.Path, default=pathlib.Path(DEFAULT_OUT),
+    parser.add_argument("--out", type=output_folder, default=pathlib.Path(DEFAULT_OUT),
                         help=f"folder for the videos and first frames (default: {DEFAULT_OUT}/)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render: write no MP4 or PNG files, print only the table")

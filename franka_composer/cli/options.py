@@ -55,6 +55,14 @@ def output_file(text: str) -> pathlib.Path:
     return path
 
 
+def output_folder(text: str) -> pathlib.Path:
+    """A folder to write into: made if missing, refused if a file stands there."""
+    path = pathlib.Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
+    return path
+
+
 def figure_file(text: str) -> pathlib.Path:
     """An image file whose extension names a format matplotlib writes (png, pdf, svg, ...)."""
     from matplotlib.backend_bases import FigureCanvasBase

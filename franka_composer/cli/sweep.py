@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import argparse
 import fnmatch
-import pathlib
 
-from franka_composer.cli.options import positive_int, positive_seconds, training_seed
+from franka_composer.cli.options import (output_folder, positive_int, positive_seconds,
+                                         training_seed)
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
 
@@ -31,7 +31,7 @@ def add_parser(subparsers) -> None:
                     "`plot OUT` read the sweep. Options "
                     "after `--` go to every cell's `train` (e.g. -- --update-schedule "
                     "episode --threads 1). Needs Ray: pip install 'franka_composer[sweep]'.")
-    parser.add_argument("--out", type=pathlib.Path, required=True,
+    parser.add_argument("--out", type=output_folder, required=True,
                         help="the sweep's directory: one run directory per cell")
     parser.add_argument("--grid", choices=sorted(GRIDS),
                         help="a named grid: table2 is the paper's Table II with issue 15's "

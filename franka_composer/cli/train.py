@@ -7,8 +7,8 @@ import contextlib
 import os
 import pathlib
 
-from franka_composer.cli.options import (non_negative_int, number, positive_int,
-                                         training_seed)
+from franka_composer.cli.options import (non_negative_int, number, output_folder,
+                                         positive_int, training_seed)
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
@@ -107,7 +107,7 @@ def add_parser(subparsers) -> None:
                              "evaluations stay fp32). A resumed run keeps its precision")
     parser.add_argument("--seed", type=training_seed, default=None,
                         help="random seed of the run (0 to 2**31 - 1; default: 0)")
-    parser.add_argument("--out", type=pathlib.Path, default=None,
+    parser.add_argument("--out", type=output_folder, default=None,
                         help="run directory (default runs/TASK-ALGO-seedSEED)")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --out from its latest checkpoint: same "

@@ -42,12 +42,13 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     check_number("episodes", episodes, minimum=1, integer=True)
     check_number("seed", seed, minimum=0, integer=True)
     out = pathlib.Path(out)
-    if format == "npz" and out.suffix != ".npz":  # numpy would write to out + ".npz".
-        raise ValueError(f"an npz dataset's path must end in .npz, got {str(out)!r}")
+    source = source_name(policy_dir, action_noise)
+    if format == "minari":
+        dataset_id = dataset_id or default_dataset_id(task, control, source)
+    _check_destination(out, format, dataset_id)
     env = gym.make(env_id(task, reward_type, control), **options)
     try:
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)
-        source = source_name(policy_dir, action_noise)
         if format == "npz":
             trajectories = rollout(env, policy, episodes, seed=seed)
             out.parent.mkdir(parents=True, exist_ok=True)
@@ -57,7 +58,6 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
         if format == "minari":
             from franka_composer.datasets import minari_format
 
-            dataset_id = dataset_id or default_dataset_id(task, control, source)
             summary = minari_format.write(env, policy, episodes, seed, out, dataset_id,
                                           f"franka_composer {task} ({control}), {source}")
             return dict(summary, path=str(out), dataset_id=dataset_id)
@@ -71,6 +71,25 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
         return dict(summary, path=str(out))
     finally:
         env.close()
+
+
+def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -> None:
+    """Where `record` writes must take a new dataset whole, found out before the episodes
+    are recorded: an npz file's name ends in .npz (numpy would add it); Minari and RLDS
+    datasets are folders, and one already there is not added to (envlogger would append
+    the new episodes to an RLDS dataset's, Minari refuses at the end)."""
+    if format == "npz":
+        if out.suffix != ".npz":
+            raise ValueError(f"an npz dataset's path must end in .npz, got {str(out)!r}")
+        return
+    if out.is_file():
+        raise ValueError(f"a {format} dataset is a folder, and {out} is a file")
+    if format == "rlds" and out.is_dir() and any(out.iterdir()):
+        raise ValueError(f"{out} is not empty: an RLDS dataset takes a folder of its own "
+                         "(envlogger would add these episodes to the ones there)")
+    if format == "minari" and dataset_id is not None and (out / dataset_id).exists():
+        raise ValueError(f"{out} already holds the Minari dataset {dataset_id}: choose "
+                         "another --out or --dataset-id")
 
 
 __all__ = ["FORMATS", "default_dataset_id", "record"]
