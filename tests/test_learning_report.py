@@ -119,6 +119,30 @@ def test_a_report_written_to_a_new_folder_makes_it(tmp_path, capsys):
     assert out.read_text() == capsys.readouterr().out
 
 
+def test_a_damaged_run_file_is_named_with_what_is_wrong(tmp_path, capsys):
+    root = _write_run(tmp_path, "push", "sac", 0, [0.0, 0.5])
+    run = RunDir(root)
+    for text, message in (
+            ("step,success\n0,1\n", r"eval.csv is not an eval.csv: its columns are step, "
+                                     "success, not steps, wall_time_s, success_rate, "
+                                     "mean_reward"),
+            ("steps,wall_time_s,success_rate,mean_reward\n0,1,0.5,-3\n2000,x,0.5\n",
+             r"eval.csv, line 3: expected numbers for steps, wall_time_s, success_rate, "
+             "mean_reward, got")):
+        run.eval_csv.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            read_run(root)
+    for text, message in (("{bad json", "config.json is not a run's config: Expecting "
+                                        "property name"),
+                          ('{"task": "push"}', "config.json is not a run's config: it has no "
+                                               "'algo'")):
+        run.config_path.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            run.read_config()
+        assert cli.console(["report", str(root)]) == 2
+        assert message.split(":")[0] in capsys.readouterr().err
+
+
 def test_a_run_without_evaluations_is_refused_by_name(tmp_path):
     root = _write_run(tmp_path, "push", "sac", 0, [])
     with pytest.raises(ValueError, match="push-sac-seed0 has no evaluations yet"):

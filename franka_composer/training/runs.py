@@ -236,7 +236,13 @@ class RunDir:
     def read_config(self) -> RunConfig:
         if not self.config_path.is_file():
             raise ValueError(f"{self.root} is not a training run (no config.json)")
-        return RunConfig.from_dict(json.loads(self.config_path.read_text()))
+        try:
+            return RunConfig.from_dict(json.loads(self.config_path.read_text()))
+        except KeyError as error:
+            raise ValueError(f"{self.config_path} is not a run's config: it has no "
+                             f"{error}") from None
+        except (TypeError, ValueError) as error:  # json's JSONDecodeError is a ValueError.
+            raise ValueError(f"{self.config_path} is not a run's config: {error}") from None
 
     def write_config(self, config: RunConfig) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
@@ -286,8 +292,20 @@ def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
     if not path.is_file():
         return []
     with path.open(newline="") as f:
-        return [{k: (int(float(v)) if k == "steps" else float(v)) for k, v in row.items()}
-                for row in csv.DictReader(f)]
+        reader = csv.DictReader(f)
+        if tuple(reader.fieldnames or ()) != EVAL_COLUMNS:
+            raise ValueError(f"{path} is not an eval.csv: its columns are "
+                             f"{', '.join(reader.fieldnames or ()) or 'none'}, not "
+                             f"{', '.join(EVAL_COLUMNS)}")
+        rows = []
+        for line, row in enumerate(reader, start=2):
+            try:
+                rows.append({k: (int(float(v)) if k == "steps" else float(v))
+                             for k, v in row.items()})
+            except (TypeError, ValueError):
+                raise ValueError(f"{path}, line {line}: expected numbers for "
+                                 f"{', '.join(EVAL_COLUMNS)}, got {row}") from None
+        return rows
 
 
 def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
