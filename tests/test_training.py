@@ -176,6 +176,28 @@ def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
     with pytest.raises(ValueError, match="a policy file of format 99; this version of "
                                          "franka_composer reads format 1"):
         load_trained(RunDir(committed), env, device="cpu")
+    for contents, message in (
+            ((runs["sac"] / "policy.pt").read_bytes()[:1000],
+             "is not a policy file \\(torch cannot read it: RuntimeError PytorchStreamReader"),
+            (b"hello", "is not a policy file \\(torch cannot read it: "),
+            (None, "is not a policy file franka_composer wrote \\(no actor and steps in it")):
+        if contents is None:
+            torch.save([1, 2], committed / "policy.pt")
+        else:
+            (committed / "policy.pt").write_bytes(contents)
+        with pytest.raises(ValueError, match=message):
+            load_trained(RunDir(committed), env, device="cpu")
+    # The SAC actor under a config.json that says DDPG: other layers.
+    torch.save(state, committed / "policy.pt")
+    config = json.loads((committed / "config.json").read_text())
+    ddpg = json.loads((runs["ddpg"] / "config.json").read_text())
+    (committed / "config.json").write_text(json.dumps({**config, "algo": "ddpg",
+                                                       "hyperparameters":
+                                                       ddpg["hyperparameters"]}))
+    with pytest.raises(ValueError, match="its actor's parameters do not fit the network its "
+                                         r"run's config.json describes \(ddpg, net_arch "
+                                         r"\[16, 16\]\)"):
+        load_trained(RunDir(committed), env, device="cpu")
     (committed / "policy.pt").unlink()
     with pytest.raises(ValueError, match="has no model yet \\(no model.zip, no checkpoint, "
                                          "no policy.pt\\)"):

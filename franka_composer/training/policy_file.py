@@ -69,7 +69,15 @@ def load_policy(config: RunConfig, path: pathlib.Path, env: gym.Env,
     import torch
 
     device = resolve_device(device)
-    state = torch.load(path, map_location=device, weights_only=True)
+    try:
+        state = torch.load(path, map_location=device, weights_only=True)
+    except Exception as error:  # torch raises what its unpickler or zip reader meets.
+        first_line = (str(error).splitlines() or [""])[0]
+        raise ValueError(f"{path} is not a policy file (torch cannot read it: "
+                         f"{type(error).__name__} {first_line})") from None
+    if not isinstance(state, dict) or not {"actor", "steps"} <= state.keys():
+        raise ValueError(f"{path} is not a policy file franka_composer wrote (no actor and "
+                         "steps in it)")
     if state.get("format") != FORMAT:
         raise ValueError(f"{path} is a policy file of format {state.get('format')!r}; this "
                          f"version of franka_composer reads format {FORMAT}")
@@ -82,7 +90,12 @@ def load_policy(config: RunConfig, path: pathlib.Path, env: gym.Env,
     policy_class = algorithm_class(config.algo).policy_aliases["MultiInputPolicy"]
     policy = policy_class(env.observation_space, env.action_space, lr_schedule=lambda _: 0.0,
                           **policy_kwargs(config.algo, config.hyperparameters))
-    policy.actor.load_state_dict(state["actor"])
+    try:
+        policy.actor.load_state_dict(state["actor"])
+    except RuntimeError:  # Other layers or shapes: another algorithm or network.
+        raise ValueError(f"{path}: its actor's parameters do not fit the network its run's "
+                         f"config.json describes ({config.algo}, net_arch "
+                         f"{list(config.hyperparameters.net_arch)})") from None
     policy.set_training_mode(False)
     return ActorPolicy(policy.to(device), state["steps"])
 
