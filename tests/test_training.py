@@ -393,6 +393,34 @@ def test_cpu_time_stays_unknown_after_a_checkpoint_that_did_not_record_it(tmp_pa
     assert RunDir(out).read_state()["cpu_time_s"] is None
 
 
+def test_a_run_stopped_while_writing_a_checkpoint_resumes_from_the_one_before(tmp_path,
+                                                                            monkeypatch):
+    """The second checkpoint fails halfway (a full disk): the first stays whole, and the
+    resume goes on from it and clears what the failure left."""
+    from franka_composer.training import exact_resume
+
+    out, calls, save = tmp_path / "run", [], exact_resume.save
+
+    def failing(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:
+            raise OSError("No space left on device")
+        return save(*args, **kwargs)
+
+    monkeypatch.setattr(exact_resume, "save", failing)
+    with pytest.raises(OSError, match="No space left on device"):
+        _train(out, "sac", 300, "--checkpoint-every", "100")
+    run = RunDir(out)
+    first = run.read_state()["steps"]
+    assert 100 <= first < 200 and (run.checkpoint_model.is_file()
+                                   and run.checkpoint_buffer.is_file())
+    assert len(list(run.root.glob("checkpoint-*"))) == 2  # The latest, and the failed one.
+    monkeypatch.setattr(exact_resume, "save", save)
+    assert _train(out, "sac", 300, "--resume") == 0
+    assert run.read_state()["steps"] >= 300 and len(list(run.root.glob("checkpoint-*"))) == 1
+    assert [r["steps"] for r in read_eval_rows(run.eval_csv)] == [0, 100, 200, 300]
+
+
 def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
     with pytest.raises(ValueError, match="--resume"):
         _train(runs["ddpg"], "ddpg", 300)

@@ -252,6 +252,7 @@ def run(args: argparse.Namespace) -> int:
     if args.resume:
         run_dir = RunDir(out)
         _check_resumed_as_given(args, run_dir)
+        run_dir.recover_checkpoint()
     else:
         # A missing sbx fails before the run exists.
         algorithm_class(settings.algo, settings.backend)

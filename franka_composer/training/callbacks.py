@@ -85,14 +85,14 @@ class RecordEvaluation(BaseCallback):
 class Evaluation(EvalCallback):
     """SB3's EvalCallback: `episodes` deterministic episodes every `every` steps, on the
     run's grid of steps (also after a resume from any step) and at its first and last step.
-    Its per-episode log of this session is RUN_DIR/checkpoint/evaluations.npz."""
+    Its per-episode log of this session is RUN_DIR/evaluations.npz."""
 
     def __init__(self, eval_env, run: RunDir, clock: WallClock, *, every: int, episodes: int,
                  stop_success_rate: float | None = None, stop_after: int = 5) -> None:
         self.record = RecordEvaluation(run, clock, stop_success_rate=stop_success_rate,
                                        stop_after=stop_after)
         super().__init__(eval_env, callback_after_eval=self.record, n_eval_episodes=episodes,
-                         eval_freq=every, log_path=str(run.checkpoint / "evaluations"),
+                         eval_freq=every, log_path=str(run.root),
                          deterministic=True, warn=False, verbose=0)
 
     def _on_training_start(self) -> None:
@@ -125,8 +125,9 @@ class StoppedAtCheckpoint(KeyboardInterrupt):
 
 class LatestCheckpoint(CheckpointCallback):
     """SB3's CheckpointCallback of model and replay buffer, keeping only the latest:
-    checkpoint/model.zip, replay_buffer.pkl, generators.pkl and state.json written last, so
-    a checkpoint whose state exists is complete.
+    model.zip, replay_buffer.pkl, generators.pkl and state.json are written into a new
+    folder, which then becomes RUN_DIR/checkpoint in one step (`RunDir.publish_checkpoint`),
+    so the checkpoint there is always whole.
 
     It is written at the first episode end at or after each multiple of `every` steps (the
     run's grid, after a resume too), and at the first episode end after `stop_requested` is
@@ -137,14 +138,14 @@ class LatestCheckpoint(CheckpointCallback):
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
                  threads: int | None = None) -> None:
-        super().__init__(every, str(run.checkpoint), name_prefix="model",
-                         save_replay_buffer=True)
+        super().__init__(every, str(run.root), name_prefix="model", save_replay_buffer=True)
+        self._writing = run.checkpoint  # The folder a checkpoint is being written into.
         self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
         self.stop_requested = False
         self.episode_ended = False  # Whether the latest step ended an episode.
 
     def _checkpoint_path(self, checkpoint_type: str = "", extension: str = "") -> str:
-        return str(self._run.checkpoint / f"{checkpoint_type.rstrip('_') or 'model'}.{extension}")
+        return str(self._writing / f"{checkpoint_type.rstrip('_') or 'model'}.{extension}")
 
     def _on_training_start(self) -> None:
         self._set_next_due()
@@ -169,19 +170,20 @@ class LatestCheckpoint(CheckpointCallback):
             raise StoppedAtCheckpoint
 
     def save(self, *, exact: bool) -> None:
-        """Writes the checkpoint now: SB3 saves the model and the replay buffer, then the
-        generators, then the state file marks the checkpoint complete. `exact`: whether
-        this is a point a resume goes on from exactly (see the class)."""
+        """Writes the checkpoint now, into a new folder: SB3 saves the model and the replay
+        buffer, then the generators and the state file; then it becomes the run's
+        checkpoint. `exact`: whether this is a point a resume goes on from exactly (see the
+        class)."""
         run = self._run
-        run.checkpoint.mkdir(parents=True, exist_ok=True)
-        run.checkpoint_state.unlink(missing_ok=True)
-        run.checkpoint_generators.unlink(missing_ok=True)
+        self._writing = run.new_checkpoint(int(self.model.num_timesteps))
         calls, self.n_calls = self.n_calls, 0  # 0 is on every grid.
         super()._on_step()
         self.n_calls = calls
         if exact:
-            exact_resume.save(self.model, self.stream, run.checkpoint_generators)
-        run.checkpoint_state.write_text(json.dumps(
+            exact_resume.save(self.model, self.stream,
+                              self._writing / run.checkpoint_generators.name)
+        (self._writing / run.checkpoint_state.name).write_text(json.dumps(
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
              "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
              "exact": exact, "threads": self._threads}) + "\n")
+        run.publish_checkpoint(self._writing)

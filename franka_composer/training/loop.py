@@ -99,6 +99,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     eval_env.seed(config.seed + EVAL_SEED_OFFSET)
     tensorboard = str(run.tensorboard) if importlib.util.find_spec("tensorboard") else None
 
+    run.recover_checkpoint()
     state = run.read_state()
     if resume:
         if not state:

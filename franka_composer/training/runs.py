@@ -5,7 +5,11 @@
     RUN_DIR/model.zip            the final model (written when training completes)
     RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early (none
                                  while a resume with a raised budget trains)
-    RUN_DIR/checkpoint/          latest model.zip, replay_buffer.pkl, state.json
+    RUN_DIR/evaluations.npz      SB3's per-episode log of this session's evaluations
+    RUN_DIR/checkpoint           the latest complete checkpoint: a link to
+                                 checkpoint-STEPS-*/ (model.zip, replay_buffer.pkl,
+                                 generators.pkl, state.json), switched to a new one in one
+                                 step once it is written whole (a folder in runs from before)
 """
 
 from __future__ import annotations
@@ -13,7 +17,10 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import os
 import pathlib
+import shutil
+import uuid
 
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
@@ -210,7 +217,51 @@ class RunDir:
 
     @property
     def checkpoint(self) -> pathlib.Path:
+        """The latest complete checkpoint (`publish_checkpoint`)."""
         return self.root / "checkpoint"
+
+    def new_checkpoint(self, steps: int) -> pathlib.Path:
+        """A new folder, beside the latest checkpoint, to write the one at `steps` into
+        before `publish_checkpoint`; the latest stays whole until then, so a run stopped
+        while writing (killed, out of memory, a lost machine) resumes from it."""
+        self.recover_checkpoint()
+        self._remove_unpublished_checkpoints()
+        path = self._unused_checkpoint_name(steps)
+        path.mkdir()
+        return path
+
+    def publish_checkpoint(self, written: pathlib.Path) -> None:
+        """Makes `written` (from `new_checkpoint`) the latest checkpoint in one atomic step
+        (a link replaced by rename), then removes the one it replaces."""
+        link = self.root / "checkpoint.next"
+        link.unlink(missing_ok=True)
+        link.symlink_to(written.name)
+        if self.checkpoint.is_dir() and not self.checkpoint.is_symlink():  # A run from before.
+            self.checkpoint.rename(self._unused_checkpoint_name(0))
+        os.replace(link, self.checkpoint)
+        self._remove_unpublished_checkpoints()
+
+    def recover_checkpoint(self) -> None:
+        """Where a run stopped between moving a checkpoint folder of a run from before
+        aside and linking its successor, links the newest complete one again."""
+        if self.checkpoint.exists():
+            return
+        complete = [path for path in self.root.glob("checkpoint-*")
+                    if (path / "state.json").is_file()]
+        if complete:
+            newest = max(complete, key=lambda p: json.loads((p / "state.json").read_text())[
+                "steps"])
+            self.checkpoint.unlink(missing_ok=True)  # A link to nothing.
+            self.checkpoint.symlink_to(newest.name)
+
+    def _unused_checkpoint_name(self, steps: int) -> pathlib.Path:
+        return self.root / f"checkpoint-{steps}-{uuid.uuid4().hex[:8]}"
+
+    def _remove_unpublished_checkpoints(self) -> None:
+        latest = self.checkpoint.resolve() if self.checkpoint.exists() else None
+        for path in self.root.glob("checkpoint-*"):
+            if path.resolve() != latest:
+                shutil.rmtree(path)
 
     @property
     def checkpoint_model(self) -> pathlib.Path:

@@ -1,0 +1,75 @@
+"""A run's checkpoint on disk is always whole: a new one is written beside it and takes its
+place in one step (training/runs.py, `RunDir.publish_checkpoint`)."""
+
+from __future__ import annotations
+
+import json
+
+from franka_composer.training.runs import RunDir
+
+
+def _write(folder, steps, files=("model.zip", "replay_buffer.pkl")):
+    for name in files:
+        (folder / name).write_text(f"{name} at {steps}")
+    (folder / "state.json").write_text(json.dumps({"steps": steps}))
+
+
+def _checkpoint_folders(run):
+    return sorted(path.name.split("-")[1] for path in run.root.glob("checkpoint-*"))
+
+
+def test_a_new_checkpoint_replaces_the_latest_only_once_written_whole(tmp_path):
+    run = RunDir(tmp_path / "run")
+    run.root.mkdir()
+    first = run.new_checkpoint(100)
+    _write(first, 100)
+    run.publish_checkpoint(first)
+    assert run.checkpoint.is_symlink() and run.checkpoint.resolve() == first.resolve()
+    assert run.read_state() == {"steps": 100}
+    # Stopped while writing the next one: the latest is untouched.
+    second = run.new_checkpoint(200)
+    (second / "model.zip").write_text("half")
+    assert run.read_state() == {"steps": 100}
+    assert run.checkpoint_model.read_text() == "model.zip at 100"
+    # The next checkpoint clears what the stop left, and replaces the latest.
+    third = run.new_checkpoint(300)
+    assert not second.exists()
+    _write(third, 300)
+    run.publish_checkpoint(third)
+    assert run.read_state() == {"steps": 300} and _checkpoint_folders(run) == ["300"]
+    assert not (run.root / "checkpoint.next").exists()
+
+
+def test_a_checkpoint_folder_of_a_run_from_before_is_replaced_in_the_same_way(tmp_path):
+    run = RunDir(tmp_path / "run")
+    run.checkpoint.mkdir(parents=True)
+    _write(run.checkpoint, 50)
+    written = run.new_checkpoint(100)
+    assert run.read_state() == {"steps": 50}  # Kept until the new one is whole.
+    _write(written, 100)
+    run.publish_checkpoint(written)
+    assert run.checkpoint.is_symlink() and run.read_state() == {"steps": 100}
+    assert _checkpoint_folders(run) == ["100"]
+
+
+def test_a_stop_between_moving_an_old_folder_aside_and_linking_is_recovered(tmp_path):
+    """The one moment without RUN_DIR/checkpoint: the newest whole folder is linked again,
+    an unfinished one is not taken."""
+    run = RunDir(tmp_path / "run")
+    (run.root / "checkpoint-0-before").mkdir(parents=True)
+    _write(run.root / "checkpoint-0-before", 50)
+    (run.root / "checkpoint-100-unfinished").mkdir()
+    (run.root / "checkpoint-100-unfinished" / "model.zip").write_text("half")
+    assert run.read_state() == {}
+    run.recover_checkpoint()
+    assert run.read_state() == {"steps": 50}
+    (run.root / "checkpoint-100-unfinished").rename(run.root / "checkpoint-100-whole")
+    _write(run.root / "checkpoint-100-whole", 100)
+    run.checkpoint.unlink()
+    run.recover_checkpoint()
+    assert run.read_state() == {"steps": 100}
+    # Nothing to recover from: nothing is made.
+    empty = RunDir(tmp_path / "empty")
+    empty.root.mkdir()
+    empty.recover_checkpoint()
+    assert not empty.checkpoint.exists() and not empty.checkpoint.is_symlink()
