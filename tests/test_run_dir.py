@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from franka_composer.training.runs import RunDir
 
 
@@ -73,3 +75,27 @@ def test_a_stop_between_moving_an_old_folder_aside_and_linking_is_recovered(tmp_
     empty.root.mkdir()
     empty.recover_checkpoint()
     assert not empty.checkpoint.exists() and not empty.checkpoint.is_symlink()
+
+
+def test_one_process_at_a_time_trains_a_run(tmp_path):
+    """A second trainer is refused, naming the first; the lock goes with the first."""
+    import subprocess
+    import sys
+
+    run = RunDir(tmp_path / "run")
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import pathlib, sys, time\nfrom franka_composer.training.runs "
+         "import RunDir\nwith RunDir(pathlib.Path(sys.argv[1])).training_lock():\n"
+         "    print('held', flush=True)\n    time.sleep(60)", str(run.root)],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(ValueError, match=f"{run.root} is being trained by process "
+                                             f"{holder.pid} on .*: let it end, or stop it"):
+            with run.training_lock():
+                pass
+    finally:
+        holder.kill()
+        holder.wait()
+    with run.training_lock():  # Free again once the holder is gone, however it ended.
+        pass

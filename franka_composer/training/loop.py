@@ -87,7 +87,15 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     the cadence the run's checkpoints were written at (DEFAULT_CHECKPOINT_EVERY for a new
     run), so a resumed run does not quietly checkpoint less often than it was started to.
     `threads`: the CPU threads the caller limited the networks to (None: not limited),
-    recorded in the checkpoints for a resume to compute with."""
+    recorded in the checkpoints for a resume to compute with. One process at a time trains
+    a run: a second is refused (`RunDir.training_lock`)."""
+    with run.training_lock():
+        return _train(run, resume=resume, total_steps=total_steps, device=device,
+                      checkpoint_every=checkpoint_every, threads=threads, progress=progress)
+
+
+def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
+           checkpoint_every: int | None, threads: int | None, progress: bool):
     config = run.read_config()
     if total_steps is not None:
         config = dataclasses.replace(

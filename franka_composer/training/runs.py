@@ -6,6 +6,7 @@
     RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early (none
                                  while a resume with a raised budget trains)
     RUN_DIR/evaluations.npz      SB3's per-episode log of this session's evaluations
+    RUN_DIR/training.lock        held (flock) by the process training the run
     RUN_DIR/checkpoint           the latest complete checkpoint: a link to
                                  checkpoint-STEPS-*/ (model.zip, replay_buffer.pkl,
                                  generators.pkl, state.json), switched to a new one in one
@@ -14,13 +15,16 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import dataclasses
 import json
 import os
 import pathlib
 import shutil
+import socket
 import uuid
+import warnings
 
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
@@ -219,6 +223,34 @@ class RunDir:
     def checkpoint(self) -> pathlib.Path:
         """The latest complete checkpoint (`publish_checkpoint`)."""
         return self.root / "checkpoint"
+
+    @contextlib.contextmanager
+    def training_lock(self):
+        """Held while a process trains this run, and let go when it ends however it ends
+        (an flock): a second process would write the same checkpoints and eval.csv, so it
+        is refused, naming the first. Where there is no fcntl (Windows), nothing is held."""
+        try:
+            import fcntl
+        except ImportError:
+            yield
+            return
+        self.root.mkdir(parents=True, exist_ok=True)
+        with open(self.root / "training.lock", "a+") as handle:
+            try:
+                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                handle.seek(0)
+                holder = handle.read().strip() or "another process"
+                raise ValueError(f"{self.root} is being trained by {holder}: let it end, or "
+                                 "stop it (SIGTERM checkpoints it) before resuming") from None
+            except OSError as error:  # A file system without locks (some network ones).
+                warnings.warn(f"{self.root}: no lock against a second trainer ({error})",
+                              RuntimeWarning, stacklevel=3)
+            handle.seek(0)
+            handle.truncate()
+            handle.write(f"process {os.getpid()} on {socket.gethostname()}\n")
+            handle.flush()
+            yield
 
     def new_checkpoint(self, steps: int) -> pathlib.Path:
         """A new folder, beside the latest checkpoint, to write the one at `steps` into
