@@ -118,9 +118,10 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
     if cell_finished(run, cell):
         return cell.name, 0
     if run.root.exists():
-        run.recover_checkpoint()
-        if not run.read_state():
-            shutil.rmtree(run.root)
+        with run.training_lock():  # Not from under a process training it.
+            run.recover_checkpoint()
+            if not run.read_state():
+                shutil.rmtree(run.root)
     run.root.parent.mkdir(parents=True, exist_ok=True)
     with open(cell_log(cell, root), "a") as log:
         command = train_command(cell, root, train_args, resume=bool(run.read_state()))
