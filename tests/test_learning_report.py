@@ -12,7 +12,8 @@ from franka_composer.training import report
 from franka_composer.training.learning_report import (SMOOTHING, markdown_table,
                                                       read_paper_curves, read_run, smoothed,
                                                       steps_to)
-from franka_composer.training.runs import RunConfig, RunDir
+from franka_composer.training.run_config import RunConfig
+from franka_composer.training.runs import RunDir
 
 
 def _write_run(root, task, algo, seed, rates, outcome=None, name="", **settings):

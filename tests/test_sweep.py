@@ -14,7 +14,8 @@ import pytest
 
 from franka_composer import cli
 from franka_composer.training import hyperparameters
-from franka_composer.training.runs import RunConfig, RunDir, read_eval_rows
+from franka_composer.training.run_config import RunConfig
+from franka_composer.training.runs import RunDir, read_eval_rows
 from franka_composer.training.sweep import (GRIDS, Cell, cell_log, cell_status, grid,
                                             run_directories, run_sweep, status_table,
                                             train_command)
@@ -180,7 +181,7 @@ def test_a_cell_trained_as_another_run_is_refused_before_anything_runs(tmp_path)
     """Changing a grid's options (say, a backend) under a sweep that has trained would
     otherwise resume its cells with their old settings under the new grid's name."""
     from franka_composer.training import hyperparameters, loop
-    from franka_composer.training.runs import RunConfig
+    from franka_composer.training.run_config import RunConfig
 
     out = tmp_path / "sweep"
     hp = hyperparameters("push", "sac").replace(stop_success_rate=0.95)

@@ -244,7 +244,7 @@ def test_learning_must_start_after_an_episode_with_an_update_every_step(task, ho
     """HER samples from ended episodes only: SB3 raises at its first gradient step, with
     the run's directory made, if that step (after step learning_starts + 1) comes first."""
     from franka_composer.training import hyperparameters
-    from franka_composer.training.runs import RunConfig
+    from franka_composer.training.run_config import RunConfig
 
     table_i = hyperparameters(task, "sac")
     with pytest.raises(ValueError, match=f"learning_starts must be >= {horizon - 1} for "
@@ -257,7 +257,7 @@ def test_learning_must_start_after_an_episode_with_an_update_every_step(task, ho
 
 def test_a_run_config_names_an_unknown_task_or_algorithm():
     from franka_composer.training import hyperparameters
-    from franka_composer.training.runs import RunConfig
+    from franka_composer.training.run_config import RunConfig
 
     with pytest.raises(ValueError, match="unknown task 'lift'; valid tasks: push"):
         RunConfig("lift", "sac", 0, hyperparameters("push", "sac"))

@@ -206,7 +206,7 @@ def with_defaults(args: argparse.Namespace) -> argparse.Namespace:
 def run_config(args: argparse.Namespace):
     """The run these `train` arguments start (what its config.json will hold)."""
     from franka_composer.training import hyperparameters
-    from franka_composer.training.runs import RunConfig
+    from franka_composer.training.run_config import RunConfig
 
     args = with_defaults(args)
     hp = hyperparameters(args.task, args.algo).replace(

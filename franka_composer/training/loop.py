@@ -23,8 +23,8 @@ from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
-from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunConfig, RunDir,
-                                          write_eval_rows)
+from franka_composer.training.run_config import RunConfig
+from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, RunDir, write_eval_rows
 from franka_composer.training.signals import stop_requests
 from franka_composer.training.target_bounds import clip_target_critic
 

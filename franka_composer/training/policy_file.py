@@ -19,7 +19,8 @@ import numpy as np
 
 from franka_composer.training.models import (algorithm_class, build_model, load_model,
                                              policy_kwargs, resolve_device)
-from franka_composer.training.runs import RunConfig, RunDir
+from franka_composer.training.run_config import RunConfig
+from franka_composer.training.runs import RunDir
 
 #: Bumped when the file's layout changes; a file of another version is refused by name.
 FORMAT = 1

@@ -9,7 +9,7 @@ import numpy as np
 
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
-from franka_composer.training.runs import variant_label
+from franka_composer.training.run_config import variant_label
 
 #: Row order of the paper's Table II; the other tasks follow in the registry's order.
 TABLE_II_TASKS = ("push", "slide", "pick_and_place")

@@ -1,6 +1,7 @@
 """A training run on disk: what it was asked to do, its evaluations and its checkpoints.
 
     RUN_DIR/config.json          task, algorithm, seed, backend, options, hyperparameters
+                                 (`run_config.RunConfig`)
     RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
     RUN_DIR/model.zip            the final model (written when training completes)
     RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early (none
@@ -26,156 +27,12 @@ import socket
 import uuid
 import warnings
 
-from franka_composer.controllers import CONTROLS
-from franka_composer.randomization import PRESETS
-from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
-                                                  Hyperparameters, hyperparameters)
-from franka_composer.validation import check_choice
+from franka_composer.training.run_config import RunConfig
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
 #: state.json records a run's own, which a resume keeps.
 DEFAULT_CHECKPOINT_EVERY = 50_000
-
-#: Hyperparameters that leave what is learned alone: the budget, evaluation and stopping.
-NOT_LEARNING = ("total_steps", "eval_every", "eval_episodes", "stop_success_rate",
-                "stop_after_evaluations")
-
-
-def variant_label(setup: str, computation: str) -> str:
-    """A run's variant (`RunConfig.variant`) from its setup and computation labels."""
-    return ", ".join(part for part in (setup, computation) if part)
-
-
-@dataclasses.dataclass(frozen=True)
-class RunConfig:
-    """What a run trains: enough to rebuild its model and environments on resume.
-
-    `demos` is the dataset the replay buffer was filled from before learning (its first
-    `demo_episodes` episodes, or all), or None.
-
-    `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
-    wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
-    is how the networks' passes are computed while training; the weights are fp32 either
-    way, so evaluation and loading do not depend on it.
-    """
-
-    task: str
-    algo: str
-    seed: int
-    hyperparameters: Hyperparameters
-    terminate_on_success: bool = True
-    backend: str = "sb3"
-    control: str = "mocap"
-    precision: str = "fp32"
-    randomization: str | None = None
-    demos: str | None = None
-    demo_episodes: int | None = None
-
-    def __post_init__(self) -> None:
-        check_choice("task", self.task, tuple(TASK_CONFIGS))
-        check_choice("algorithm", self.algo, ALGOS)
-        check_choice("backend", self.backend, BACKENDS)
-        check_choice("control", self.control, CONTROLS)
-        check_choice("precision", self.precision, PRECISIONS)
-        if self.randomization is not None:
-            check_choice("randomization", self.randomization, tuple(PRESETS), also="None")
-        if self.precision != "fp32" and self.backend != "sb3":
-            raise ValueError(f"precision {self.precision} runs the networks under "
-                             f"torch.autocast: it needs backend sb3, not {self.backend} "
-                             "(which trains in JAX)")
-        if self.hyperparameters.clip_q_targets and self.backend != "sb3":
-            raise ValueError(f"clip_q_targets clamps a PyTorch target critic: it needs "
-                             f"backend sb3, not {self.backend}")
-        self._check_first_update()
-
-    def _check_first_update(self) -> None:
-        """HER samples from finished episodes only, and SB3 stops a run whose first gradient
-        step comes before one has ended (after its directory is made). With an update
-        every step, that step follows step `learning_starts` + 1, and the first episode may
-        last its whole horizon."""
-        hp = self.hyperparameters
-        horizon = TASK_CONFIGS[self.task].max_episode_steps
-        if hp.update_schedule == "step" and self.demos is None \
-                and hp.learning_starts + 1 < horizon:
-            raise ValueError(
-                f"learning_starts must be >= {horizon - 1} for {self.task} with an update "
-                f"every step, got {hp.learning_starts}: the first gradient step would come "
-                f"before the first episode ends (it may last {horizon} steps), and HER "
-                "samples from ended episodes only; or use update_schedule 'episode' or demos")
-
-    def to_dict(self) -> dict:
-        return {"task": self.task, "algo": self.algo, "seed": self.seed,
-                "terminate_on_success": self.terminate_on_success, "backend": self.backend,
-                "control": self.control, "precision": self.precision,
-                "randomization": self.randomization, "demos": self.demos,
-                "demo_episodes": self.demo_episodes,
-                "hyperparameters": self.hyperparameters.to_dict()}
-
-    @property
-    def setup(self) -> str:
-        """What this run learns that the paper's setup does not (Table I for its task and
-        algorithm, mocap, terminating on success, nothing added), as a label; "" for none."""
-        table_i = hyperparameters(self.task, self.algo).to_dict()
-        parts = [f"{name} {','.join(map(str, value)) if isinstance(value, tuple) else value}"
-                 for name, value in self.hyperparameters.to_dict().items()
-                 if name not in NOT_LEARNING and value != table_i[name]]
-        parts += [label for differs, label in (
-            (self.control != "mocap", f"{self.control} control"),
-            (self.randomization is not None, f"randomization {self.randomization}"),
-            (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
-             + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
-            (not self.terminate_on_success, "no termination on success")) if differs]
-        return ", ".join(parts)
-
-    @property
-    def computation(self) -> str:
-        """How its networks were computed, where not as the paper's (SB3, fp32): "bf16",
-        "sbx" or ""."""
-        return ", ".join(label for differs, label in (
-            (self.precision != "fp32", self.precision),
-            (self.backend != "sb3", self.backend)) if differs)
-
-    @property
-    def variant(self) -> str:
-        """Its setup and computation: runs with different variants are not seeds of one
-        cell (`evaluate`, `plot` and `report` keep them apart)."""
-        return variant_label(self.setup, self.computation)
-
-    def differing(self, other: "RunConfig") -> dict[str, tuple]:
-        """What makes `other` a different run from this one: {setting: (ours, theirs)};
-        the step budget is not among them (a run may go on to a larger one)."""
-        def settings(config: RunConfig) -> dict:
-            flat = {**config.to_dict(), **config.hyperparameters.to_dict()}
-            del flat["hyperparameters"], flat["total_steps"]
-            return flat
-        ours, theirs = settings(self), settings(other)
-        return {name: (ours[name], theirs[name]) for name in ours if ours[name] != theirs[name]}
-
-    def differences(self, other: "RunConfig") -> list[str]:
-        """`differing` as "name: ours, not theirs"."""
-        return [f"{name}: {ours}, not {theirs}"
-                for name, (ours, theirs) in self.differing(other).items()]
-
-    @property
-    def env_options(self) -> dict:
-        """The options its environments are made with (`models.make_env`)."""
-        return dict(terminate_on_success=self.terminate_on_success, control=self.control,
-                    randomization=self.randomization)
-
-    @classmethod
-    def from_dict(cls, data: dict) -> "RunConfig":
-        # Runs written before the JAX backend, the controllers, bf16 or randomisation existed
-        # have no "backend", "control", "precision" or "randomization": they are SB3's,
-        # mocap, fp32, not randomised.
-        return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
-                   terminate_on_success=bool(data["terminate_on_success"]),
-                   backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
-                   precision=data.get("precision", "fp32"),
-                   randomization=data.get("randomization"), demos=data.get("demos"),
-                   demo_episodes=data.get("demo_episodes"),
-                   hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
 
 
 @dataclasses.dataclass(frozen=True)
