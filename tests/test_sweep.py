@@ -166,7 +166,7 @@ def test_an_address_where_no_ray_cluster_answers_is_refused_at_once(tmp_path):
     argv = ["sweep", "--out", str(tmp_path / "sweep"), "--tasks", "push", "--algos", "sac",
             "--seeds", "0", "--steps", "100"]
     start = time.monotonic()
-    for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}"):
+    for address in (f"127.0.0.1:{port}", f"ray://127.0.0.1:{port}", f"[::1]:{port}"):
         with pytest.raises(ValueError, match=f"no Ray cluster answers at --address "
                                              f"{re.escape(address)} .*ray start --head"):
             cli.main([*argv, "--address", address])

@@ -214,6 +214,7 @@ def check_ray_address(address: str) -> None:
     if address in ("auto", "local"):
         return
     host, _, port = address.removeprefix("ray://").rpartition(":")
+    host = host.removeprefix("[").removesuffix("]")  # An IPv6 address: [::1]:6379.
     if not host or not port.isdigit():
         raise ValueError(f"--address {address!r} is not HOST:PORT, ray://HOST:PORT, auto or "
                          "local")
