@@ -890,11 +890,15 @@ def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
     record("push", 1, tmp_path / "dense.npz", seed=0, reward_type="dense")
     record("push", 1, tmp_path / "osc", format="rlds", seed=0, control="osc")
     record("slide", 1, tmp_path / "slide", format="minari", seed=0)
+    record("push", 1, tmp_path / "dense-rlds", format="rlds", seed=0, reward_type="dense")
     for extra, message in (
             (["--demos", str(tmp_path / "dense.npz")], "holds rewards other than the sparse "
                                                        "[-1.0, 0.0] that training uses "
                                                        "(episode 0; recorded with "
                                                        "--reward-type dense?)"),
+            (["--demos", str(tmp_path / "dense-rlds")], "was recorded with dense rewards, not "
+                                                        "the sparse [-1.0, 0.0] that "
+                                                        "training uses"),
             (["--demos", str(tmp_path / "osc")], "was recorded through osc control, and this "
                                                  "run trains through mocap"),
             (["--demos", str(tmp_path / "slide" / "franka_composer" / "slide" / "expert-v0")],

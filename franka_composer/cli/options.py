@@ -14,12 +14,17 @@ def number(text: str) -> float:
         return float("nan")
 
 
+def _whole_number(text: str, minimum: int, what: str) -> int:
+    """`text` as an integer >= `minimum`, also written in scientific notation (5e5)."""
+    value = number(text)
+    if not (value >= minimum and value.is_integer()):
+        raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+    return int(value)
+
+
 def positive_int(text: str) -> int:
     """An integer >= 1; a whole number in scientific notation (5e5) is accepted too."""
-    value = number(text)
-    if not (value >= 1 and value.is_integer()):
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return int(value)
+    return _whole_number(text, 1, "a positive integer")
 
 
 #: Training seeds stay below 2**31: SB3 seeds NumPy's legacy generator (at most 2**32 - 1)
@@ -29,10 +34,7 @@ MAX_TRAINING_SEED = 2**31 - 1
 
 def non_negative_int(text: str) -> int:
     """An integer >= 0; a whole number in scientific notation (1e4) is accepted too."""
-    value = number(text)
-    if not (value >= 0 and value.is_integer()):
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
-    return int(value)
+    return _whole_number(text, 0, "an integer >= 0")
 
 
 def frame_size(text: str) -> int:

@@ -57,9 +57,11 @@ def _check_recorded_as_trained(path, episodes: list[dict], recorded: dict, env) 
                          f"this run trains through {control}: its actions would mean other "
                          "motions")
     sparse = np.unique(reward_from_distance(np.array([0.0, np.inf]), "sparse", 1.0))
+    if recorded.get("reward_type", "sparse") != "sparse":
+        raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
+                         f"the sparse {sparse.tolist()} that training uses")
     for index, episode in enumerate(episodes):
-        if recorded.get("reward_type", "sparse") != "sparse" or not np.isin(
-                episode["reward"], sparse).all():
+        if not np.isin(episode["reward"], sparse).all():
             raise ValueError(f"{path} holds rewards other than the sparse {sparse.tolist()} "
                              f"that training uses (episode {index}; recorded with "
                              "--reward-type dense?)")

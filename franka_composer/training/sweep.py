@@ -46,13 +46,19 @@ def grid(tasks, algos, seeds, steps, options: tuple[str, ...] = ()) -> list[Cell
     """Every (task, algorithm, seed); `steps` is one budget or {task: budget}. A value given
     twice is refused: its cells would train at once into one directory."""
     for kind, values in (("task", tasks), ("algorithm", algos), ("seed", seeds)):
-        repeated = sorted({str(v) for v in values if list(values).count(v) > 1})
+        repeated = _repeated(values)
         if repeated:
             raise ValueError(f"{kind}(s) {', '.join(repeated)} given more than once: each "
                              "cell is one run directory")
     budget = steps if isinstance(steps, dict) else dict.fromkeys(tasks, steps)
     return [Cell(task, algo, int(seed), int(budget[task]), options)
             for task in tasks for algo in algos for seed in seeds]
+
+
+def _repeated(values) -> list[str]:
+    """The values that stand more than once in `values`, as sorted text."""
+    values = list(values)
+    return sorted({str(v) for v in values if values.count(v) > 1})
 
 
 #: Issue 15's budgets for the paper's Table II (Table I settings otherwise). Slide uses
@@ -234,8 +240,7 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     in the background) stops it as Ctrl-C does: each running cell checkpoints first."""
     import ray
 
-    names = [cell.name for cell in cells]
-    repeated = sorted({name for name in names if names.count(name) > 1})
+    repeated = _repeated([cell.name for cell in cells])
     if repeated:
         raise ValueError(f"a sweep's cells must differ: {', '.join(repeated)} repeat")
     if address is not None:
