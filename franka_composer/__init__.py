@@ -4,10 +4,18 @@
 Gymnasium ids `Franka{Push,Slide,PickAndPlace}{Sparse,Dense}-v0`.
 """
 
+import warnings as _warnings
+
 from franka_composer import headless_gl as _headless_gl
 
 # Headless by default (EGL where there is no display): see `headless_gl`.
 _headless_gl.choose_headless_backend()
+
+# Importing dm_control.composer runs `warnings.simplefilter('always', DeprecationWarning)`
+# (composer/environment.py), which would print every library's deprecation notices, every
+# time, in our users' programs and logs; import it first with their filters put back after.
+with _warnings.catch_warnings():
+    from dm_control import composer as _composer  # noqa: E402, F401
 
 from franka_composer.adapters import ENV_IDS, FrankaGoalEnv, register_envs  # noqa: E402
 from franka_composer.suite import load  # noqa: E402
