@@ -58,6 +58,27 @@ def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     assert steps_to([stopped, going], 0.9) == 16000
 
 
+def test_the_figure_holds_a_seed_that_stopped_early_as_the_steps_to_thresholds_do(tmp_path):
+    """Without holding, the cell's median line ended at the first seed's stop (8,000 steps
+    of the 18,000 the other seed reached)."""
+    from franka_composer.training.curves import seed_curves, summarise
+
+    stopped = _write_run(tmp_path, "push", "tqc", 0, [0.6, 1.0, 0.8, 1.0, 1.0, 1.0],
+                         (True, 50.0))
+    going = _write_run(tmp_path, "push", "tqc", 1, [0.0] * 5 + [0.4] * 5)
+    curves = seed_curves([stopped, going])
+    level = (0.8 + 1.0 + 1.0 + 1.0 + 1.0) / 5  # The stopped seed's last 5 evaluations.
+    assert curves[("push", "tqc", "")][0] == {
+        **{2000 * i: rate for i, rate in enumerate([0.6, 1.0, 0.8, 1.0, 1.0, 1.0])},
+        **{step: pytest.approx(level) for step in range(12000, 20000, 2000)}}
+    steps, median, _ = summarise(curves[("push", "tqc", "")])
+    assert steps.tolist() == list(range(0, 20000, 2000))
+    assert median[-1] == pytest.approx((level + 0.4) / 2)
+    # A seed still running is not held: the line ends at the steps both reached.
+    curves = seed_curves([_write_run(tmp_path, "push", "sac", 0, [1.0] * 6), going])
+    assert summarise(curves[("push", "sac", "")])[0].tolist() == list(range(0, 12000, 2000))
+
+
 def test_the_table_has_a_row_per_cell_in_the_papers_order_and_the_total(tmp_path, capsys):
     _write_run(tmp_path, "slide", "sac", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))
     _write_run(tmp_path, "push", "tqc", 1, [1.0] * 5, (True, 1800.0))

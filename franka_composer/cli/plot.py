@@ -14,7 +14,9 @@ def add_parser(subparsers) -> None:
         description="Read each run's eval.csv and draw the median success rate over seeds "
                     "(runs of the same task, algorithm and setup), with median ± std shaded, "
                     "one panel per task and one line per algorithm and setup, as in the "
-                    "paper's Fig. 4.")
+                    "paper's Fig. 4. A run that stopped early (--stop-at-success) is held "
+                    "at the mean of its last 5 evaluations over the steps its cell's other "
+                    "seeds go on to.")
     add_run_dirs(parser)
     parser.add_argument("--out", type=figure_file, default=pathlib.Path("curves.png"),
                         help="image file to write (PNG, PDF or SVG by extension)")

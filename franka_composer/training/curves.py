@@ -1,6 +1,7 @@
 """Success-rate curves as in the paper's Fig. 4: one panel per task, one line per algorithm
 (and variant, `RunConfig.variant`, dashed and dotted after the paper's setup), the median
-over seeds with median ± std shaded (clipped to [0, 1])."""
+over seeds with median ± std shaded (clipped to [0, 1]), a seed that stopped early by the
+rule held at its level."""
 
 from __future__ import annotations
 
@@ -9,8 +10,8 @@ import pathlib
 import numpy as np
 
 from franka_composer.training.hyperparams import ALGOS
+from franka_composer.training.learning_report import RunRecord, held, read_run
 from franka_composer.training.report import TASK_ORDER, TASK_TITLES
-from franka_composer.training.runs import RunDir, success_curve
 
 COLOURS = {"ddpg": "tab:green", "sac": "tab:blue", "tqc": "tab:red"}
 #: A panel's variants of one algorithm, in order ("" first): solid, dashed, dotted, ...
@@ -20,14 +21,17 @@ Curves = dict[tuple[str, str, str], list[dict[int, float]]]
 
 
 def seed_curves(run_dirs: list[pathlib.Path]) -> Curves:
-    """{(task, algo, variant): [per-seed {steps: success rate}]} from the runs' eval.csv
-    files."""
-    curves: Curves = {}
+    """{(task, algo, variant): [per-seed {steps: success rate}]} from the runs' files; a seed
+    that stopped early by the rule holds its level over the steps its cell's other seeds go
+    on to (`learning_report.held`), so the cell's line does not end where it stopped."""
+    cells: dict[tuple[str, str, str], list[RunRecord]] = {}
     for root in run_dirs:
-        run = RunDir(pathlib.Path(root))
-        config = run.read_config()
-        curves.setdefault((config.task, config.algo, config.variant), []).append(
-            success_curve(run.evaluations()))
+        run = read_run(pathlib.Path(root))
+        cells.setdefault((run.task, run.algo, run.variant), []).append(run)
+    curves: Curves = {}
+    for cell, runs in cells.items():
+        steps = set().union(*(run.curve for run in runs))
+        curves[cell] = [held(run, run.curve, steps) for run in runs]
     return curves
 
 

@@ -7,7 +7,8 @@ Steps to a threshold are read off the median over seeds, as one reads the paper'
 of each seed's curve smoothed over `SMOOTHING` evaluations (a trailing mean: 75 episodes at
 Table I's 15 per evaluation, so one lucky evaluation does not count): the first evaluated
 step at which it reaches the threshold. A seed that stopped early (5 evaluations in a row at
-95 % or more) keeps its last smoothed value for the steps the others go on to.
+95 % or more) holds its level, the mean of those evaluations, for the steps the others go
+on to (`held`; the figure's curves take it so too).
 """
 
 from __future__ import annotations
@@ -71,14 +72,22 @@ def steps_to(runs: list[RunRecord], threshold: float) -> int | None:
     curves = [smoothed(run.curve) for run in runs]
     if not all(curves):
         return None
-    evaluated = sorted(set().union(*curves))
-    for run, curve in zip(runs, curves):
-        if run.stopped_early:  # It met the rule: it holds its level from there on.
-            last = max(curve)
-            curve.update({step: curve[last] for step in evaluated if step > last})
+    evaluated = set().union(*curves)
+    curves = [held(run, curve, evaluated) for run, curve in zip(runs, curves)]
     common = sorted(set.intersection(*(set(curve) for curve in curves)))
     return first_reaching({step: float(np.median([curve[step] for curve in curves]))
                            for step in common}, threshold)
+
+
+def held(run: RunRecord, curve: dict[int, float], steps) -> dict[int, float]:
+    """`curve` (the run's own or smoothed) with the `steps` after its last at the level a
+    run that stopped early by the rule holds from there on: the mean of its last
+    `SMOOTHING` evaluations (each 95 % or more). Another run's curve comes back as it is."""
+    if not run.stopped_early:
+        return curve
+    last = max(curve)
+    level = float(np.array([run.curve[step] for step in sorted(run.curve)[-SMOOTHING:]]).mean())
+    return {**curve, **{step: level for step in steps if step > last}}
 
 
 def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
