@@ -4,6 +4,8 @@ place in one step (training/runs.py, `RunDir.publish_checkpoint`)."""
 from __future__ import annotations
 
 import json
+import os
+import socket
 
 import pytest
 
@@ -90,6 +92,7 @@ def test_one_process_at_a_time_trains_a_run(tmp_path):
         stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
+        assert run.trainer() == f"process {holder.pid} on {socket.gethostname()}"
         with pytest.raises(ValueError, match=f"{run.root} is being trained by process "
                                              f"{holder.pid} on .*: let it end, or stop it"):
             with run.training_lock():
@@ -97,5 +100,24 @@ def test_one_process_at_a_time_trains_a_run(tmp_path):
     finally:
         holder.kill()
         holder.wait()
+    assert run.trainer() is None
     with run.training_lock():  # Free again once the holder is gone, however it ended.
         pass
+    assert RunDir(tmp_path / "never trained").trainer() is None
+
+
+def test_a_look_at_who_trains_a_run_does_not_turn_a_trainer_away(tmp_path):
+    """`sweep --status` looks at every cell's lock: a trainer starting in that moment waits
+    it out (it was refused as if the run were being trained)."""
+    import fcntl
+    import threading
+
+    run = RunDir(tmp_path / "run")
+    run.root.mkdir()
+    run.lock_path.touch()
+    look = open(run.lock_path)
+    fcntl.flock(look, fcntl.LOCK_SH)  # A look, caught as it holds the lock.
+    threading.Timer(0.2, look.close).start()
+    with run.training_lock():
+        assert run.trainer() == f"process {os.getpid()} on {socket.gethostname()}"
+    assert run.trainer() is None

@@ -96,6 +96,8 @@ def test_the_status_of_each_cell_is_read_from_its_directory(tmp_path):
     assert cell_status(cells[2], tmp_path, queued=True).state == "queued"
     assert cell_status(cells[3], tmp_path, queued=True).state == "queued"
     assert cell_status(cells[2], tmp_path, failed=True).state == "failed"
+    with RunDir(tmp_path / "push-sac-seed2").training_lock():  # `--status` from elsewhere.
+        assert cell_status(cells[2], tmp_path).state == "running"
     table = status_table(statuses).splitlines()
     assert table[0] == "| cell | state | steps | budget | steps/s | latest success |"
     assert table[2] == "| push-sac-seed0 | done | 4,000 | 4,000 | 20.0 | 60 % |"

@@ -24,6 +24,7 @@ import os
 import pathlib
 import shutil
 import socket
+import time
 import uuid
 import warnings
 
@@ -92,9 +93,9 @@ class RunDir:
             yield
             return
         self.root.mkdir(parents=True, exist_ok=True)
-        with open(self.root / "training.lock", "a+") as handle:
+        with open(self.lock_path, "a+") as handle:
             try:
-                fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                _take_lock(handle, fcntl.LOCK_EX)
             except BlockingIOError:
                 handle.seek(0)
                 holder = handle.read().strip() or "another process"
@@ -108,6 +109,31 @@ class RunDir:
             handle.write(f"process {os.getpid()} on {socket.gethostname()}\n")
             handle.flush()
             yield
+
+    @property
+    def lock_path(self) -> pathlib.Path:
+        return self.root / "training.lock"
+
+    def trainer(self) -> str | None:
+        """Who is training this run now ("process PID on HOST"), or None: `training_lock`
+        tried in passing (shared, not waited for, let go at once; a trainer taking it
+        meanwhile waits that moment out)."""
+        try:
+            import fcntl
+        except ImportError:
+            return None
+        try:
+            with open(self.lock_path) as handle:
+                try:
+                    fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    return handle.read().strip() or "another process"
+                except OSError:  # No locks on this file system: nothing to tell.
+                    return None
+                fcntl.flock(handle, fcntl.LOCK_UN)
+        except FileNotFoundError:
+            pass
+        return None
 
     def new_checkpoint(self, steps: int) -> pathlib.Path:
         """A new folder, beside the latest checkpoint, to write the one at `steps` into
@@ -220,6 +246,27 @@ class RunDir:
             if path.is_file():
                 return path
         raise ValueError(f"{self.root} has no model yet (neither model.zip nor a checkpoint)")
+
+
+#: How long a trainer waits for a run's lock held by another: a look (`RunDir.trainer`)
+#: holds it for microseconds; a trainer holds it for its whole run.
+LOCK_WAIT_S = 1.0
+
+
+def _take_lock(handle, kind: int) -> None:
+    """flock(`kind`), tried again for up to `LOCK_WAIT_S` while another holds it; then
+    BlockingIOError."""
+    import fcntl
+
+    deadline = time.monotonic() + LOCK_WAIT_S
+    while True:
+        try:
+            fcntl.flock(handle, kind | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                raise
+            time.sleep(0.02)
 
 
 def success_curve(rows: list[dict[str, float]]) -> dict[int, float]:

@@ -170,8 +170,9 @@ class CellStatus:
     """What a cell's directory says it has reached."""
 
     name: str
-    #: "done", "stopped early", "running", "queued" (waiting for a CPU), "failed" (this
-    #: sweep's), "unfinished" (started, not in this sweep) or "waiting" (not started).
+    #: "done", "stopped early", "running" (in this sweep, or training elsewhere: its lock is
+    #: held), "queued" (waiting for a CPU), "failed" (this sweep's), "unfinished" (started,
+    #: not training now) or "waiting" (not started).
     state: str
     steps: int
     budget: int
@@ -191,6 +192,7 @@ def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
     if cell_finished(run, cell):
         state = "stopped early" if run.read_outcome()["stopped_early"] else "done"
     else:
+        running = running or run.trainer() is not None  # Also another sweep's, or a train.
         state = ("failed" if failed else "running" if running else "queued" if queued
                  else "unfinished" if run.config_path.exists() else "waiting")
     return CellStatus(cell.name, state, steps, cell.steps, rate,
