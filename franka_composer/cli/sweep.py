@@ -123,12 +123,20 @@ def _check_trained_as(run, config) -> None:
                          "--out")
 
 
-def run(args: argparse.Namespace) -> int:
+def cell_config(cell, out, train_args: tuple[str, ...]):
+    """The run (`RunConfig`) the sweep trains as `cell` under `out` with `train_args`, its
+    options read by train's own parser."""
     from franka_composer.cli import build_parser
     from franka_composer.cli.train import run_config
+    from franka_composer.training.sweep import train_command
+
+    return run_config(build_parser().parse_args(train_command(cell, out, train_args)[3:]))
+
+
+def run(args: argparse.Namespace) -> int:
     from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunDir
-    from franka_composer.training.sweep import cell_status, run_sweep, status_table, train_command
+    from franka_composer.training.sweep import cell_status, run_sweep, status_table
 
     cells, rule = cells_of(args)
     if args.status:
@@ -147,8 +155,7 @@ def run(args: argparse.Namespace) -> int:
     for cell in cells:  # Every cell's options are checked by train's own parser first,
         # its library must be there (sbx is an extra), and a cell trained before must be
         # the run the grid describes.
-        config = run_config(build_parser().parse_args(train_command(cell, args.out,
-                                                                    train_args)[3:]))
+        config = cell_config(cell, args.out, train_args)
         algorithm_class(config.algo, config.backend)
         _check_trained_as(RunDir(args.out / cell.name), config)
     try:
