@@ -595,6 +595,34 @@ def test_sbx_model_has_table_i_settings():
     env.close()
 
 
+_XLA_THREADS_PROBE = """
+import os
+from franka_composer.cli.train import _limit_threads
+cores = os.sched_getaffinity(0)
+with _limit_threads(1, "sbx"):
+    import jax.numpy as jnp
+    (jnp.ones((256, 256)) @ jnp.ones((256, 256))).block_until_ready()
+    tasks = os.listdir("/proc/self/task")
+    names = [open(f"/proc/self/task/{tid}/comm").read().strip() for tid in tasks]
+    pinned = [tid for tid in tasks if os.sched_getaffinity(int(tid)) != cores]
+    print(names.count("tf_XLAEigen"), len(pinned))
+"""
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2 or not os.path.isdir("/proc/self/task"),
+                    reason="needs two cores and Linux's /proc")
+def test_sbx_threads_1_sizes_xla_to_one_thread_and_leaves_every_core():
+    """Pinned for its whole run, every sbx run of a machine sat on the first core: two sweep
+    cells ran at half speed, the second core idle."""
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-c", _XLA_THREADS_PROBE], capture_output=True,
+                            text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.split() == ["1", "0"]  # One XLA pool thread; no thread pinned.
+
+
 @pytest.mark.parametrize("algo", ALGOS)
 def test_sbx_run_trains_resumes_and_evaluates(tmp_path, algo, capsys):
     import sbx  # In the test extra: a missing sbx is a failure here, not a skip.

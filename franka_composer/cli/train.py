@@ -170,7 +170,8 @@ def add_parser(subparsers) -> None:
                              "thread count changes the results' last bits). torch's thread "
                              "count with sb3; with sbx, "
                              "whose XLA CPU runtime has no thread-count setting, the process "
-                             "is pinned to this many cores")
+                             "is pinned to this many cores while XLA starts, which sizes "
+                             "its thread pool so, and let go after")
     parser.add_argument("--no-progress", dest="progress", action="store_false",
                         help="no progress bar")
     parser.set_defaults(func=run)
@@ -179,22 +180,38 @@ def add_parser(subparsers) -> None:
 @contextlib.contextmanager
 def _limit_threads(threads: int | None, backend: str):
     """At most `threads` CPU threads for the networks. torch has a setting; XLA's CPU
-    runtime sizes its thread pool from the cores the process may use, so sbx is pinned
-    (before JAX starts its runtime: the first model built) and unpinned afterwards, for
-    callers that go on in the same process."""
+    runtime sizes its thread pool from the cores the process may use when it starts, so
+    for sbx the process is pinned while JAX starts it, then every thread (the pool's too)
+    is let go to all the cores again. (Pinned for the whole run, every sbx run of a machine
+    sat on its first core: two sweep cells went at half speed.)"""
     import torch
 
-    pinned = None
     if threads:
         torch.set_num_threads(threads)
         if backend == "sbx" and hasattr(os, "sched_setaffinity"):
-            pinned = os.sched_getaffinity(0)
-            os.sched_setaffinity(0, sorted(pinned)[:threads])
+            cores = os.sched_getaffinity(0)
+            os.sched_setaffinity(0, sorted(cores)[:threads])
+            try:
+                import jax
+
+                jax.devices("cpu")  # Starts XLA's CPU runtime: its pool is sized now.
+            finally:
+                _allow_every_thread(cores)
+    yield
+
+
+def _allow_every_thread(cores: set[int]) -> None:
+    """Every thread of this process allowed on `cores` (`sched_setaffinity(0, ...)` sets the
+    calling thread's alone)."""
     try:
-        yield
-    finally:
-        if pinned is not None:
-            os.sched_setaffinity(0, pinned)
+        threads = [int(tid) for tid in os.listdir("/proc/self/task")]
+    except OSError:  # No /proc: the calling thread at least.
+        threads = [0]
+    for tid in threads:
+        try:
+            os.sched_setaffinity(tid, cores)
+        except OSError:  # A thread that ended meanwhile.
+            pass
 
 
 def with_defaults(args: argparse.Namespace) -> argparse.Namespace:
