@@ -85,8 +85,7 @@ def held(run: RunRecord, curve: dict[int, float], steps) -> dict[int, float]:
     `SMOOTHING` evaluations (each 95 % or more). Another run's curve comes back as it is."""
     if not run.stopped_early:
         return curve
-    last = max(curve)
-    level = float(np.array([run.curve[step] for step in sorted(run.curve)[-SMOOTHING:]]).mean())
+    last, level = max(curve), smoothed(run.curve)[max(run.curve)]
     return {**curve, **{step: level for step in steps if step > last}}
 
 

@@ -95,12 +95,11 @@ class RunDir:
         self.root.mkdir(parents=True, exist_ok=True)
         with open(self.lock_path, "a+") as handle:
             try:
-                _take_lock(handle, fcntl.LOCK_EX)
+                _take_lock(handle)
             except BlockingIOError:
-                handle.seek(0)
-                holder = handle.read().strip() or "another process"
-                raise ValueError(f"{self.root} is being trained by {holder}: let it end, or "
-                                 "stop it (SIGTERM checkpoints it) before resuming") from None
+                raise ValueError(f"{self.root} is being trained by {_holder(handle)}: let it "
+                                 "end, or stop it (SIGTERM checkpoints it) before resuming"
+                                 ) from None
             except OSError as error:  # A file system without locks (some network ones).
                 warnings.warn(f"{self.root}: no lock against a second trainer ({error})",
                               RuntimeWarning, stacklevel=3)
@@ -127,7 +126,7 @@ class RunDir:
                 try:
                     fcntl.flock(handle, fcntl.LOCK_SH | fcntl.LOCK_NB)
                 except BlockingIOError:
-                    return handle.read().strip() or "another process"
+                    return _holder(handle)
                 except OSError:  # No locks on this file system: nothing to tell.
                     return None
                 fcntl.flock(handle, fcntl.LOCK_UN)
@@ -253,20 +252,26 @@ class RunDir:
 LOCK_WAIT_S = 1.0
 
 
-def _take_lock(handle, kind: int) -> None:
-    """flock(`kind`), tried again for up to `LOCK_WAIT_S` while another holds it; then
+def _take_lock(handle) -> None:
+    """An exclusive flock, tried again for up to `LOCK_WAIT_S` while another holds it; then
     BlockingIOError."""
     import fcntl
 
     deadline = time.monotonic() + LOCK_WAIT_S
     while True:
         try:
-            fcntl.flock(handle, kind | fcntl.LOCK_NB)
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
             return
         except BlockingIOError:
             if time.monotonic() >= deadline:
                 raise
             time.sleep(0.02)
+
+
+def _holder(lock_file) -> str:
+    """Who holds a run's lock, as its holder wrote it in the lock file."""
+    lock_file.seek(0)
+    return lock_file.read().strip() or "another process"
 
 
 def success_curve(rows: list[dict[str, float]]) -> dict[int, float]:
