@@ -32,14 +32,4 @@ cut -d, -f1,3,4 "$work/whole/eval.csv" > "$work/whole.csv"
 cut -d, -f1,3,4 "$work/stopped/eval.csv" > "$work/resumed.csv"
 echo "evaluations: $(($(wc -l < "$work/whole.csv") - 1)), to $(tail -1 "$work/whole.csv" | cut -d, -f1) steps"
 diff "$work/whole.csv" "$work/resumed.csv" && echo "eval.csv: identical"
-"$BIN/python" - "$work/whole/policy.pt" "$work/stopped/policy.pt" <<'PY'
-import sys
-import torch
-whole, resumed = (torch.load(path)["actor"] for path in sys.argv[1:])
-assert whole.keys() == resumed.keys()
-differ = {name: float((whole[name] - resumed[name]).abs().max()) for name in whole
-          if not torch.equal(whole[name], resumed[name])}
-print("policy.pt's actor:", f"{len(whole)} tensors identical" if not differ else
-      f"differs (largest |difference| per tensor): {differ}")
-sys.exit(1 if differ else 0)
-PY
+"$BIN/python" benchmarks/same_actor.py "$work/whole/policy.pt" "$work/stopped/policy.pt"
