@@ -7,8 +7,9 @@
 #                                 resumed from its checkpoint if it has one, skipped if done;
 #                                 CELLS='push-sac-* ...' runs only the cells it names;
 #                                 FROZEN=COMMIT runs that commit's code (a worktree beside
-#                                 $RUNS, on PYTHONPATH, with this checkout's venv), so the
-#                                 work tree can change while the cells train
+#                                 $RUNS, the sweep's working directory and PYTHONPATH, with
+#                                 this checkout's venv), so the work tree can change while
+#                                 the cells train
 #   benchmarks/table2.sh stop     stop a `run` in the background as Ctrl-C does: each running
 #                                 cell checkpoints, then exits (waits for them, up to 5 min)
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
@@ -29,8 +30,8 @@
 # later session.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-RUNS=${RUNS:-$HOME/franka_runs/table2}
-BIN=${BIN:-.venv/bin}
+RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs/table2}")
+BIN=$(realpath -m "${BIN:-.venv/bin}")
 WORKERS=${WORKERS:-1}
 read -ra cells <<< "${CELLS:-}"  # Patterns, not globbed here.
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
@@ -41,6 +42,10 @@ case "${1:-}" in
       tree=$(dirname "$RUNS")/code-$FROZEN
       [ -d "$tree" ] || git worktree add --detach "$tree" "$FROZEN" >/dev/null || exit 1
       export PYTHONPATH=$tree
+      # From the tree: `python -m franka_composer` (each cell's `train`) puts the working
+      # directory on sys.path before PYTHONPATH, so run from this checkout it trains this
+      # checkout's code.
+      cd "$tree" || exit 1
     fi
     # Where Linux groups processes by session (autogroup), nice acts only within the group:
     # the group's own niceness is what leaves the machine to other work. Only a session of

@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
-# Whether this tree trains as an older one does (a campaign's frozen tree, RESULTS.md), at any
-# settings: the same `train` run with the older tree on PYTHONPATH and with this one; their
-# eval.csv (less wall times) and the actor in policy.pt must be identical.
+# Whether this tree trains as older ones do (the trees a campaign's cells ran on, RESULTS.md),
+# at any settings: the same `train` run with this tree and with each older tree on
+# PYTHONPATH; their eval.csv (less wall times) and the actor in policy.pt must be identical.
 #
-#   OLD=~/franka_runs/code-4704db9 benchmarks/trees_check.sh [train options]
-#                        (default: push, SAC in bf16, Table I, 1500 steps, evaluated every 500)
+#   OLD="TREE ..." benchmarks/trees_check.sh [train options]      (TREE: a git worktree;
+#                   default options: push, SAC in bf16, Table I, 1500 steps, evaluated every 500)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BIN=${BIN:-.venv/bin}
-: "${OLD:?OLD=path of the older tree (a git worktree)}"
+BIN=$(cd "${BIN:-.venv/bin}" && pwd)
+: "${OLD:?OLD=\"TREE ...\", the older trees (git worktrees)}"
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 args=("$@")
 [ ${#args[@]} -gt 0 ] || args=(--task push --algo sac --seed 7 --precision bf16
@@ -16,10 +16,26 @@ args=("$@")
 args+=(--threads 1 --device cpu --no-progress)
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-PYTHONPATH=$OLD "$BIN/python" -m franka_composer train "${args[@]}" --out "$work/old" > "$work/old.log"
-PYTHONPATH=$PWD "$BIN/python" -m franka_composer train "${args[@]}" --out "$work/new" > "$work/new.log"
-cut -d, -f1,3,4 "$work/old/eval.csv" > "$work/old.csv"
-cut -d, -f1,3,4 "$work/new/eval.csv" > "$work/new.csv"
-echo "evaluations: $(($(wc -l < "$work/old.csv") - 1)), to $(tail -1 "$work/old.csv" | cut -d, -f1) steps"
-diff "$work/old.csv" "$work/new.csv" && echo "eval.csv: identical"
-"$BIN/python" benchmarks/same_actor.py "$work/old/policy.pt" "$work/new/policy.pt"
+
+train() {  # TREE NAME: trains with TREE's franka_composer into $work/NAME.
+  # From a directory without a franka_composer: `python -m` puts the working directory on
+  # sys.path before PYTHONPATH.
+  (cd "$work" && export PYTHONPATH=$1 &&
+   "$BIN/python" -c 'import franka_composer, sys; sys.exit(not franka_composer.__file__.startswith(sys.argv[1]))' "$1" &&
+   "$BIN/python" -m franka_composer train "${args[@]}" --out "$2" > "$2.log")
+  cut -d, -f1,3,4 "$work/$2/eval.csv" > "$work/$2.csv"
+}
+
+train "$PWD" this
+echo "this tree: $(($(wc -l < "$work/this.csv") - 1)) evaluations, to $(tail -1 "$work/this.csv" | cut -d, -f1) steps"
+status=0
+for tree in $OLD; do
+  tree=$(cd "$tree" && pwd)
+  train "$tree" old
+  evaluations=identical actor=
+  cmp -s "$work/this.csv" "$work/old.csv" || { evaluations=differs; status=1; }
+  actor=$("$BIN/python" benchmarks/same_actor.py "$work/this/policy.pt" "$work/old/policy.pt") || status=1
+  echo "$tree: eval.csv $evaluations, $actor"
+  rm -rf "$work/old" "$work/old.csv" "$work/old.log"
+done
+exit $status
