@@ -22,7 +22,7 @@ train() {  # TREE NAME: trains with TREE's franka_composer into $work/NAME.
   # sys.path before PYTHONPATH.
   (cd "$work" && export PYTHONPATH=$1 &&
    "$BIN/python" -c 'import franka_composer, sys; sys.exit(not franka_composer.__file__.startswith(sys.argv[1]))' "$1" &&
-   "$BIN/python" -m franka_composer train "${args[@]}" --out "$2" > "$2.log")
+   "$BIN/python" -m franka_composer train "${args[@]}" --out "$2" > "$2.log" 2>&1)
   cut -d, -f1,3,4 "$work/$2/eval.csv" > "$work/$2.csv"
 }
 
@@ -34,7 +34,11 @@ for tree in $OLD; do
   train "$tree" old
   evaluations=identical actor=
   cmp -s "$work/this.csv" "$work/old.csv" || { evaluations=differs; status=1; }
-  actor=$("$BIN/python" benchmarks/same_actor.py "$work/this/policy.pt" "$work/old/policy.pt") || status=1
+  if [ -f "$work/old/policy.pt" ]; then
+    actor=$("$BIN/python" benchmarks/same_actor.py "$work/this/policy.pt" "$work/old/policy.pt") || status=1
+  else
+    actor="no policy.pt (that tree did not write one for this run)"
+  fi
   echo "$tree: eval.csv $evaluations, $actor"
   rm -rf "$work/old" "$work/old.csv" "$work/old.log"
 done
