@@ -90,7 +90,9 @@ STOPPING_RULE = ("--stop-at-success", "0.95", "--stop-after", "5")
 
 def train_command(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...], *,
                   resume: bool = False) -> list[str]:
-    """The `train` command that starts the cell, or resumes it from its checkpoint."""
+    """The `train` command that starts the cell, or resumes it from its checkpoint. It runs
+    in the sweep's working directory, and `python -m` puts that first on sys.path: a
+    franka_composer there (a checkout) is the one the cell trains, before PYTHONPATH's."""
     command = [sys.executable, "-m", "franka_composer", "train", "--out",
                str(root / cell.name), "--total-steps", str(cell.steps), "--no-progress"]
     if resume:
