@@ -21,7 +21,10 @@ train() {  # TREE NAME: trains with TREE's franka_composer into $work/NAME.
   # From a directory without a franka_composer: `python -m` puts the working directory on
   # sys.path before PYTHONPATH.
   (cd "$work" && export PYTHONPATH=$1 &&
-   "$BIN/python" -c 'import franka_composer, sys; sys.exit(not franka_composer.__file__.startswith(sys.argv[1]))' "$1" &&
+   "$BIN/python" -c '
+import sys, franka_composer
+if not franka_composer.__file__.startswith(sys.argv[1] + "/"):
+    sys.exit(f"{sys.argv[1]}: franka_composer came from {franka_composer.__file__}")' "$1" &&
    "$BIN/python" -m franka_composer train "${args[@]}" --out "$2" > "$2.log" 2>&1)
   cut -d, -f1,3,4 "$work/$2/eval.csv" > "$work/$2.csv"
 }
