@@ -1,0 +1,82 @@
+"""Which pick-and-place goals a trained policy solves, and whether it ever lifts the block:
+its success split by the goal's height above the block's resting height (on the floor, as
+30 % of goals are; below the 5 cm threshold, reachable by pushing; higher, reachable only
+by lifting). A policy that pushes but has not learned to grasp scores on the first two only.
+
+    python benchmarks/pick_and_place_goals.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--seed 100]
+
+Runs each run's policy deterministically on the episodes `franka-composer evaluate
+--episodes N --seed S` uses (its success over all of them is evaluate's), and prints a
+Markdown table: per goal band, episodes, success, and the episodes in which the block rose
+more than 1 cm above its resting height at some step.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+
+import numpy as np
+
+#: Goal heights above the resting height (m) that split the bands; the sparse reward's
+#: threshold, 0.05 m, is where pushing alone stops reaching the goal.
+BANDS = (("on the floor", 0.0, 0.0), ("0-5 cm up", 0.0, 0.05), ("5-20 cm up", 0.05, np.inf))
+LIFTED = 0.01
+
+
+def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[int, np.ndarray]:
+    """(steps trained, rows of (goal height above rest, lifted, success)) per episode."""
+    from franka_composer.training.models import make_env
+    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.runs import RunDir
+
+    run = RunDir(run_root)
+    config = run.read_config()
+    if config.task != "pick_and_place":
+        raise SystemExit(f"{run_root}: a {config.task} run; this splits pick_and_place's goals")
+    env = make_env(config.task, **config.env_options)
+    try:
+        model = load_trained(run, env, device="cpu")
+        rows = []
+        for episode in range(episodes):
+            obs, _ = env.reset(seed=seed if episode == 0 else None)
+            resting = obs["achieved_goal"][2]
+            height = obs["desired_goal"][2] - resting
+            lifted, done, info = False, False, {}
+            while not done:
+                action, _ = model.predict(obs, deterministic=True)
+                obs, _, terminated, truncated, info = env.step(action)
+                lifted |= bool(obs["achieved_goal"][2] - resting > LIFTED)
+                done = terminated or truncated
+            rows.append((height, lifted, bool(info.get("is_success", False))))
+        return int(model.num_timesteps), np.array(rows, dtype=float)
+    finally:
+        env.close()
+
+
+def band_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:
+    """(band, episodes, success %, lifted %) for each band with episodes, then all."""
+    height = rows[:, 0]  # Exactly 0 for a goal on the floor (the block starts at rest).
+    masks = [(name, height == 0.0 if high == 0.0 else (height > low) & (height <= high))
+             for name, low, high in BANDS] + [("all", np.ones(len(rows), bool))]
+    return [(name, int(mask.sum()), 100 * rows[mask, 2].mean(), 100 * rows[mask, 1].mean())
+            for name, mask in masks if mask.any()]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=pathlib.Path)
+    parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=100)
+    args = parser.parse_args()
+    print("| run | steps | goal | episodes | success | block lifted |")
+    print("|---|---|---|---|---|---|")
+    for root in args.runs:
+        steps, rows = episodes_of(root, args.episodes, args.seed)
+        for name, count, success, lifted in band_rows(rows):
+            print(f"| {root.name} | {steps:,} | {name} | {count} | {success:.1f} % "
+                  f"| {lifted:.1f} % |")
+
+
+if __name__ == "__main__":
+    main()
