@@ -5,8 +5,8 @@ by lifting). A policy that pushes but has not learned to grasp scores on the fir
 
     python benchmarks/pick_and_place_goals.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--seed 100]
 
-Runs each run's policy deterministically on the episodes `franka-composer evaluate
---episodes N --seed S` uses (its success over all of them is evaluate's), and prints a
+Plays each run's policy through `measure_success`, the loop of `franka-composer evaluate
+--episodes N --seed S`, so on its episodes (the "all" row is evaluate's success), and prints a
 Markdown table: per goal band, episodes, success, and the episodes in which the block rose
 more than 1 cm above its resting height at some step.
 """
@@ -16,7 +16,10 @@ from __future__ import annotations
 import argparse
 import pathlib
 
+import gymnasium as gym
 import numpy as np
+
+from franka_composer.cli.options import episode_seed, positive_int
 
 #: Goal heights above the resting height (m) that split the bands; the sparse reward's
 #: threshold, 0.05 m, is where pushing alone stops reaching the goal.
@@ -24,8 +27,32 @@ BANDS = (("on the floor", 0.0, 0.0), ("0-5 cm up", 0.0, 0.05), ("5-20 cm up", 0.
 LIFTED = 0.01
 
 
+class GoalBands(gym.Wrapper):
+    """Records, for each episode played through it, (goal height above rest, lifted,
+    success), so that `measure_success` (evaluate's own loop) plays the episodes."""
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self.rows: list[tuple[float, bool, bool]] = []
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._resting = obs["achieved_goal"][2]
+        self._height = obs["desired_goal"][2] - self._resting
+        self._lifted = False
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._lifted |= bool(obs["achieved_goal"][2] - self._resting > LIFTED)
+        if terminated or truncated:
+            self.rows.append((self._height, self._lifted, bool(info.get("is_success", False))))
+        return obs, reward, terminated, truncated, info
+
+
 def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[int, np.ndarray]:
     """(steps trained, rows of (goal height above rest, lifted, success)) per episode."""
+    from franka_composer.training.evaluation import measure_success
     from franka_composer.training.models import make_env
     from franka_composer.training.policy_file import load_trained
     from franka_composer.training.runs import RunDir
@@ -34,22 +61,11 @@ def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[int, 
     config = run.read_config()
     if config.task != "pick_and_place":
         raise SystemExit(f"{run_root}: a {config.task} run; this splits pick_and_place's goals")
-    env = make_env(config.task, **config.env_options)
+    env = GoalBands(make_env(config.task, **config.env_options))
     try:
         model = load_trained(run, env, device="cpu")
-        rows = []
-        for episode in range(episodes):
-            obs, _ = env.reset(seed=seed if episode == 0 else None)
-            resting = obs["achieved_goal"][2]
-            height = obs["desired_goal"][2] - resting
-            lifted, done, info = False, False, {}
-            while not done:
-                action, _ = model.predict(obs, deterministic=True)
-                obs, _, terminated, truncated, info = env.step(action)
-                lifted |= bool(obs["achieved_goal"][2] - resting > LIFTED)
-                done = terminated or truncated
-            rows.append((height, lifted, bool(info.get("is_success", False))))
-        return int(model.num_timesteps), np.array(rows, dtype=float)
+        measure_success(model, env, episodes, seed=seed)
+        return int(model.num_timesteps), np.array(env.rows, dtype=float)
     finally:
         env.close()
 
@@ -66,8 +82,8 @@ def band_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=pathlib.Path)
-    parser.add_argument("--episodes", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=100)
+    parser.add_argument("--episodes", type=positive_int, default=200)
+    parser.add_argument("--seed", type=episode_seed, default=100)
     args = parser.parse_args()
     print("| run | steps | goal | episodes | success | block lifted |")
     print("|---|---|---|---|---|---|")
