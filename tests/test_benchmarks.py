@@ -304,3 +304,35 @@ def test_the_paper_curves_refuse_a_figure_without_its_grid(tmp_path):
     grey[:, 100:104] = 255  # One vertical grid line: no scale can be read off it.
     with pytest.raises(ValueError, match="x grid lines not found evenly spaced"):
         curves_module.digitise(grey, curves_module.FIGURES["push"])
+
+
+def test_the_goal_bands_split_each_episode_by_its_goal_height():
+    module = _load_benchmark("pick_and_place_goals")
+    # (goal height above rest, lifted, success) per episode; 5 cm is still pushable.
+    rows = np.array([[0.0, 0, 1], [0.03, 1, 0], [0.05, 1, 1], [0.12, 1, 1], [0.2, 0, 0]])
+    assert module.band_rows(rows) == [("on the floor", 1, 100.0, 0.0),
+                                      ("0-5 cm up", 2, 50.0, 100.0),
+                                      ("5-20 cm up", 2, 50.0, 50.0),
+                                      ("all", 5, 60.0, 60.0)]
+    assert [band[0] for band in module.band_rows(rows[1:2])] == ["0-5 cm up", "all"]
+
+
+@pytest.mark.slow  # sbx's policies build a JAX model.
+def test_the_goal_bands_play_the_episodes_evaluate_plays(capsys):
+    """Its "all" row is `franka-composer evaluate`'s success on the same episodes, and the
+    bands share those episodes out among them."""
+    module = _load_benchmark("pick_and_place_goals")
+    run = BENCHMARKS.parent / "results" / "table2" / "pick_and_place-tqc-seed1"
+    steps, rows = module.episodes_of(run, 12, seed=100)
+    bands = module.band_rows(rows)
+    assert sum(band[1] for band in bands[:-1]) == bands[-1][1] == 12
+    assert main(["evaluate", str(run), "--episodes", "12", "--seed", "100",
+                 "--device", "cpu"]) == 0
+    assert (f"{steps} steps: success {bands[-1][2]:.1f} % over 12 episodes"
+            in capsys.readouterr().out)
+
+
+def test_the_goal_bands_refuse_a_run_of_another_task():
+    module = _load_benchmark("pick_and_place_goals")
+    with pytest.raises(SystemExit, match="a push run; this splits pick_and_place's goals"):
+        module.episodes_of(BENCHMARKS.parent / "results" / "table2" / "push-tqc-seed0", 1, 0)
