@@ -336,3 +336,15 @@ def test_the_goal_bands_refuse_a_run_of_another_task():
     module = _load_benchmark("pick_and_place_goals")
     with pytest.raises(SystemExit, match="a push run; this splits pick_and_place's goals"):
         module.episodes_of(BENCHMARKS.parent / "results" / "table2" / "push-tqc-seed0", 1, 0)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--episodes", "0"], "argument --episodes: must be a positive integer, got '0'"),
+    (["--seed", "-1"], "argument --seed: must be an integer >= 0, got '-1'"),
+])
+def test_the_goal_bands_name_a_bad_option(args, message):
+    completed = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "pick_and_place_goals.py"), "some-run", *args],
+        capture_output=True, text=True, check=False)
+    assert completed.returncode == 2
+    assert message in completed.stderr
