@@ -65,16 +65,11 @@ def test_the_kept_policies_fit_in_20_mb():
 @pytest.mark.parametrize("root", [root for root in KEPT if RunDir(root).policy_file.is_file()],
                          ids=lambda root: root.name)
 def test_a_kept_policy_loads_and_acts_on_its_task(root):
-    from franka_composer.training.models import make_env
-    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.policy_file import trained_on_its_task
 
-    run = RunDir(root)
-    config = run.read_config()
-    env = make_env(config.task, **config.env_options)
-    policy = load_trained(run, env, device="cpu")
-    assert policy.num_timesteps == run.read_outcome()["steps"]
-    observation, _ = env.reset(seed=0)
-    action, _ = policy.predict(observation, deterministic=True)
-    assert action.shape == env.action_space.shape and env.action_space.contains(
-        action.astype(env.action_space.dtype))
-    env.close()
+    with trained_on_its_task(root, device="cpu") as (_, env, policy):
+        assert policy.num_timesteps == RunDir(root).read_outcome()["steps"]
+        observation, _ = env.reset(seed=0)
+        action, _ = policy.predict(observation, deterministic=True)
+        assert action.shape == env.action_space.shape and env.action_space.contains(
+            action.astype(env.action_space.dtype))

@@ -205,6 +205,30 @@ def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
     env.close()
 
 
+def test_a_run_opens_on_its_task_as_it_trained_and_its_env_closes_whatever_happens(
+        runs, tmp_path):
+    import gymnasium as gym
+
+    from franka_composer.training.policy_file import ActorPolicy, trained_on_its_task
+
+    committed = _committed_copy(runs["sac"], tmp_path / "committed")
+    config = json.loads((committed / "config.json").read_text())
+    (committed / "config.json").write_text(json.dumps({**config, "terminate_on_success": False}))
+    opened = []
+    with trained_on_its_task(committed, device="cpu",
+                             wrap=lambda env: opened.append(env) or env) as (run, env, policy):
+        assert run.task == "push" and env is opened[0] and isinstance(policy, ActorPolicy)
+        assert env.unwrapped.task.config.terminate_on_success is False  # The run's option.
+        assert policy.num_timesteps == 300
+    (committed / "policy.pt").unlink()  # Loading fails: the env made for it is closed.
+    with pytest.raises(ValueError, match="has no model yet"):
+        with trained_on_its_task(committed, wrap=lambda env: opened.append(env) or env):
+            pass
+    for env in opened:
+        with pytest.raises(gym.error.ClosedEnvironmentError, match="closed: make a new one"):
+            env.reset(seed=0)
+
+
 def test_demo_plays_a_trained_policy_on_its_task(runs, tmp_path, capsys):
     committed = _committed_copy(runs["tqc"], tmp_path / "committed")
     videos = tmp_path / "videos"

@@ -32,23 +32,15 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.models import make_env
-    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.policy_file import trained_on_its_task
     from franka_composer.training.report import (RunResult, markdown_table, seeds_note,
                                                  with_variant)
-    from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import run_directories
 
     results = []
     for root in run_directories(args.runs):
-        run_dir = RunDir(root)
-        config = run_dir.read_config()
-        env = make_env(config.task, **config.env_options)
-        try:
-            model = load_trained(run_dir, env, device=args.device)
+        with trained_on_its_task(root, device=args.device) as (config, env, model):
             outcome = measure_success(model, env, args.episodes, seed=args.seed)
-        finally:
-            env.close()
         result = RunResult(str(root), config.task, config.algo, config.seed,
                            int(model.num_timesteps), outcome.success_rate, config.setup,
                            config.computation)

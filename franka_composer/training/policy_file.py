@@ -12,13 +12,14 @@ sbx model (its model.zip is 17.3 MB for Table I's TQC, with its optimiser states
 
 from __future__ import annotations
 
+import contextlib
 import pathlib
 
 import gymnasium as gym
 import numpy as np
 
 from franka_composer.training.models import (algorithm_class, build_model, load_model,
-                                             policy_kwargs, resolve_device)
+                                             make_env, policy_kwargs, resolve_device)
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.runs import RunDir
 
@@ -136,3 +137,19 @@ def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
                              "no policy.pt)") from None
         return load_policy(config, run.policy_file, env, device)
     return load_model(config.algo, path, env=env, device=device, backend=config.backend)
+
+
+@contextlib.contextmanager
+def trained_on_its_task(root: pathlib.Path, device: str = "auto", wrap=None):
+    """(config, env, policy): the run at `root`, its task's env made with the options it
+    trained with (wrapped by `wrap`, if given) and what it trained, acting on that env,
+    which is closed on leaving, whatever happens inside."""
+    run = RunDir(pathlib.Path(root))
+    config = run.read_config()
+    env = make_env(config.task, **config.env_options)
+    try:
+        if wrap is not None:
+            env = wrap(env)
+        yield config, env, load_trained(run, env, device=device)
+    finally:
+        env.close()
