@@ -42,9 +42,9 @@ case "${1:-}" in
       tree=$(dirname "$RUNS")/code-$FROZEN
       [ -d "$tree" ] || git worktree add --detach "$tree" "$FROZEN" >/dev/null || exit 1
       export PYTHONPATH=$tree
-      # From the tree: `python -m franka_composer` (each cell's `train`) puts the working
-      # directory on sys.path before PYTHONPATH, so run from this checkout it trains this
-      # checkout's code.
+      # The sweep imports the tree's code (PYTHONPATH) and its cells train what it imported
+      # (training/sweep.py, cell_environment); from the tree too, because on Python 3.10
+      # each cell's `python -m franka_composer` puts the working directory first on sys.path.
       cd "$tree" || exit 1
     fi
     # Where Linux groups processes by session (autogroup), nice acts only within the group:

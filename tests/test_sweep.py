@@ -69,6 +69,35 @@ def test_a_cell_starts_with_its_options_and_resumes_with_what_still_applies(tmp_
                           "--no-progress", "--resume", "--threads", "1", "--device=cpu"]
 
 
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="PYTHONSAFEPATH is Python 3.11's")
+def test_a_cell_trains_the_franka_composer_the_sweep_imported_not_one_in_its_directory(
+        tmp_path, monkeypatch):
+    import os
+
+    import franka_composer
+    from franka_composer.training.sweep import cell_environment, run_cell
+
+    started_in = tmp_path / "elsewhere"  # Another checkout, where the sweep was started.
+    (started_in / "franka_composer").mkdir(parents=True)
+    (started_in / "franka_composer" / "__init__.py").write_text("")
+    (started_in / "franka_composer" / "__main__.py").write_text(
+        "print('the other checkout'); raise SystemExit(3)")
+    cell = Cell("push", "sac", 0, 200)
+    interpreter = train_command(cell, tmp_path, ())[:3]
+    plain = subprocess.run(interpreter, cwd=started_in, capture_output=True, text=True)
+    assert (plain.returncode, plain.stdout) == (3, "the other checkout\n")  # What -m does.
+    imported = subprocess.run(
+        [sys.executable, "-c", "import franka_composer; print(franka_composer.__file__)"],
+        cwd=started_in, capture_output=True, text=True, env=cell_environment())
+    assert imported.stdout == franka_composer.__file__ + "\n"
+    monkeypatch.chdir(started_in)
+    assert run_cell(cell, tmp_path / "runs", tuple(TINY)) == ("push-sac-seed0", 0)
+    assert RunDir(tmp_path / "runs" / "push-sac-seed0").read_outcome()["steps"] == 200
+    # PYTHONPATH as the caller set it stays, after the sweep's franka_composer.
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path / "mine"))
+    assert cell_environment()["PYTHONPATH"].split(os.pathsep)[-1] == str(tmp_path / "mine")
+
+
 def _write_run(root, name, rows, outcome=None, seed=0, precision="fp32"):
     run = RunDir(root / name)
     run.write_config(RunConfig("push", "sac", seed, hyperparameters("push", "sac"),

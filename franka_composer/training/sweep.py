@@ -13,9 +13,11 @@ second terminal and `evaluate`/`plot` all see the same thing.
 from __future__ import annotations
 
 import dataclasses
+import os
 import pathlib
 import shutil
 import signal
+import site
 import socket
 import subprocess
 import sys
@@ -90,15 +92,34 @@ STOPPING_RULE = ("--stop-at-success", "0.95", "--stop-after", "5")
 
 def train_command(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...], *,
                   resume: bool = False) -> list[str]:
-    """The `train` command that starts the cell, or resumes it from its checkpoint. It runs
-    in the sweep's working directory, and `python -m` puts that first on sys.path: a
-    franka_composer there (a checkout) is the one the cell trains, before PYTHONPATH's."""
+    """The `train` command that starts the cell, or resumes it from its checkpoint (run in
+    `cell_environment()`)."""
     command = [sys.executable, "-m", "franka_composer", "train", "--out",
                str(root / cell.name), "--total-steps", str(cell.steps), "--no-progress"]
     if resume:
         return command + ["--resume", *_resume_args(train_args)]
     return command + ["--task", cell.task, "--algo", cell.algo, "--seed", str(cell.seed),
                       *cell.options, *train_args]
+
+
+def cell_environment() -> dict[str, str]:
+    """The environment a cell's `python -m franka_composer train` runs in, so that it trains
+    the franka_composer this process imported, wherever the sweep's working directory is:
+    `-m` would put that directory first on sys.path, and a checkout there would be trained
+    instead (PYTHONSAFEPATH, Python 3.11+, leaves it out; 3.10 ignores it). The directory
+    this franka_composer came from goes first on PYTHONPATH, unless it is a site-packages
+    directory, which the cell searches in its place anyway (on PYTHONPATH it would come
+    before the standard library)."""
+    import franka_composer
+
+    tree = os.path.realpath(pathlib.Path(franka_composer.__file__).parent.parent)
+    sites = {os.path.realpath(path) for path in [*site.getsitepackages(),
+                                                  site.getusersitepackages()]}
+    environment = {**os.environ, "PYTHONSAFEPATH": "1"}
+    if tree not in sites:
+        environment["PYTHONPATH"] = os.pathsep.join(
+            [path for path in [tree, os.environ.get("PYTHONPATH")] if path])
+    return environment
 
 
 #: `train` options that still apply to a resumed run (the rest is in its config.json).
@@ -136,7 +157,8 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
         # The line also tells the sweep's table that the cell left the queue.
         log.write(f"{time.strftime('%Y-%m-%dT%H:%M:%S')} {' '.join(command)}\n")
         log.flush()
-        process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
+        process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT,
+                                   env=cell_environment())
         try:
             # Ray cancels a task by a simulated SIGINT: Python acts on it between bytecodes
             # (so not inside a blocking wait) and not at all where the worker inherited
