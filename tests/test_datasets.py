@@ -169,4 +169,7 @@ def test_a_trained_policy_records_deterministically(tmp_path):
         record("slide", 1, tmp_path / "c.npz", policy_dir=tmp_path / "run")
     with pytest.raises(ValueError, match="acts through mocap control, not osc"):
         record("push", 1, tmp_path / "d.npz", control="osc", policy_dir=tmp_path / "run")
+    with pytest.raises(ValueError, match="acts every 0.05 s, not every 0.5 s"):
+        record("push", 1, tmp_path / "d.npz", control_timestep=0.5,
+               policy_dir=tmp_path / "run")
     assert not (tmp_path / "d.npz").exists()

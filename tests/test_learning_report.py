@@ -179,10 +179,11 @@ def test_a_variant_names_what_differs_from_the_papers_setup():
                                      update_schedule="episode")
     config = RunConfig("slide", "tqc", 0, campaign_slide, control="osc", precision="bf16",
                        randomization="default", demos="/data/slide-expert-100.npz",
-                       demo_episodes=50, terminate_on_success=False)
+                       demo_episodes=50, terminate_on_success=False, control_timestep=0.5)
     assert config.setup == (
         "net_arch 256,256,256, batch_size 512, update_schedule episode, osc control, "
-        "randomization default, demos slide-expert-100.npz[:50], no termination on success")
+        "0.5 s per step, randomization default, demos slide-expert-100.npz[:50], "
+        "no termination on success")
     assert config.computation == "bf16"
     assert config.variant == config.setup + ", bf16"
     sbx = RunConfig("push", "sac", 0, hyperparameters("push", "sac"), backend="sbx")

@@ -889,6 +889,43 @@ def test_clip_q_targets_is_recorded_clips_again_on_resume_and_needs_sb3(tmp_path
     assert not (tmp_path / "sbx").exists()
 
 
+def test_a_run_trains_and_is_evaluated_at_its_own_control_timestep(tmp_path, capsys):
+    """--control-timestep 0.5 (the paper's code's 0.5 s per step): recorded, named in the
+    variant, the same env for evaluate; the task's own 0.05 is the default run, not
+    another; a period that is no whole number of physics steps is refused before the run
+    exists."""
+    from franka_composer.cli.train import run_config
+    from franka_composer.training.policy_file import trained_on_its_task
+
+    out = tmp_path / "slow"
+    assert _train(out, "sac", 100, "--control-timestep", "0.5") == 0
+    config = RunDir(out).read_config()
+    assert config.control_timestep == 0.5 and config.variant.endswith(", 0.5 s per step")
+    assert json.loads(RunDir(out).config_path.read_text())["control_timestep"] == 0.5
+    with trained_on_its_task(out, device="cpu") as (_, env, _policy):
+        env.reset(seed=0)
+        physics = env.unwrapped.task.config.physics
+        assert env.unwrapped.task.config.control_timestep == 0.5
+        start = env.unwrapped._env.physics.data.time
+        env.step(env.action_space.sample())
+        assert env.unwrapped._env.physics.data.time - start == pytest.approx(0.5)
+        assert physics.timestep == 0.002
+    assert _train(tmp_path / "default", "sac", 100, "--control-timestep", "0.05") == 0
+    given_none = ["train", "--task", "push", "--algo", "sac", "--seed", "1", *TINY]
+    assert RunDir(tmp_path / "default").read_config().differing(run_config(
+        cli.build_parser().parse_args(given_none))) == {}  # One run, given or not.
+    with pytest.raises(ValueError, match="--resume goes on with the run's own settings, and "
+                                         ".* has control_timestep 0.5, not "
+                                         "--control-timestep's 0.05"):
+        _train(out, "sac", 200, "--resume", "--control-timestep", "0.05")
+    for bad, message in (("0.051", "control_timestep must be a whole multiple of the "
+                                   "physics timestep \\(0.002 s\\), got 0.051"),
+                         ("0", "control_timestep must be > 0, got 0")):
+        with pytest.raises(ValueError, match=message):
+            _train(tmp_path / "bad", "sac", 100, "--control-timestep", bad)
+        assert not (tmp_path / "bad").exists()
+
+
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])
 def test_a_seed_sb3_cannot_take_is_refused_before_the_run_exists(tmp_path, capsys, seed):
     """SB3 seeds NumPy with the seed plus the evaluation offset (and plus the steps on a

@@ -50,6 +50,10 @@ class TrainedPolicy:
         if config.control != control:  # Its actions mean what they did in training.
             raise ValueError(f"{run_dir} acts through {config.control} control, not "
                              f"{control}")
+        period = env.unwrapped.task.config.control_timestep
+        if config.control_timestep != period:  # And last as long.
+            raise ValueError(f"{run_dir} acts every {config.control_timestep} s, not every "
+                             f"{period} s")
         self._model = load_trained(run, env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:

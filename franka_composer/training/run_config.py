@@ -31,6 +31,10 @@ class RunConfig:
     `demos` is the dataset the replay buffer was filled from before learning (its first
     `demo_episodes` episodes, or all), or None.
 
+    `control_timestep` is the seconds of physics per step (None: the task's, 0.05 s): the
+    paper's code ran 0.5 s per step (10 x its stated 0.05 s), an arm at rest after each
+    action (SPEC, Physics); 0.5 trains on that.
+
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
     wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
     is how the networks' passes are computed while training; the weights are fp32 either
@@ -48,9 +52,16 @@ class RunConfig:
     randomization: str | None = None
     demos: str | None = None
     demo_episodes: int | None = None
+    control_timestep: float | None = None
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, tuple(TASK_CONFIGS))
+        # Checked as the task checks it (a whole number of physics steps), and kept as a
+        # number, the task's where none is given, so that the two are one run.
+        task = TASK_CONFIGS[self.task]
+        object.__setattr__(self, "control_timestep", task.replace(
+            control_timestep=task.control_timestep if self.control_timestep is None
+            else self.control_timestep).control_timestep)
         check_choice("algorithm", self.algo, ALGOS)
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
@@ -86,7 +97,7 @@ class RunConfig:
                 "terminate_on_success": self.terminate_on_success, "backend": self.backend,
                 "control": self.control, "precision": self.precision,
                 "randomization": self.randomization, "demos": self.demos,
-                "demo_episodes": self.demo_episodes,
+                "demo_episodes": self.demo_episodes, "control_timestep": self.control_timestep,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
@@ -99,6 +110,8 @@ class RunConfig:
                  if name not in NOT_LEARNING and value != table_i[name]]
         parts += [label for differs, label in (
             (self.control != "mocap", f"{self.control} control"),
+            (self.control_timestep != TASK_CONFIGS[self.task].control_timestep,
+             f"{self.control_timestep} s per step"),
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
@@ -138,17 +151,18 @@ class RunConfig:
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""
         return dict(terminate_on_success=self.terminate_on_success, control=self.control,
-                    randomization=self.randomization)
+                    randomization=self.randomization, control_timestep=self.control_timestep)
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
         # Runs written before the JAX backend, the controllers, bf16 or randomisation existed
         # have no "backend", "control", "precision" or "randomization": they are SB3's,
-        # mocap, fp32, not randomised.
+        # mocap, fp32, not randomised; those before the control timestep option, the task's.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
                    precision=data.get("precision", "fp32"),
                    randomization=data.get("randomization"), demos=data.get("demos"),
                    demo_episodes=data.get("demo_episodes"),
+                   control_timestep=data.get("control_timestep"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
