@@ -102,6 +102,18 @@ def test_action_noise_is_a_function_of_the_seed_and_the_command_line_records(tmp
         assert np.abs(a["action"]).max() <= 1.0
 
 
+def test_rollout_records_at_the_control_timestep_it_is_given(tmp_path):
+    assert main(["rollout", "--task", "push", "--episodes", "1", "--control-timestep", "0.5",
+                 "--format", "rlds", "--out", str(tmp_path / "slow")]) == 0
+    assert rlds_format.read(tmp_path / "slow")["metadata"]["options"] == {
+        "control_timestep": 0.5}
+    with pytest.raises(ValueError, match="control_timestep must be a whole multiple of the "
+                                         "physics timestep \\(0.002 s\\), got 0.051"):
+        main(["rollout", "--task", "push", "--control-timestep", "0.051",
+              "--out", str(tmp_path / "x.npz")])
+    assert not (tmp_path / "x.npz").exists()
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--format", "parquet"], "invalid choice: 'parquet'"),
     (["--action-noise", "-0.1"], "must be a standard deviation >= 0, got '-0.1'"),

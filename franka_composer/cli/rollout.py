@@ -13,7 +13,8 @@ import argparse
 import pathlib
 
 import franka_composer
-from franka_composer.cli.options import episode_seed, positive_int, standard_deviation
+from franka_composer.cli.options import (episode_seed, number, positive_int,
+                                         standard_deviation)
 from franka_composer.controllers import CONTROLS
 
 
@@ -36,6 +37,10 @@ def add_parser(subparsers) -> None:
                         help="npz (default), minari or rlds")
     parser.add_argument("--control", choices=CONTROLS, default="mocap",
                         help="the controller (default: mocap; the experts take mocap and osc)")
+    parser.add_argument("--control-timestep", type=number, default=None, metavar="SECONDS",
+                        help="physics seconds per step (default: the task's, 0.05); a "
+                             "--policy acts at the period it trained at (train "
+                             "--control-timestep), and another is refused")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="act with the policy trained in this run directory instead of "
                              "the scripted expert")
@@ -53,10 +58,12 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
+    task_options = ({} if args.control_timestep is None
+                    else {"control_timestep": args.control_timestep})
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,
-                     dataset_id=args.dataset_id)
+                     dataset_id=args.dataset_id, **task_options)
     name = f" ({summary['dataset_id']})" if "dataset_id" in summary else ""
     print(f"{args.task}: {summary['episodes']} episodes, {summary['steps']} steps, "
           f"success rate {summary['success_rate']:.0%} -> {summary['path']}{name}")
