@@ -143,6 +143,32 @@ def test_the_evaluations_a_resume_keeps_end_at_the_checkpoint_until_the_run_ends
     assert [r["steps"] for r in run.kept_evaluations()] == [0, 2000, 4000]
 
 
+def test_sync_keeps_what_each_cell_has_kept_and_its_policy_once_finished(tmp_path, capsys):
+    runs, kept = tmp_path / "runs", tmp_path / "kept"
+    done = _write_run(runs, "push-sac-seed0", [(0, 1, 0.0), (2000, 2, 0.6)], (2000, False, 2))
+    done.policy_file.write_bytes(b"actor")
+    going = _write_run(runs, "push-sac-seed1", [(0, 1, 0.0), (2000, 2, 0.2), (4000, 3, 0.4)])
+    going.checkpoint.mkdir()
+    going.checkpoint_state.write_text(json.dumps({"steps": 2000}))
+    going.policy_file.write_bytes(b"an older budget's")
+    sweep = ["sweep", "--out", str(runs), "--tasks", "push", "--algos", "sac", "--seeds", "0",
+             "1", "2", "--steps", "2000", "--sync", str(kept)]
+    assert cli.main(sweep) == 0
+    assert capsys.readouterr().out == f"{kept}: push-sac-seed0, push-sac-seed1\n"
+    assert sorted(path.name for path in kept.iterdir()) == ["push-sac-seed0", "push-sac-seed1"]
+    copy, unfinished = RunDir(kept / "push-sac-seed0"), RunDir(kept / "push-sac-seed1")
+    assert copy.read_config() == done.read_config() and copy.read_outcome()["steps"] == 2000
+    assert copy.policy_file.read_bytes() == b"actor"
+    assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
+    # Up to its checkpoint (the steps after it are redone on resume), no outcome or policy.
+    assert [row["steps"] for row in read_eval_rows(unfinished.eval_csv)] == [0, 2000]
+    assert not unfinished.outcome_path.exists() and not unfinished.policy_file.exists()
+    # Taken on to a larger budget, a finished cell's outcome and policy leave the copy.
+    assert cli.main([*sweep[:-3], "4000", "--sync", str(kept)]) == 0
+    assert not copy.outcome_path.exists() and not copy.policy_file.exists()
+    assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
+
+
 def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
     for seed in (1, 0):
         _write_run(tmp_path / "sweep", f"push-sac-seed{seed}", [(0, 1, 0.0)], seed=seed)

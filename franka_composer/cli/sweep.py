@@ -55,6 +55,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--status", action="store_true",
                         help="show the table of cells (what OUT holds) and exit: from a "
                              "second terminal, or to list a grid's cells and budgets")
+    parser.add_argument("--sync", type=output_folder, default=None, metavar="DIR",
+                        help="copy into DIR/<cell> what each cell has kept, small enough to "
+                             "commit as the sweep goes on: config.json, eval.csv up to its "
+                             "checkpoint, and once it has finished outcome.json and "
+                             "policy.pt; then exit")
     parser.add_argument("train_args", nargs="*", metavar="-- TRAIN_OPTION",
                         help="options passed to every cell's `train`")
     parser.set_defaults(func=run)
@@ -136,11 +141,16 @@ def cell_config(cell, out, train_args: tuple[str, ...]):
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunDir
-    from franka_composer.training.sweep import cell_status, run_sweep, status_table
+    from franka_composer.training.sweep import (cell_status, run_sweep, status_table,
+                                                sync_cell)
 
     cells, rule = cells_of(args)
     if args.status:
         print(status_table([cell_status(cell, args.out) for cell in cells]))
+        return 0
+    if args.sync:
+        synced = [cell.name for cell in cells if sync_cell(cell, args.out, args.sync)]
+        print(f"{args.sync}: {', '.join(synced) if synced else 'no cell has a run yet'}")
         return 0
     train_args = (*rule, *args.train_args)
     for option in args.train_args:

@@ -1,0 +1,39 @@
+# Sourced by the scripts that run a `franka-composer sweep` in the background here
+# (benchmarks/table2.sh, benchmarks/control_period_check.sh): on a frozen tree if asked, at
+# low priority, stopped with its cells checkpointed.
+
+# use_frozen_tree COMMIT RUNS: from here on, COMMIT's code (a worktree beside RUNS, made
+# where missing). The sweep imports it (PYTHONPATH) and its cells train what it imported
+# (training/sweep.py, cell_environment); the tree is the working directory too, because on
+# Python 3.10 each cell's `python -m franka_composer` puts that first on sys.path.
+use_frozen_tree() {
+  local tree
+  tree=$(dirname "$2")/code-$1
+  [ -d "$tree" ] || git worktree add --detach "$tree" "$1" >/dev/null || return 1
+  export PYTHONPATH=$tree
+  cd "$tree" || return 1
+}
+
+# lower_session_priority: where Linux groups processes by session (autogroup), nice acts
+# only within the group, and the group's own niceness is what leaves the machine to other
+# work. Only a session of the script's own (`setsid SCRIPT run`), not the caller's terminal.
+lower_session_priority() {
+  if [ "$(ps -o sid= -p $$ | tr -d ' ')" = "$$" ]; then
+    echo 19 2>/dev/null > /proc/self/autogroup || true
+  fi
+}
+
+# stop_sweep PATTERN RUNS: SIGTERM to the sweep whose command line matches PATTERN; it
+# cancels its cells, and each run checkpoints before exiting. Waits for the cells under
+# RUNS, up to 5 minutes; fails naming those still running.
+stop_sweep() {
+  pkill -TERM -f "$1" || true
+  for _ in $(seq 300); do
+    pgrep -f "franka_composer train --out $2/" >/dev/null || break
+    sleep 1
+  done
+  if pgrep -af "franka_composer train --out $2/"; then
+    echo "cells above still running" >&2
+    return 1
+  fi
+}
