@@ -94,8 +94,9 @@ def test_a_cell_trains_the_franka_composer_the_sweep_imported_not_one_in_its_dir
     assert run_cell(cell, tmp_path / "runs", tuple(TINY)) == ("push-sac-seed0", 0)
     assert RunDir(tmp_path / "runs" / "push-sac-seed0").read_outcome()["steps"] == 200
     # PYTHONPATH as the caller set it stays, after the sweep's franka_composer.
-    monkeypatch.setenv("PYTHONPATH", str(tmp_path / "mine"))
-    assert cell_environment()["PYTHONPATH"].split(os.pathsep)[-1] == str(tmp_path / "mine")
+    tree = os.path.dirname(os.path.dirname(franka_composer.__file__))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path / "mine"), tree]))
+    assert cell_environment()["PYTHONPATH"].split(os.pathsep) == [tree, str(tmp_path / "mine")]
 
 
 def _write_run(root, name, rows, outcome=None, seed=0, precision="fp32"):

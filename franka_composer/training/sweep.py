@@ -117,8 +117,9 @@ def cell_environment() -> dict[str, str]:
                                                   site.getusersitepackages()]}
     environment = {**os.environ, "PYTHONSAFEPATH": "1"}
     if tree not in sites:
+        given = os.environ.get("PYTHONPATH", "").split(os.pathsep)
         environment["PYTHONPATH"] = os.pathsep.join(
-            [path for path in [tree, os.environ.get("PYTHONPATH")] if path])
+            [tree, *(path for path in given if path and path != tree)])
     return environment
 
 
