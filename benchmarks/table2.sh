@@ -30,6 +30,7 @@
 # later session.
 set -uo pipefail
 cd "$(dirname "$0")/.."
+source benchmarks/background_sweep.sh
 RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs/table2}")
 BIN=$(realpath -m "${BIN:-.venv/bin}")
 WORKERS=${WORKERS:-1}
@@ -38,65 +39,20 @@ export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared
 
 case "${1:-}" in
   run)
-    if [ -n "${FROZEN:-}" ]; then
-      tree=$(dirname "$RUNS")/code-$FROZEN
-      [ -d "$tree" ] || git worktree add --detach "$tree" "$FROZEN" >/dev/null || exit 1
-      export PYTHONPATH=$tree
-      # The sweep imports the tree's code (PYTHONPATH) and its cells train what it imported
-      # (training/sweep.py, cell_environment); from the tree too, because on Python 3.10
-      # each cell's `python -m franka_composer` puts the working directory first on sys.path.
-      cd "$tree" || exit 1
-    fi
-    # Where Linux groups processes by session (autogroup), nice acts only within the group:
-    # the group's own niceness is what leaves the machine to other work. Only a session of
-    # the campaign's own (`setsid benchmarks/table2.sh run`), not the caller's terminal.
-    if [ "$(ps -o sid= -p $$ | tr -d ' ')" = "$$" ]; then
-      echo 19 2>/dev/null > /proc/self/autogroup || true
-    fi
+    if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
+    lower_session_priority
     nice -n 10 "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --num-cpus "$WORKERS" \
       ${cells[@]+--cells "${cells[@]}"} --refresh 600 -- --checkpoint-every 10000 --threads 1 \
       --device cpu
     ;;
   stop)
-    # SIGTERM to the sweep: it cancels its cells, and each run checkpoints before exiting.
-    pkill -TERM -f "franka-composer sweep --grid table2 --out $RUNS( |$)" || true
-    for _ in $(seq 300); do
-      pgrep -f "franka_composer train --out $RUNS/" >/dev/null || break
-      sleep 1
-    done
-    if pgrep -af "franka_composer train --out $RUNS/"; then
-      echo "cells above still running" >&2; exit 1
-    fi
+    stop_sweep "franka-composer sweep --grid table2 --out $RUNS( |$)" "$RUNS" || exit 1
     "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status
     ;;
   status) "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status \
       ${cells[@]+--cells "${cells[@]}"} ;;
   sync)
-    "$BIN/python" - "$RUNS" results/table2 <<'PY'
-import pathlib
-import shutil
-import sys
-from franka_composer.training.runs import RunDir, write_eval_rows
-from franka_composer.training.sweep import GRIDS, cell_finished
-runs, kept = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
-for cell in GRIDS["table2"]:
-    run = RunDir(runs / cell.name)
-    if not run.config_path.is_file():
-        continue
-    copy = RunDir(kept / cell.name)
-    copy.root.mkdir(parents=True, exist_ok=True)
-    shutil.copy(run.config_path, copy.config_path)
-    write_eval_rows(copy.eval_csv, run.kept_evaluations())
-    # How it ended and its policy, once it has ended at the grid's budget (or by the rule):
-    # a cell brought forward to a smaller budget goes on, and its policy with it.
-    for path, committed in ((run.outcome_path, copy.outcome_path),
-                            (run.policy_file, copy.policy_file)):
-        if cell_finished(run, cell) and path.is_file():
-            shutil.copy(path, committed)
-        elif committed.is_file():
-            committed.unlink()
-PY
-    ls results/table2
+    "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --sync results/table2
     ;;
   report)
     kept=${KEPT:-results/table2}
