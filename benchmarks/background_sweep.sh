@@ -24,16 +24,18 @@ lower_session_priority() {
 }
 
 # stop_sweep PATTERN RUNS: SIGTERM to the sweep whose command line matches PATTERN; it
-# cancels its cells, and each run checkpoints before exiting. Waits for the cells under
-# RUNS, up to 5 minutes; fails naming those still running.
+# cancels its cells, each run checkpoints before exiting, and the sweep exits after them
+# (so it starts no other cell). Waits for both, up to 5 minutes; fails naming those still
+# running.
 stop_sweep() {
+  local running="franka_composer train --out $2/|$1"
   pkill -TERM -f "$1" || true
   for _ in $(seq 300); do
-    pgrep -f "franka_composer train --out $2/" >/dev/null || break
+    pgrep -f "$running" >/dev/null || break
     sleep 1
   done
-  if pgrep -af "franka_composer train --out $2/"; then
-    echo "cells above still running" >&2
+  if pgrep -af "$running"; then
+    echo "still running: the processes above" >&2
     return 1
   fi
 }
