@@ -2,6 +2,17 @@
 # (benchmarks/table2.sh, benchmarks/control_period_check.sh): on a frozen tree if asked, at
 # low priority, stopped with its cells checkpointed.
 
+# sweep_settings DEFAULT_RUNS: what every such script reads from its environment, in the
+# repository's root: RUNS (where the cells train; default DEFAULT_RUNS), BIN (the venv's
+# bin), WORKERS (cells at a time, default 1), MENAGERIE_ROOT (default the shared checkout
+# beside the repository); one thread per process.
+sweep_settings() {
+  RUNS=$(realpath -m "${RUNS:-$1}")
+  BIN=$(realpath -m "${BIN:-.venv/bin}")
+  WORKERS=${WORKERS:-1}
+  export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
+}
+
 # use_frozen_tree COMMIT RUNS: from here on, COMMIT's code (a worktree beside RUNS, made
 # where missing). The sweep imports it (PYTHONPATH) and its cells train what it imported
 # (training/sweep.py, cell_environment); the tree is the working directory too, because on

@@ -16,11 +16,8 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 source benchmarks/background_sweep.sh
-RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs/control-period}")
-BIN=$(realpath -m "${BIN:-.venv/bin}")
-WORKERS=${WORKERS:-1}
+sweep_settings "$HOME/franka_runs/control-period"
 read -ra seeds <<< "${SEEDS:-0 1 2}"
-export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 sweep=(sweep --out "$RUNS" --tasks pick_and_place --algos tqc --seeds "${seeds[@]}"
        --steps 400000)
 

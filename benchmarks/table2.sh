@@ -31,11 +31,8 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 source benchmarks/background_sweep.sh
-RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs/table2}")
-BIN=$(realpath -m "${BIN:-.venv/bin}")
-WORKERS=${WORKERS:-1}
+sweep_settings "$HOME/franka_runs/table2"
 read -ra cells <<< "${CELLS:-}"  # Patterns, not globbed here.
-export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 
 case "${1:-}" in
   run)
