@@ -13,6 +13,11 @@ import pathlib
 PANDA_NAME = "franka_emika_panda"
 
 
+class MenagerieUnavailableError(RuntimeError):
+    """The Panda could be neither downloaded nor found under MENAGERIE_ROOT: nothing can be
+    built, and the message says what to set."""
+
+
 @functools.lru_cache(maxsize=None)
 def panda_dir() -> pathlib.Path:
     """The folder holding Menagerie's `franka_emika_panda` (panda.xml and its meshes)."""
@@ -21,7 +26,7 @@ def panda_dir() -> pathlib.Path:
     try:
         return mujoco_menagerie.get(PANDA_NAME).path()
     except mujoco_menagerie.MenagerieError as error:
-        raise RuntimeError(
+        raise MenagerieUnavailableError(
             f"Could not resolve Menagerie's {PANDA_NAME!r}: {error}. Set MENAGERIE_ROOT to a "
             "folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when offline."
         ) from error

@@ -8,7 +8,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
+import signal
 import sys
+
+from franka_composer.assets import MenagerieUnavailableError
 
 #: Subcommand modules, in the order `--help` lists them.
 SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "evaluate", "plot",
@@ -22,13 +26,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:
-        try:
-            module = importlib.import_module(f"franka_composer.cli.{name}")
-        except ModuleNotFoundError as error:
-            if error.name == f"franka_composer.cli.{name}":
-                continue  # Not built yet.
-            raise
-        module.add_parser(subparsers)
+        importlib.import_module(f"franka_composer.cli.{name}").add_parser(subparsers)
     return parser
 
 
@@ -39,12 +37,21 @@ def main(argv: list[str] | None = None) -> int:
 
 def console(argv: list[str] | None = None) -> int:
     """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
-    status 2, as argparse reports its own errors, not a traceback."""
+    status 2, as argparse reports its own errors, not a traceback, and so is a Panda that
+    cannot be found (status 1); a reader that has gone (`franka-composer evaluate ... |
+    head`) ends the command quietly, with the status a shell gives a command SIGPIPE ends."""
     try:
-        return main(argv)
-    except ValueError as error:
+        try:
+            return main(argv)
+        finally:
+            sys.stdout.flush()  # What is still buffered meets a gone reader here.
+    except (ValueError, MenagerieUnavailableError) as error:
         print(f"franka-composer: error: {error}", file=sys.stderr)
-        return 2
+        return 2 if isinstance(error, ValueError) else 1
+    except BrokenPipeError:
+        # The interpreter flushes stdout again on exit: let that write go nowhere.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
 
 
 if __name__ == "__main__":

@@ -1,0 +1,42 @@
+"""The `franka-composer` command as a shell runs it: what it prints when the Panda cannot be
+found, and how it ends when its reader has gone (`... | head`)."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+A_COMMITTED_RUN = REPO / "results" / "table2" / "push-sac-seed0"
+
+
+def franka_composer(*argv: str, env: dict | None = None, **kwargs):
+    return subprocess.run([sys.executable, "-m", "franka_composer", *argv], cwd=REPO,
+                          env=env, stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def test_a_reader_gone_ends_the_command_quietly_with_sigpipes_status():
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # Every write to the pipe now fails, as after `| head` has exited.
+    try:
+        gone = franka_composer("report", str(A_COMMITTED_RUN), stdout=write_end)
+    finally:
+        os.close(write_end)
+    assert (gone.returncode, gone.stderr) == (128 + signal.SIGPIPE, "")
+    read = franka_composer("report", str(A_COMMITTED_RUN), stdout=subprocess.PIPE)
+    assert read.returncode == 0 and "| push (bf16) | SAC | 0 | 250,000 |" in read.stdout
+
+
+def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
+    env = {**os.environ, "MENAGERIE_ROOT": str(tmp_path)}
+    result = franka_composer("demo", "--tasks", "push", "--episodes", "1", "--no-video",
+                             "--out", str(tmp_path / "demo"), env=env, stdout=subprocess.PIPE)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert result.stderr.splitlines()[-1] == (
+        "franka-composer: error: Could not resolve Menagerie's 'franka_emika_panda': "
+        f"'franka_emika_panda' not found under MENAGERIE_ROOT={tmp_path}. Set MENAGERIE_ROOT "
+        "to a folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when "
+        "offline.")
