@@ -53,6 +53,3 @@ def console(argv: list[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + signal.SIGPIPE
 
-
-if __name__ == "__main__":
-    sys.exit(main())
