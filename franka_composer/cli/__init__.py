@@ -52,4 +52,3 @@ def console(argv: list[str] | None = None) -> int:
         # The interpreter flushes stdout again on exit: let that write go nowhere.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + signal.SIGPIPE
-
