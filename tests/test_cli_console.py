@@ -32,11 +32,13 @@ def test_a_reader_gone_ends_the_command_quietly_with_sigpipes_status():
 
 def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
     env = {**os.environ, "MENAGERIE_ROOT": str(tmp_path)}
-    result = franka_composer("demo", "--tasks", "push", "--episodes", "1", "--no-video",
-                             "--out", str(tmp_path / "demo"), env=env, stdout=subprocess.PIPE)
+    out = tmp_path / "demo"
+    result = franka_composer("demo", "--tasks", "push", "--episodes", "1", "--out", str(out),
+                             env=env, stdout=subprocess.PIPE)
     assert result.returncode == 1 and "Traceback" not in result.stderr
     assert result.stderr.splitlines()[-1] == (
         "franka-composer: error: Could not resolve Menagerie's 'franka_emika_panda': "
         f"'franka_emika_panda' not found under MENAGERIE_ROOT={tmp_path}. Set MENAGERIE_ROOT "
         "to a folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when "
         "offline.")
+    assert not out.exists()  # No empty video folder left behind.

@@ -62,8 +62,6 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     trained = None if args.policy is None else _adopt_the_runs_task(args)
-    if not args.no_video:
-        args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode") as bar:
         for task in args.tasks:
@@ -119,6 +117,7 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     if frames:
         import imageio
 
+        args.out.mkdir(parents=True, exist_ok=True)  # Here: a demo that fails leaves none.
         imageio.imwrite(args.out / f"{task}.png", frames[0])
         imageio.mimwrite(args.out / f"{task}.mp4", frames, fps=fps, macro_block_size=1)
     steps = int(trajectories.lengths.sum())
