@@ -4,7 +4,9 @@
 # run here in the background at low priority, checkpoints outside the work tree.
 #
 #   benchmarks/table2.sh run      train the cells, WORKERS at a time (default 1), each
-#                                 resumed from its checkpoint if it has one, skipped if done;
+#                                 resumed from its checkpoint if it has one, skipped if done
+#                                 (in $RUNS, or kept as finished by sync: a machine handed
+#                                 back bare does not train them again);
 #                                 CELLS='push-sac-* ...' runs only the cells it names;
 #                                 FROZEN=COMMIT runs that commit's code (a worktree beside
 #                                 $RUNS, the sweep's working directory and PYTHONPATH, with
@@ -15,27 +17,46 @@
 #   benchmarks/table2.sh status   the table of cells: steps, steps/s, latest success
 #   benchmarks/table2.sh sync     copy each cell's config.json, eval.csv (up to its
 #                                 checkpoint) and, once it has finished at the grid's
-#                                 budget, outcome.json and policy.pt into results/table2/<cell>/,
-#                                 from which `franka-composer evaluate results/table2` and
-#                                 `franka-composer demo --policy results/table2/<cell>` run
+#                                 budget, outcome.json and policy.pt into $KEPT/<cell>/,
+#                                 from which `franka-composer evaluate $KEPT` and
+#                                 `franka-composer demo --policy $KEPT/<cell>` run
 #   benchmarks/table2.sh report   from what sync committed, once every cell has finished:
 #                                 Table II (`evaluate --episodes 20`, table2.md; and over
 #                                 200 other episodes, table2-200-episodes.md), Fig. 4
 #                                 (`plot`, curves.png) and the steps to 80/90 % beside the
 #                                 paper's with the costs (`report`, report.md), written into
-#                                 results/table2/; PARTIAL=1 makes them of the finished
-#                                 cells (evaluate) and every cell's evaluations so far
+#                                 $KEPT; PARTIAL=1 makes them of the finished cells
+#                                 (evaluate) and every cell's evaluations so far
 #
 # Runs live in $RUNS (default ~/franka_runs/table2), so an interrupted cell resumes in a
-# later session.
+# later session; what sync keeps, in $KEPT (default results/table2).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/table2"
+KEPT=${KEPT:-results/table2}
 read -ra cells <<< "${CELLS:-}"  # Patterns, not globbed here.
+
+# kept_cells finished|unfinished: the grid's cells whose finished run sync has (not) kept in
+# $KEPT, in the grid's order; this checkout's code reads them (before use_frozen_tree).
+kept_cells() {
+  "$BIN/python" - "$KEPT" "$1" <<'PY'
+import pathlib
+import sys
+from franka_composer.training.sweep import GRIDS, finished_in
+cells = GRIDS["table2"]
+finished = finished_in(pathlib.Path(sys.argv[1]), cells)
+print(" ".join(c.name for c in cells if (c in finished) == (sys.argv[2] == "finished")))
+PY
+}
 
 case "${1:-}" in
   run)
+    if [ ${#cells[@]} -eq 0 ]; then
+      unfinished=$(kept_cells unfinished) || exit 1
+      [ -n "$unfinished" ] || { echo "every cell has finished ($KEPT)"; exit 0; }
+      read -ra cells <<< "$unfinished"
+    fi
     if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
     lower_session_priority
     nice -n 10 "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --num-cpus "$WORKERS" \
@@ -49,31 +70,25 @@ case "${1:-}" in
   status) "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --status \
       ${cells[@]+--cells "${cells[@]}"} ;;
   sync)
-    "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --sync results/table2
+    "$BIN/franka-composer" sweep --grid table2 --out "$RUNS" --sync "$KEPT"
     ;;
   report)
-    kept=${KEPT:-results/table2}
-    read -ra finished < <("$BIN/python" - "$kept" "${PARTIAL:-0}" <<'PY'
-import pathlib
-import sys
-from franka_composer.training.runs import RunDir
-from franka_composer.training.sweep import GRIDS
-kept, partial = pathlib.Path(sys.argv[1]), sys.argv[2] == "1"
-unfinished = [c.name for c in GRIDS["table2"] if not RunDir(kept / c.name).outcome_path.is_file()]
-if unfinished and not partial:
-    sys.exit(f"not finished (PARTIAL=1 reports the rest): {', '.join(unfinished)}")
-print(" ".join(str(kept / c.name) for c in GRIDS["table2"] if c.name not in unfinished))
-PY
-    ) || exit 1
+    unfinished=$(kept_cells unfinished) && finished=$(kept_cells finished) || exit 1
+    if [ -n "$unfinished" ] && [ "${PARTIAL:-0}" != 1 ]; then
+      echo "not finished (PARTIAL=1 reports the rest): ${unfinished// /, }" >&2
+      exit 1
+    fi
+    read -ra finished <<< "$finished"
+    finished=("${finished[@]/#/$KEPT/}")
     [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished" >&2; exit 1; }
     "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 20 --device cpu \
-      --out "$kept/table2.md" || exit 1
+      --out "$KEPT/table2.md" || exit 1
     # Beside the paper's 20 episodes (one fixed set, +-5-9 points per model), 200 others.
     "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 200 --seed 100 --device cpu \
-      --out "$kept/table2-200-episodes.md" || exit 1
-    "$BIN/franka-composer" plot "$kept" --out "$kept/curves.png" || exit 1
-    "$BIN/franka-composer" report "$kept" --paper-curves results/paper-curves/curves.csv \
-      --out "$kept/report.md"
+      --out "$KEPT/table2-200-episodes.md" || exit 1
+    "$BIN/franka-composer" plot "$KEPT" --out "$KEPT/curves.png" || exit 1
+    "$BIN/franka-composer" report "$KEPT" --paper-curves results/paper-curves/curves.csv \
+      --out "$KEPT/report.md"
     ;;
-  *) sed -n '2,28p' "$0"; exit 2 ;;
+  *) sed -n '2,32p' "$0"; exit 2 ;;
 esac

@@ -4,6 +4,8 @@ two-cell sweep on a local Ray (training/sweep.py, cli/sweep.py)."""
 from __future__ import annotations
 
 import json
+import os
+import pathlib
 import re
 import signal
 import subprocess
@@ -20,6 +22,7 @@ from franka_composer.training.sweep import (GRIDS, Cell, cell_log, cell_status, 
                                             run_directories, run_sweep, status_table,
                                             train_command)
 
+REPO = pathlib.Path(__file__).resolve().parents[1]
 #: Small enough for seconds per cell (as tests/test_training.py's tiny runs).
 TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
         "--learning-starts", "100", "--eval-every", "100", "--eval-episodes", "2",
@@ -405,3 +408,50 @@ def test_bad_seeds_and_refresh_periods_are_refused_by_the_parser(tmp_path, capsy
         cli.main(["sweep", "--out", str(tmp_path / "s"), *args])
     assert message in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def _table2_sh(tmp_path, command, **env):
+    """benchmarks/table2.sh COMMAND, its franka-composer one that prints its arguments."""
+    bin_dir = tmp_path / "bin"
+    if not bin_dir.exists():
+        bin_dir.mkdir()
+        for name, body in (("python", f'exec {sys.executable} "$@"'),
+                           ("franka-composer", 'echo "franka-composer $*"')):
+            (bin_dir / name).write_text(f"#!/bin/sh\n{body}\n")
+            (bin_dir / name).chmod(0o755)
+    return subprocess.run(
+        [str(REPO / "benchmarks" / "table2.sh"), command], capture_output=True, text=True,
+        env={**os.environ, "BIN": str(bin_dir), "RUNS": str(tmp_path / "runs"),
+             "KEPT": str(tmp_path / "kept"), **env})
+
+
+def _sweep_cells(output):
+    words = output.split()
+    return words[words.index("--cells") + 1:words.index("--refresh")]
+
+
+def test_table2_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path):
+    """A machine handed back bare has lost every run directory: the cells sync kept as
+    finished are done all the same, and a `run` trains the others (not 16 cells again)."""
+    names = [cell.name for cell in GRIDS["table2"]]
+    _write_run(tmp_path / "kept", "push-tqc-seed1", [(0, 1, 0.0)], (250000, False, 2))
+    _write_run(tmp_path / "kept", "push-sac-seed0", [(0, 1, 0.0), (2000, 2, 0.6)])
+    ran = _table2_sh(tmp_path, "run")
+    assert ran.returncode == 0, ran.stderr
+    assert _sweep_cells(ran.stdout) == [name for name in names if name != "push-tqc-seed1"]
+    # Cells named are trained as named.
+    named = _table2_sh(tmp_path, "run", CELLS="push-tqc-* slide-ddpg-seed0")
+    assert _sweep_cells(named.stdout) == ["push-tqc-*", "slide-ddpg-seed0"]
+    reported = _table2_sh(tmp_path, "report")
+    assert reported.returncode == 1 and reported.stdout == ""
+    assert reported.stderr == ("not finished (PARTIAL=1 reports the rest): "
+                               f"{', '.join(n for n in names if n != 'push-tqc-seed1')}\n")
+    partial = _table2_sh(tmp_path, "report", PARTIAL="1")
+    assert partial.returncode == 0, partial.stderr
+    assert partial.stdout.splitlines()[0] == (
+        f"franka-composer evaluate {tmp_path}/kept/push-tqc-seed1 --episodes 20 --device cpu "
+        f"--out {tmp_path}/kept/table2.md")
+    for name in names:
+        _write_run(tmp_path / "kept", name, [(0, 1, 0.0)], (250000, False, 2))
+    done = _table2_sh(tmp_path, "run")
+    assert (done.returncode, done.stdout) == (0, f"every cell has finished ({tmp_path}/kept)\n")

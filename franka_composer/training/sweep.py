@@ -212,6 +212,13 @@ def sync_cell(cell: Cell, root: pathlib.Path, kept: pathlib.Path) -> bool:
     return True
 
 
+def finished_in(kept: pathlib.Path, cells: list[Cell]) -> list[Cell]:
+    """The `cells` that `sync_cell` has kept in `kept` as finished (its outcome.json is
+    there only then): done, even where their run directory is gone, as on a machine handed
+    back bare."""
+    return [cell for cell in cells if RunDir(kept / cell.name).outcome_path.is_file()]
+
+
 @dataclasses.dataclass(frozen=True)
 class CellStatus:
     """What a cell's directory says it has reached."""
