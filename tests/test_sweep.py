@@ -451,7 +451,7 @@ def test_table2_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path)
     assert partial.stdout.splitlines()[0] == (
         f"franka-composer evaluate {tmp_path}/kept/push-tqc-seed1 --episodes 20 --device cpu "
         f"--out {tmp_path}/kept/table2.md")
-    for name in names:
-        _write_run(tmp_path / "kept", name, [(0, 1, 0.0)], (250000, False, 2))
+    for cell in GRIDS["table2"]:
+        _write_run(tmp_path / "kept", cell.name, [(0, 1, 0.0)], (cell.steps, False, 2))
     done = _table2_sh(tmp_path, "run")
     assert (done.returncode, done.stdout) == (0, f"every cell has finished ({tmp_path}/kept)\n")

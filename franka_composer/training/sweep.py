@@ -213,10 +213,9 @@ def sync_cell(cell: Cell, root: pathlib.Path, kept: pathlib.Path) -> bool:
 
 
 def finished_in(kept: pathlib.Path, cells: list[Cell]) -> list[Cell]:
-    """The `cells` that `sync_cell` has kept in `kept` as finished (its outcome.json is
-    there only then): done, even where their run directory is gone, as on a machine handed
-    back bare."""
-    return [cell for cell in cells if RunDir(kept / cell.name).outcome_path.is_file()]
+    """The `cells` finished (`cell_finished`) in `kept`, where `sync_cell` copies them: done,
+    even where their run directory is gone, as on a machine handed back bare."""
+    return [cell for cell in cells if cell_finished(RunDir(kept / cell.name), cell)]
 
 
 @dataclasses.dataclass(frozen=True)
