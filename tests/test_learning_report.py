@@ -79,6 +79,17 @@ def test_the_figure_holds_a_seed_that_stopped_early_as_the_steps_to_thresholds_d
     assert summarise(curves[("push", "sac", "")])[0].tolist() == list(range(0, 12000, 2000))
 
 
+def test_a_panel_titles_the_setup_its_lines_share_and_each_legend_keeps_its_own():
+    from franka_composer.training.curves import split_setups
+
+    slide = ["net_arch 256,256,256, batch_size 512, bf16", "net_arch 256,256,256, batch_size 512"]
+    assert split_setups(slide) == ("net_arch 256,256,256, batch_size 512", {
+        slide[0]: "bf16", slide[1]: ""})
+    assert split_setups(["", "bf16", "sbx"]) == ("", {"": "", "bf16": "bf16", "sbx": "sbx"})
+    assert split_setups(["osc control"]) == ("osc control", {"osc control": ""})
+    assert split_setups([]) == ("", {})
+
+
 def test_the_table_has_a_row_per_cell_in_the_papers_order_and_the_total(tmp_path, capsys):
     _write_run(tmp_path, "slide", "sac", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))
     _write_run(tmp_path, "push", "tqc", 1, [1.0] * 5, (True, 1800.0))

@@ -42,6 +42,18 @@ def summarise(seeds: list[dict[int, float]]) -> tuple[np.ndarray, np.ndarray, np
     return np.array(steps), np.median(values, axis=0), np.std(values, axis=0)
 
 
+def split_setups(variants: list[str]) -> tuple[str, dict[str, str]]:
+    """The parts of a panel's variants (`variant_label`'s ", "-joined parts) that all its
+    lines share, for its title, and each variant's own parts, for its legend: the slide
+    cells' "net_arch 256,256,256, batch_size 512, bf16" and "..., sbx" made legends wider
+    than their panel."""
+    parts = {variant: variant.split(", ") if variant else [] for variant in variants}
+    shared = [part for part in parts[variants[0]]
+              if all(part in own for own in parts.values())] if variants else []
+    return ", ".join(shared), {variant: ", ".join(p for p in own if p not in shared)
+                               for variant, own in parts.items()}
+
+
 def plot_curves(run_dirs: list[pathlib.Path],
                 out: pathlib.Path) -> list[tuple[str, str, str]]:
     """Writes the figure to `out`; returns the (task, algo, variant) lines drawn."""
@@ -55,12 +67,13 @@ def plot_curves(run_dirs: list[pathlib.Path],
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
     drawn = []
     for ax, task in zip(axes[0], tasks):
+        shared, own = split_setups(sorted({v for t, _, v in curves if t == task}))
         for algo in ALGOS:
             variants = sorted(v for t, a, v in curves if (t, a) == (task, algo))
             for variant in variants:
                 seeds = curves[(task, algo, variant)]
                 steps, median, std = summarise(seeds)
-                setup = f", {variant}" if variant else ""
+                setup = f", {own[variant]}" if own[variant] else ""
                 ax.plot(steps, median, color=COLOURS[algo],
                         linestyle=LINESTYLES[variants.index(variant) % len(LINESTYLES)],
                         label=f"{algo.upper()} ({len(seeds)} seed{'s' * (len(seeds) > 1)}"
@@ -69,7 +82,8 @@ def plot_curves(run_dirs: list[pathlib.Path],
                                 np.clip(median + std, 0, 1), color=COLOURS[algo], alpha=0.2,
                                 linewidth=0)
                 drawn.append((task, algo, variant))
-        ax.set_title(f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}")
+        title = f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}"
+        ax.set_title(f"{title}\n({shared})" if shared else title)
         ax.set_xlabel("environment steps")
         # "20k" rather than "20000": full numbers run into each other on a narrow panel.
         ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k" if x else "0")
