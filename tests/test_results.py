@@ -1,7 +1,8 @@
 """What results/table2/ keeps stands for what RESULTS.md says of it: each cell there is the
 run the `table2` grid trains, evaluated on the grid's cadence, ended at its budget or by the
 stopping rule, with a policy that loads and acts, and all the policies within issue 15's
-20 MB. (A grid changed under committed cells, or a sync of the wrong run, fails here.)"""
+20 MB; every cell of the grid is there, and RESULTS.md quotes the report's tables as
+written. (A grid changed under committed cells, or a sync of the wrong run, fails here.)"""
 
 from __future__ import annotations
 
