@@ -1,5 +1,5 @@
 # Sourced by the scripts that run a `franka-composer sweep` in the background here
-# (benchmarks/table2.sh, benchmarks/control_period_check.sh): on a frozen tree if asked, at
+# (benchmarks/table2.sh, benchmarks/reference_timing.sh): on a frozen tree if asked, at
 # low priority, stopped with its cells checkpointed.
 
 # sweep_settings DEFAULT_RUNS: what every such script reads from its environment, in the

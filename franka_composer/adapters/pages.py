@@ -54,7 +54,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
         ("Observation space", [
             f"Dict(observation=Box({layout.size},), achieved_goal=Box({_goal_size(config)},), "
             f"desired_goal=Box({_goal_size(config)},)), float64. {goals} `observation`, "
-            f"velocities per control step of {config.control_timestep:g} s:",
+            f"velocities as displacements per {config.velocity_period:g} s:",
             layout.markdown_table()]),
         ("Rewards", [
             f"sparse: 0 if the achieved goal is within {config.distance_threshold:g} {unit} of "

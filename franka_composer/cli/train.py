@@ -12,6 +12,7 @@ from franka_composer.cli.options import (non_negative_int, number, output_folder
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
+from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
@@ -25,7 +26,8 @@ RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, control="mocap", backend="s
 RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
 #: Options named otherwise than the setting they give (`run_config`).
 _OPTION_OF_SETTING = {"stop_success_rate": "stop_at_success",
-                      "stop_after_evaluations": "stop_after"}
+                      "stop_after_evaluations": "stop_after",
+                      "velocity_timestep": "timing"}
 _FLAGS = {"terminate_on_success": "--no-terminate-on-success"}
 
 
@@ -63,7 +65,7 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
     from franka_composer.training import demos
     from franka_composer.training.models import make_env
 
-    env = make_env(args.task, control=args.control, control_timestep=args.control_timestep)
+    env = make_env(args.task, control=args.control, **timing_options(args))
     try:
         episodes = demos.load_episodes(args.demos, env)
     finally:
@@ -91,7 +93,12 @@ def add_parser(subparsers) -> None:
                         help="physics seconds per step, a whole number of 2 ms physics "
                              "steps (default: the task's, 0.05); 0.5 is what the paper's "
                              "code ran (10 x its stated 0.05 s: the arm at rest after "
-                             "each action)")
+                             "each action); --timing reference is all of that code's timing")
+    parser.add_argument("--timing", choices=tuple(TIMINGS), default=None,
+                        help="a named timing instead of --control-timestep: 'default' "
+                             "(0.05 s per step, velocities per step) or 'reference' (what "
+                             "the paper's code runs: 0.5 s of physics per step, velocities "
+                             "multiplied by 0.05 s)")
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
                              "(default: none); README, Domain randomisation")
@@ -241,7 +248,18 @@ def run_config(args: argparse.Namespace):
     return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
                      args.backend, args.control, args.precision, args.randomization,
                      str(args.demos.resolve()) if args.demos else None, args.demo_episodes,
-                     args.control_timestep)
+                     **timing_options(args))
+
+
+def timing_options(args: argparse.Namespace) -> dict:
+    """`control_timestep` and `velocity_timestep` from --timing or --control-timestep
+    (None: the task's); both given is refused."""
+    if args.timing is None:
+        return {"control_timestep": args.control_timestep, "velocity_timestep": None}
+    if args.control_timestep is not None:
+        raise ValueError("--timing sets the control timestep: give --timing or "
+                         "--control-timestep, not both")
+    return dict(TIMINGS[args.timing])
 
 
 def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
@@ -253,9 +271,11 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
     if not given:
         return
     differing = run_config(args).differing(run_dir.read_config())
-    conflicts = [(_OPTION_OF_SETTING.get(name, name), name, ours, theirs)
+    option_of = dict(_OPTION_OF_SETTING, **({"control_timestep": "timing"}
+                                            if "timing" in given else {}))
+    conflicts = [(option_of.get(name, name), name, ours, theirs)
                  for name, (ours, theirs) in differing.items()
-                 if _OPTION_OF_SETTING.get(name, name) in given]
+                 if option_of.get(name, name) in given]
     if conflicts:
         raise ValueError(
             f"--resume goes on with the run's own settings, and {run_dir.root} has "

@@ -203,6 +203,9 @@ class TaskConfig:
       terminate_on_success: end the episode when the goal is reached (the paper); False
         gives Fetch semantics, for which HER relabelling is exact.
       control_timestep: seconds per control step (a whole multiple of the physics step).
+      velocity_timestep: seconds the observation's velocities are multiplied by (None: the
+        control period, a displacement per step as in Fetch). The reference code steps
+        0.5 s but multiplies by its stated 0.05 s (`TIMINGS["reference"]`).
       neutral_arm_qpos: arm joint angles (rad) at reset.
       max_episode_steps: control steps before Gymnasium truncates an episode.
       observations: the state vector, camera images or both (`ObservationSettings`).
@@ -223,6 +226,7 @@ class TaskConfig:
     distance_threshold: float = 0.05
     terminate_on_success: bool = True
     control_timestep: float = 0.05
+    velocity_timestep: float | None = None
     neutral_arm_qpos: tuple[float, ...] = NEUTRAL_ARM_QPOS
     max_episode_steps: int = 50
     observations: ObservationSettings = ObservationSettings()
@@ -231,6 +235,7 @@ class TaskConfig:
     def replace(self, **options) -> "TaskConfig":
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
         listing the valid ones, a bad value one naming the option and what it accepts."""
+        options = _expand_timing(options)
         check_names("task option", options, OPTIONS)
         config = self
         for name, value in options.items():
@@ -246,6 +251,12 @@ class TaskConfig:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
                              f"timestep ({self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
+
+    @property
+    def velocity_period(self) -> float:
+        """Seconds the observation's velocities are multiplied by."""
+        return (self.control_timestep if self.velocity_timestep is None
+                else self.velocity_timestep)
 
     @property
     def options(self) -> dict[str, Any]:
@@ -303,6 +314,31 @@ def _replace_path(record, path: tuple[str, ...], value):
         return dataclasses.replace(record, **{path[0]: value})
     inner = _replace_path(getattr(record, path[0]), path[1:], value)
     return dataclasses.replace(record, **{path[0]: inner})
+
+
+#: Named timings (task option `timing`), as the options they set. "default": 0.05 s of
+#: physics per step (Fetch's and panda-gym's convention, the paper's stated dt), velocities
+#: per step. "reference": what the paper's code (`panda_mujoco_gym`) runs: ten
+#: `mj_step(nstep=25)` calls per step, 0.5 s in which the arm settles on its target and the
+#: fingers on theirs, with velocities multiplied by its stated 0.05 s.
+TIMINGS: dict[str, dict[str, Any]] = {
+    "default": {"control_timestep": 0.05, "velocity_timestep": None},
+    "reference": {"control_timestep": 0.5, "velocity_timestep": 0.05},
+}
+
+
+def _expand_timing(options: dict) -> dict:
+    """`options` with a named `timing` replaced by the options it sets; refused beside one of
+    those (one or the other, not both)."""
+    if "timing" not in options:
+        return options
+    options = dict(options)
+    timing = TIMINGS[check_choice("timing", options.pop("timing"), tuple(TIMINGS))]
+    both = sorted(set(timing) & set(options))
+    if both:
+        raise ValueError(f"timing sets {' and '.join(timing)}: give it or "
+                         f"{', '.join(both)}, not both")
+    return {**timing, **options}
 
 
 def _positive(name, value):
@@ -370,6 +406,9 @@ OPTIONS: dict[str, Option] = {
     "distance_threshold": Option(("distance_threshold",), _positive),
     "terminate_on_success": Option(("terminate_on_success",), check_bool),
     "control_timestep": Option(("control_timestep",), _positive),
+    "velocity_timestep": Option(("velocity_timestep",),
+                                lambda name, value: None if value is None
+                                else _positive(name, value)),
     "observation_mode": Option(("observations", "mode"),
                                lambda name, value: check_choice(name, value,
                                                                 OBSERVATION_MODES)),

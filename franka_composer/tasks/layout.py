@@ -25,24 +25,24 @@ class ObservationField(NamedTuple):
     size: int
     meaning: str
     unit: str
-    per_control_step: bool  # Multiplied by the control period: a displacement per step.
+    per_control_step: bool  # Multiplied by the velocity period: a displacement per step.
     frame: str = "world"  # "world", or "–" for a quantity without one (a finger width).
 
 
 class ObservationLayout:
     """The fields of the flat observation vector, in order; velocities are multiplied by
-    the control period (displacements per step, as in Fetch)."""
+    `velocity_period` (the control period: displacements per step, as in Fetch)."""
 
-    def __init__(self, fields, control_timestep: float) -> None:
+    def __init__(self, fields, velocity_period: float) -> None:
         self.fields: tuple[ObservationField, ...] = tuple(fields)
-        self.control_timestep = float(control_timestep)
+        self.velocity_period = float(velocity_period)
         self.keys = tuple(field.key for field in self.fields)
         starts = np.cumsum([0] + [field.size for field in self.fields])
         self._slices = {field.name: slice(int(start), int(start) + field.size)
                         for field, start in zip(self.fields, starts)}
-        # Per element: the control period for per-step fields, else 1 (x * 1.0 == x exactly).
+        # Per element: the velocity period for per-step fields, else 1 (x * 1.0 == x exactly).
         self.scale = np.concatenate([
-            np.full(f.size, self.control_timestep if f.per_control_step else 1.0)
+            np.full(f.size, self.velocity_period if f.per_control_step else 1.0)
             for f in self.fields])
 
     @property
@@ -135,4 +135,4 @@ def layout_for(config) -> ObservationLayout:
         # Last, so every other field keeps its index under every controller.
         fields.append(ObservationField("joint_angles", "panda/joints_pos", 7,
                                        "arm joint angles, joint 1 first", "rad", False, "–"))
-    return ObservationLayout(fields, config.control_timestep)
+    return ObservationLayout(fields, config.velocity_period)

@@ -10,6 +10,7 @@ import pathlib
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import TASK_CONFIGS
+from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
                                                   Hyperparameters, hyperparameters)
 from franka_composer.validation import check_choice
@@ -31,9 +32,10 @@ class RunConfig:
     `demos` is the dataset the replay buffer was filled from before learning (its first
     `demo_episodes` episodes, or all), or None.
 
-    `control_timestep` is the seconds of physics per step (None: the task's, 0.05 s): the
-    paper's code ran 0.5 s per step (10 x its stated 0.05 s), an arm at rest after each
-    action (SPEC, Physics); 0.5 trains on that.
+    `control_timestep` is the seconds of physics per step (None: the task's, 0.05 s), and
+    `velocity_timestep` the seconds the observation's velocities are multiplied by (None:
+    the control period). The paper's code runs 0.5 s per step and multiplies by 0.05 s
+    (`tasks.config.TIMINGS["reference"]`, `train --timing reference`).
 
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
     wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
@@ -53,15 +55,18 @@ class RunConfig:
     demos: str | None = None
     demo_episodes: int | None = None
     control_timestep: float | None = None
+    velocity_timestep: float | None = None
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, tuple(TASK_CONFIGS))
         # Checked as the task checks it (a whole number of physics steps), and kept as a
         # number, the task's where none is given, so that the two are one run.
         task = TASK_CONFIGS[self.task]
-        object.__setattr__(self, "control_timestep", task.replace(
+        timing = task.replace(
             control_timestep=task.control_timestep if self.control_timestep is None
-            else self.control_timestep).control_timestep)
+            else self.control_timestep, velocity_timestep=self.velocity_timestep)
+        object.__setattr__(self, "control_timestep", timing.control_timestep)
+        object.__setattr__(self, "velocity_timestep", timing.velocity_timestep)
         check_choice("algorithm", self.algo, ALGOS)
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
@@ -98,6 +103,7 @@ class RunConfig:
                 "control": self.control, "precision": self.precision,
                 "randomization": self.randomization, "demos": self.demos,
                 "demo_episodes": self.demo_episodes, "control_timestep": self.control_timestep,
+                "velocity_timestep": self.velocity_timestep,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
@@ -110,13 +116,26 @@ class RunConfig:
                  if name not in NOT_LEARNING and value != table_i[name]]
         parts += [label for differs, label in (
             (self.control != "mocap", f"{self.control} control"),
-            (self.control_timestep != TASK_CONFIGS[self.task].control_timestep,
-             f"{self.control_timestep} s per step"),
+            (self.timing_label != "", self.timing_label),
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
             (not self.terminate_on_success, "no termination on success")) if differs]
         return ", ".join(parts)
+
+    @property
+    def timing_label(self) -> str:
+        """"reference timing", "0.5 s per step" (velocities per step), "0.5 s per step,
+        velocities per 0.1 s", or "" for the task's own timing."""
+        timing = {"control_timestep": self.control_timestep,
+                  "velocity_timestep": self.velocity_timestep}
+        for name, named in TIMINGS.items():
+            if timing == named:
+                return "" if name == "default" else f"{name} timing"
+        label = f"{self.control_timestep} s per step"
+        if self.velocity_timestep is not None:
+            label += f", velocities per {self.velocity_timestep} s"
+        return label
 
     @property
     def computation(self) -> str:
@@ -151,13 +170,15 @@ class RunConfig:
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""
         return dict(terminate_on_success=self.terminate_on_success, control=self.control,
-                    randomization=self.randomization, control_timestep=self.control_timestep)
+                    randomization=self.randomization, control_timestep=self.control_timestep,
+                    velocity_timestep=self.velocity_timestep)
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
         # Runs written before the JAX backend, the controllers, bf16 or randomisation existed
         # have no "backend", "control", "precision" or "randomization": they are SB3's,
-        # mocap, fp32, not randomised; those before the control timestep option, the task's.
+        # mocap, fp32, not randomised; those before the control timestep option, the task's;
+        # those before the velocity timestep, velocities per control period.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
@@ -165,4 +186,5 @@ class RunConfig:
                    randomization=data.get("randomization"), demos=data.get("demos"),
                    demo_episodes=data.get("demo_episodes"),
                    control_timestep=data.get("control_timestep"),
+                   velocity_timestep=data.get("velocity_timestep"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
