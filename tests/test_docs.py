@@ -1,11 +1,14 @@
-"""The README says what the code does: its observation tables are generated from the tasks'
-layouts, and its layout tree names what the package holds."""
+"""The documentation says what the code does: the guide's observation and randomisation
+tables are generated from the tasks' layouts and the parameters, its layout tree names what
+the package holds, and the README's Table II is the report's table as written."""
 
 from __future__ import annotations
 
 import importlib.util
 import pathlib
 import re
+
+import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
@@ -17,15 +20,18 @@ def _tool(name: str):
     return module
 
 
-def test_the_readme_observation_tables_are_the_layouts():
-    readme = (REPO / "README.md").read_text()
-    tables = _tool("readme_tables")
-    assert tables.updated(readme) == readme, "stale: run python tools/readme_tables.py"
+GUIDE = REPO / "docs" / "guide"
 
 
-def test_the_readme_layout_tree_names_every_module_and_only_real_paths():
-    readme = (REPO / "README.md").read_text()
-    tree = readme.split("## Layout", 1)[1].split("```", 2)[1]
+@pytest.mark.parametrize("page", ["quickstart.md", "randomization.md"])
+def test_the_guide_tables_are_the_layouts_and_parameters(page):
+    tables = _tool("doc_tables")
+    text = (GUIDE / page).read_text()
+    assert tables.updated(page, text) == text, "stale: run python tools/doc_tables.py"
+
+
+def test_the_layout_tree_names_every_module_and_only_real_paths():
+    tree = (GUIDE / "layout.md").read_text().split("```", 2)[1]
     # Entries start at most two spaces in; deeper lines continue a description.
     named = set(re.findall(r"^ {0,2}([\w./-]+)", tree, flags=re.MULTILINE))
     for path in named:
@@ -35,7 +41,7 @@ def test_the_readme_layout_tree_names_every_module_and_only_real_paths():
         if module.name.startswith("__") or module.suffix not in (".py", ""):
             continue
         entry = module.name + ("/" if module.is_dir() else "")
-        assert entry in named or module.name in named, f"README's layout misses {entry}"
+        assert entry in named or module.name in named, f"the layout page misses {entry}"
 
 
 def test_every_id_is_documented_by_its_class_page():
@@ -61,3 +67,35 @@ def test_every_id_is_documented_by_its_class_page():
                 assert f"{name} = {value!r}" in page, (id_, name)
         assert "control = 'mocap'" in page
         env.close()
+
+
+def test_the_readme_quotes_table_two_as_the_report_wrote_it():
+    """The README's headline table is `results/table2/table2.md`'s, row for row."""
+    table = [line for line in (REPO / "results" / "table2" / "table2.md").read_text()
+             .splitlines() if line.startswith("|")]
+    readme = (REPO / "README.md").read_text()
+    assert len(table) == 8 and "\n".join(table) in readme
+
+
+def test_the_docs_link_only_to_files_that_exist():
+    """Every relative link and image of the README, RESULTS.md, the changelog and the docs
+    pages names a file of the repository (an anchor after # is not checked)."""
+    pages = [REPO / name for name in ("README.md", "RESULTS.md", "CHANGELOG.md",
+                                      "BENCHMARKS.md")]
+    pages += sorted((REPO / "docs").rglob("*.md"))
+    missing = []
+    for page in pages:
+        text = page.read_text()
+        targets = re.findall(r"\]\(([^)\s]+)\)", text) + re.findall(r'<img src="([^"]+)"', text)
+        for target in targets:
+            path = target.split("#", 1)[0]
+            if not path or "://" in path or path.startswith("mailto:"):
+                continue
+            if not (page.parent / path).exists() and not _generated(path):
+                missing.append(f"{page.relative_to(REPO)}: {target}")
+    assert missing == []
+
+
+def _generated(path: str) -> bool:
+    """Pages and pictures the docs build writes (task pages, their images, the API page)."""
+    return any(part in path for part in ("tasks/", "_static/tasks/", "api.md"))
