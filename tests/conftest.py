@@ -3,8 +3,10 @@ left to the package (EGL, loaded at the first frame), so the tests run the users
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import pathlib
+import sys
 
 _REPO = pathlib.Path(__file__).resolve().parents[1]
 _SHARED_MENAGERIE = _REPO.parent / "shared" / "menagerie"
@@ -126,3 +128,13 @@ def her_samples(env, steps: int, count: int = 512):
     return (samples.next_observations["achieved_goal"].numpy(),
             samples.observations["desired_goal"].numpy(),
             samples.rewards.numpy().squeeze(-1))
+
+
+def load_script(path: pathlib.Path):
+    """A script of the repository (benchmarks/, experiments/, tools/: not packages) as a
+    module, registered under its name, where its dataclasses look their module up."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module

@@ -14,7 +14,7 @@ from franka_composer.policies import make_expert, rollout
 
 #: Least fraction of a full 5 cm command the first osc step from rest covers, per direction.
 #: Measured 0.80, 0.65, 0.70, 0.30; the torque limits allow at most 6.3, 4.0, 3.9 and 1.4 cm
-#: flat out for the whole step (benchmarks/torque_reach.py): up, gravity takes 41 of joint
+#: flat out for the whole step (experiments/torque_reach.py): up, gravity takes 41 of joint
 #: 2's 87 N m.
 OSC_FIRST_STEP = {(1, 0, 0): 0.75, (0, -1, 0): 0.6, (0, 0, -1): 0.6, (0, 0, 1): 0.25}
 

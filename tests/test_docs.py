@@ -4,28 +4,19 @@ the package holds, and the README's Table II is the report's table as written.""
 
 from __future__ import annotations
 
-import importlib.util
 import pathlib
 import re
 
 import pytest
+from conftest import load_script
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
-
-
-def _tool(name: str):
-    spec = importlib.util.spec_from_file_location(name, REPO / "tools" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 GUIDE = REPO / "docs" / "guide"
 
 
 @pytest.mark.parametrize("page", ["quickstart.md", "randomization.md"])
 def test_the_guide_tables_are_the_layouts_and_parameters(page):
-    tables = _tool("doc_tables")
+    tables = load_script(REPO / "tools" / "doc_tables.py")
     text = (GUIDE / page).read_text()
     assert tables.updated(page, text) == text, "stale: run python tools/doc_tables.py"
 

@@ -21,7 +21,7 @@ def add_parser(subparsers) -> None:
     add_run_dirs(parser)
     parser.add_argument("--paper-curves", type=pathlib.Path, default=None, metavar="CSV",
                         help="the paper's published curves (results/paper-curves/curves.csv, "
-                             "from benchmarks/paper_curves.py): its steps to 80 %% and 90 %% "
+                             "from experiments/paper_curves.py): its steps to 80 %% and 90 %% "
                              "beside each cell's")
     parser.add_argument("--out", type=output_file, default=None,
                         help="also write the Markdown table here")

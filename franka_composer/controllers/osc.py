@@ -32,7 +32,7 @@ course by whichever joint clipped first.
 What the limits allow. From the neutral pose the torques can accelerate the hand (no tilt,
 no sideways motion) by at most 50 m/s^2 along +x, 32 along -y, 31 down and 11 up (gravity
 takes 41 of joint 2's 87 N m): a linear programme over the torque box,
-`benchmarks/torque_reach.py`. Even flat out for a whole 0.05 s control step that is 6.3,
+`experiments/torque_reach.py`. Even flat out for a whole 0.05 s control step that is 6.3,
 4.0, 3.9 and 1.4 cm from rest, so unlike the mocap weld (unbounded force) one step from rest
 cannot cover a full 5 cm command; sustained commands come close from the second step
 (`tests/test_controllers.py`).

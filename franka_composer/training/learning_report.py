@@ -94,12 +94,12 @@ def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
     return next((step for step in sorted(curve) if curve[step] >= threshold), None)
 
 
-#: The columns of the paper's curves as `benchmarks/paper_curves.py` writes them.
+#: The columns of the paper's curves as `experiments/paper_curves.py` writes them.
 PAPER_CURVE_COLUMNS = ("task", "algo", "steps", "success")
 
 
 def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, float]]:
-    """The paper's published curves as `benchmarks/paper_curves.py` writes them (a CSV of
+    """The paper's published curves as `experiments/paper_curves.py` writes them (a CSV of
     task, algo, steps, success): {(task, algo): {steps: success}}."""
     curves: dict[tuple[str, str], dict[int, float]] = {}
     with open(path, newline="") as handle:

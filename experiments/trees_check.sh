@@ -3,7 +3,7 @@
 # at any settings: the same `train` run with this tree and with each older tree on
 # PYTHONPATH; their eval.csv (less wall times) and the actor in policy.pt must be identical.
 #
-#   OLD="TREE ..." benchmarks/trees_check.sh [train options]      (TREE: a git worktree;
+#   OLD="TREE ..." experiments/trees_check.sh [train options]      (TREE: a git worktree;
 #                   default options: push, SAC in bf16, Table I, 1500 steps, evaluated every 500)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -38,7 +38,7 @@ for tree in $OLD; do
   evaluations=identical actor=
   cmp -s "$work/this.csv" "$work/old.csv" || { evaluations=differs; status=1; }
   if [ -f "$work/old/policy.pt" ]; then
-    actor=$("$BIN/python" benchmarks/same_actor.py "$work/this/policy.pt" "$work/old/policy.pt") || status=1
+    actor=$("$BIN/python" experiments/same_actor.py "$work/this/policy.pt" "$work/old/policy.pt") || status=1
   else
     actor="no policy.pt (that tree did not write one for this run)"
   fi

@@ -3,7 +3,7 @@ its success split by the goal's height above the block's resting height (on the 
 30 % of goals are; below the 5 cm threshold, reachable by pushing; higher, reachable only
 by lifting). A policy that pushes but has not learned to grasp scores on the first two only.
 
-    python benchmarks/pick_and_place_goals.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--seed 100]
+    python experiments/pick_and_place_goals.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--seed 100]
 
 Plays each run's policy through `measure_success`, the loop of `franka-composer evaluate
 --episodes N --seed S`, so on its episodes (the "all" row is evaluate's success), and prints a

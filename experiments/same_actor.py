@@ -1,6 +1,6 @@
 """Whether two runs' policy.pt hold the same actor, tensor for tensor (exit status 1 if not).
 
-    python benchmarks/same_actor.py RUN_A/policy.pt RUN_B/policy.pt
+    python experiments/same_actor.py RUN_A/policy.pt RUN_B/policy.pt
 """
 
 import sys

@@ -2,7 +2,7 @@
 (github.com/zichunxx/panda_mujoco_gym, docs/Franka{Push,Pick,Slide}Sparse-v1.jpg), so our
 Table II cells' steps to 80 % and 90 % stand beside the paper's as numbers, not as a glance.
 
-    python benchmarks/paper_curves.py REPO_GIT_DIR [--out results/paper-curves] [--overlays]
+    python experiments/paper_curves.py REPO_GIT_DIR [--out results/paper-curves] [--overlays]
 
 REPO_GIT_DIR is a clone of that repository (`git show` reads the figures at HEAD). The
 figures are seaborn plots: a grey axes area with white grid lines at known ticks, one line

@@ -4,7 +4,7 @@
 # evaluation at STOP_AT steps is written, then resumed; their eval.csv (less wall times)
 # and the actor in policy.pt must be identical.
 #
-#   benchmarks/resume_check.sh [train options]       (default: push, SAC in bf16, Table I,
+#   experiments/resume_check.sh [train options]       (default: push, SAC in bf16, Table I,
 #                                                     1500 steps, evaluated every 200)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,4 +32,4 @@ cut -d, -f1,3,4 "$work/whole/eval.csv" > "$work/whole.csv"
 cut -d, -f1,3,4 "$work/stopped/eval.csv" > "$work/resumed.csv"
 echo "evaluations: $(($(wc -l < "$work/whole.csv") - 1)), to $(tail -1 "$work/whole.csv" | cut -d, -f1) steps"
 diff "$work/whole.csv" "$work/resumed.csv" && echo "eval.csv: identical"
-"$BIN/python" benchmarks/same_actor.py "$work/whole/policy.pt" "$work/stopped/policy.pt"
+"$BIN/python" experiments/same_actor.py "$work/whole/policy.pt" "$work/stopped/policy.pt"

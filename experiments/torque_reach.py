@@ -1,6 +1,6 @@
 """How fast the torque-driven Panda can accelerate its hand: the bound behind osc's tracking.
 
-    python benchmarks/torque_reach.py [TASK]
+    python experiments/torque_reach.py [TASK]
 
 At the task's starting pose (control="osc"), a linear programme over the joint-torque box
 |tau_i| <= limit_i finds, for each direction, the largest acceleration of the tool centre

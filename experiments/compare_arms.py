@@ -1,10 +1,10 @@
 """Do two training setups learn the same? Success per arm at fixed steps, mean ± std over seeds.
 
-Issue 15's rule for a faster setting (bf16, sbx) is that it learns what the reference learns
+The campaign's rule for a faster setting (bf16, sbx) is that it learns what the reference learns
 within the seed spread; this prints the table both of its checks are judged on, from the
 runs' eval.csv files:
 
-    python benchmarks/compare_arms.py --arm fp32 'results/precision/fp32/*' \\
+    python experiments/compare_arms.py --arm fp32 'results/precision/fp32/*' \\
         --arm bf16 'results/precision/bf16/*' --marks 50000 100000 --window 60000 100000
 
 An arm is a name and a glob of run directories (one per seed). `--window A B` adds each

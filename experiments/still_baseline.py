@@ -1,7 +1,7 @@
 """The success rate a policy that does nothing gets on a run's evaluations: the floor a
 learning curve must rise above.
 
-    python benchmarks/still_baseline.py --task push [--control osc] [--seed 0] [--evaluations 50]
+    python experiments/still_baseline.py --task push [--control osc] [--seed 0] [--evaluations 50]
 
 `train` evaluates 15 episodes every 2000 steps on an env seeded from the run's seed, and
 which episodes an evaluation sees does not depend on the policy (goals and objects are

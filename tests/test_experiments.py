@@ -1,0 +1,209 @@
+"""The investigation scripts still in use (experiments/): two setups compared over seeds, the
+still baseline is what an untrained run scores, the paper's curves are read back from
+figures drawn as the paper's are, and the goal bands split pick-and-place's episodes as
+`evaluate` plays them."""
+
+from __future__ import annotations
+
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import load_script
+from franka_composer.cli import main
+
+EXPERIMENTS = pathlib.Path(__file__).resolve().parents[1] / "experiments"
+RESULTS = EXPERIMENTS.parent / "results"
+
+
+
+@pytest.mark.slow
+def test_the_still_baseline_is_what_an_untrained_run_scores(tmp_path):
+    """An untrained policy scores exactly the episodes that start solved: the zero-action
+    replay of a run's evaluations gives the rates of the run's own first evaluations
+    (learning starts after them)."""
+    module = load_script(EXPERIMENTS / "still_baseline.py")
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    out = tmp_path / "run"
+    assert main(["train", "--task", "push", "--algo", "sac", "--seed", "0", "--out", str(out),
+                 "--total-steps", "400", "--learning-starts", "400", "--eval-every", "100",
+                 "--net-arch", "8", "--threads", "1", "--no-progress", "--device", "cpu"]) == 0
+    run = [row["success_rate"] for row in read_eval_rows(RunDir(out).eval_csv)]
+    still = module.still_rates("push", "mocap", seed=0, evaluations=len(run))
+    assert still == run
+    assert still[:3] == [0.0, 1 / 15, 2 / 15]  # Seed 0: 0, 1 and 2 episodes start solved.
+
+
+@pytest.mark.slow
+def test_a_resumed_run_evaluates_the_episodes_an_uninterrupted_run_would(tmp_path):
+    """Learning starts after the budget, so the policy is the same untrained network in
+    both runs and only the episodes decide the evaluations: a run stopped at 300 steps and
+    resumed to 600 logs what an uninterrupted 600-step run logs, not its first
+    evaluations' episodes again (which would score differently: the still baseline)."""
+    module = load_script(EXPERIMENTS / "still_baseline.py")
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    def train(out, *args):
+        assert main(["train", "--out", str(out), "--threads", "1", "--no-progress",
+                     "--device", "cpu", *args]) == 0
+
+    start = ["--task", "push", "--algo", "sac", "--seed", "0", "--learning-starts", "1000",
+             "--eval-every", "100", "--checkpoint-every", "100", "--net-arch", "8"]
+    train(tmp_path / "whole", *start, "--total-steps", "600")
+    train(tmp_path / "resumed", *start, "--total-steps", "300")
+    train(tmp_path / "resumed", "--resume", "--total-steps", "600")
+    whole, resumed = (read_eval_rows(RunDir(tmp_path / name).eval_csv)
+                      for name in ("whole", "resumed"))
+    assert [row["steps"] for row in resumed] == [0, 100, 200, 300, 400, 500, 600]
+    for key in ("success_rate", "mean_reward"):
+        assert [row[key] for row in resumed] == [row[key] for row in whole]
+    still = module.still_rates("push", "mocap", seed=0, evaluations=7)
+    assert still[4:] != still[1:4]  # Evaluating the first episodes again would show.
+
+
+def test_the_paper_curves_are_read_back_from_a_figure_drawn_as_its_are(tmp_path):
+    """A figure drawn as the paper's are (seaborn's grey axes, white grid, deep colours,
+    shaded spreads, the legend top left, a later line over an earlier one, saved as JPEG)
+    from known curves gives those curves back, and their steps to 80 % and 90 %."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    from franka_composer.training.learning_report import first_reaching, smoothed
+
+    curves_module = load_script(EXPERIMENTS / "paper_curves.py")
+    steps = np.arange(2000, 500_001, 2000)
+    wiggle = 0.03 * np.sin(steps / 7000)
+    truth = {"ddpg": 0.07 + wiggle,
+             "sac": 0.05 + 0.93 / (1 + np.exp(-(steps - 160_000) / 18_000)) + wiggle,
+             "tqc": 0.05 + 0.95 / (1 + np.exp(-(steps - 145_000) / 15_000)) - wiggle}
+    fig, ax = plt.subplots(figsize=(6.5, 5))
+    ax.set_facecolor("#eaeaf2")
+    ax.grid(color="white", linewidth=1.25)
+    ax.set_axisbelow(True)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+    for algo, values in truth.items():
+        colour = np.array(curves_module.LINE_COLOURS[algo]) / 255
+        ax.plot(steps / 1e6, values, color=colour, linewidth=1.5, label=algo.upper())
+        ax.fill_between(steps / 1e6, values - 0.03, values + 0.03, color=colour, alpha=0.2,
+                        linewidth=0)
+    ax.set_xticks(np.arange(0, 0.51, 0.1))
+    ax.set_yticks(np.arange(0, 1.01, 0.2))
+    ax.set_ylim(-0.05, 1.05)
+    ax.legend(loc="upper left")
+    fig.savefig(tmp_path / "figure.jpg", dpi=600)
+    plt.close(fig)
+
+    figure = curves_module.Figure("figure.jpg", (0.0, 1e5), (0.0, 0.2))
+    read = curves_module.digitise(np.asarray(Image.open(tmp_path / "figure.jpg")), figure)
+    assert set(read) == set(truth)
+    for algo, values in truth.items():
+        true_curve = dict(zip(steps.tolist(), values.tolist()))
+        # Where a later line covers it, a line is read from its visible neighbours.
+        common = sorted(set(read[algo]) & set(true_curve))
+        assert len(common) > 0.75 * len(steps)
+        errors = [abs(read[algo][s] - true_curve[s]) for s in common]
+        assert np.median(errors) < 0.002 and max(errors) < 0.015, algo
+        for threshold in (0.8, 0.9):
+            expected = first_reaching(smoothed(true_curve), threshold)
+            got = first_reaching(smoothed(read[algo]), threshold)
+            assert (expected is None) == (got is None), algo
+            if expected is not None:
+                assert abs(got - expected) <= 2000, (algo, threshold, got, expected)
+
+
+def test_the_paper_curves_refuse_a_figure_without_its_grid(tmp_path):
+    curves_module = load_script(EXPERIMENTS / "paper_curves.py")
+    grey = np.full((300, 400, 3), curves_module.AXES_GREY, dtype=np.uint8)
+    grey[:, 100:104] = 255  # One vertical grid line: no scale can be read off it.
+    with pytest.raises(ValueError, match="x grid lines not found evenly spaced"):
+        curves_module.digitise(grey, curves_module.FIGURES["push"])
+
+
+def test_the_goal_bands_split_each_episode_by_its_goal_height():
+    module = load_script(EXPERIMENTS / "pick_and_place_goals.py")
+    # (goal height above rest, lifted, success) per episode; 5 cm is still pushable.
+    rows = np.array([[0.0, 0, 1], [0.03, 1, 0], [0.05, 1, 1], [0.12, 1, 1], [0.2, 0, 0]])
+    assert module.band_rows(rows) == [("on the floor", 1, 100.0, 0.0),
+                                      ("0-5 cm up", 2, 50.0, 100.0),
+                                      ("5-20 cm up", 2, 50.0, 50.0),
+                                      ("all", 5, 60.0, 60.0)]
+    assert [band[0] for band in module.band_rows(rows[1:2])] == ["0-5 cm up", "all"]
+
+
+@pytest.mark.slow  # sbx's policies build a JAX model.
+def test_the_goal_bands_play_the_episodes_evaluate_plays(capsys):
+    """Its "all" row is `franka-composer evaluate`'s success on the same episodes, and the
+    bands share those episodes out among them."""
+    module = load_script(EXPERIMENTS / "pick_and_place_goals.py")
+    run = RESULTS / "table2" / "pick_and_place-tqc-seed1"
+    steps, rows = module.episodes_of(run, 12, seed=100)
+    bands = module.band_rows(rows)
+    assert sum(band[1] for band in bands[:-1]) == bands[-1][1] == 12
+    assert main(["evaluate", str(run), "--episodes", "12", "--seed", "100",
+                 "--device", "cpu"]) == 0
+    assert (f"{steps} steps: success {bands[-1][2]:.1f} % over 12 episodes"
+            in capsys.readouterr().out)
+
+
+def test_the_goal_bands_refuse_a_run_of_another_task():
+    module = load_script(EXPERIMENTS / "pick_and_place_goals.py")
+    with pytest.raises(SystemExit, match="a push run; this splits pick_and_place's goals"):
+        module.episodes_of(RESULTS / "table2" / "push-tqc-seed0", 1, 0)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--episodes", "0"], "argument --episodes: must be a positive integer, got '0'"),
+    (["--seed", "-1"], "argument --seed: must be an integer >= 0, got '-1'"),
+])
+def test_the_goal_bands_name_a_bad_option(args, message):
+    completed = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "pick_and_place_goals.py"), "some-run", *args],
+        capture_output=True, text=True, check=False)
+    assert completed.returncode == 2
+    assert message in completed.stderr
+
+
+def _write_runs(root: pathlib.Path, curves: dict[str, dict[int, float]]) -> None:
+    from franka_composer.training.runs import write_eval_rows
+    for name, curve in curves.items():
+        (root / name).mkdir(parents=True)
+        write_eval_rows(root / name / "eval.csv", [
+            {"steps": steps, "wall_time_s": 1.0, "success_rate": rate, "mean_reward": -1.0}
+            for steps, rate in curve.items()])
+
+
+def test_compare_arms_gives_mean_and_std_over_seeds_at_each_mark_and_over_a_window(tmp_path):
+    _write_runs(tmp_path / "a", {"seed0": {10_000: 0.2, 20_000: 0.4, 30_000: 0.6},
+                                 "seed1": {10_000: 0.4, 20_000: 0.8, 30_000: 1.0}})
+    # A run short of the window's end counts at the marks it reached, not in the window.
+    _write_runs(tmp_path / "b", {"seed0": {10_000: 0.1, 20_000: 0.3, 30_000: 0.5},
+                                 "seed1": {10_000: 0.3}})
+    completed = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "compare_arms.py"), "--arm", "a", str(tmp_path / "a/*"),
+         "--arm", "b", str(tmp_path / "b/*"), "--marks", "10000", "30000",
+         "--window", "20000", "30000"], capture_output=True, text=True, check=True)
+    assert completed.stdout.splitlines() == [
+        "| arm | 10k | 30k | mean 20k–30k |",
+        "|---|---|---|---|",
+        "| a | 30 ± 10 % (n=2) | 80 ± 20 % (n=2) | 70 ± 20 % (n=2) |",
+        "| b | 20 ± 10 % (n=2) | 50 ± 0 % (n=1) | 40 ± 0 % (n=1) |",
+    ]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--arm", "a", "/nowhere/*"], "arm 'a': no run directory matches '/nowhere/*'"),
+    (["--arm", "a", "/nowhere/*", "--window", "5", "1"], "--window: start 5 is after end 1"),
+])
+def test_compare_arms_names_what_was_wrong(args, message):
+    completed = subprocess.run([sys.executable, str(EXPERIMENTS / "compare_arms.py"), *args],
+                               capture_output=True, text=True, check=False)
+    assert completed.returncode != 0
+    assert message in completed.stderr
+
