@@ -2,33 +2,48 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-# Menagerie's Panda: a local copy beside the project when there is no internet.
-export MENAGERIE_ROOT ?= $(abspath ../shared/menagerie)
+# PyTorch's CPU wheels (PyPI's torch is a multi-GB CUDA build); empty: pip's own indexes.
+TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 export OMP_NUM_THREADS ?= 1
 
-.PHONY: setup demo test test-fast bench clean
+# Menagerie's Panda: MENAGERIE_ROOT as the user set it; else mujoco-menagerie's own cache (or
+# its download) when the cache has the Panda or no local copy exists; else the local copy
+# beside the project (machines without internet).
+MENAGERIE_COPY := $(abspath ../shared/menagerie)
+WITH_MENAGERIE = if [ -z "$${MENAGERIE_ROOT:-}" ] && [ -d "$(MENAGERIE_COPY)/franka_emika_panda" ] \
+	&& ! $(BIN)/python -c 'import sys, franka_composer.assets as a; sys.exit(not a.panda_in_cache())' \
+	2>/dev/null; then export MENAGERIE_ROOT="$(MENAGERIE_COPY)"; fi;
 
-# The tested set of packages (constraints.txt) within setup.cfg's ranges; torch first, as
-# the CPU build (an unpinned torch pulls a multi-GB CUDA build).
-$(BIN)/activate:
+.PHONY: setup setup-demo demo test test-fast bench clean
+
+$(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --upgrade pip
-	$(BIN)/pip install -c constraints.txt torch==2.13.0
-	$(BIN)/pip install -c constraints.txt -e ".[test,train]"
 
-setup: $(BIN)/activate
+# What the demo needs: the environments and video writing (no training, datasets or sweeps).
+setup-demo: $(BIN)/python
+	@$(BIN)/python -c "import franka_composer, imageio_ffmpeg" 2>/dev/null \
+	  || $(BIN)/pip install -c constraints.txt -e .
 
-demo: setup
-	$(BIN)/franka-composer demo
+# Everything the tests use, in the tested versions (constraints.txt) within setup.cfg's
+# ranges; torch first, as the CPU build.
+setup: $(BIN)/python
+	@$(BIN)/python -c "import franka_composer, torch, sb3_contrib, sbx, ray, minari, envlogger, pytest" \
+	  2>/dev/null || { \
+	  $(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX)) \
+	  && $(BIN)/pip install -c constraints.txt -e ".[test,train]"; }
+
+demo: setup-demo
+	$(WITH_MENAGERIE) $(BIN)/franka-composer demo
 
 test: setup
-	$(BIN)/python -m pytest -q
+	$(WITH_MENAGERIE) $(BIN)/python -m pytest -q
 
 test-fast: setup
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(WITH_MENAGERIE) $(BIN)/python -m pytest -q -m "not slow"
 
 bench: setup
-	$(BIN)/python benchmarks/bench.py
+	$(WITH_MENAGERIE) $(BIN)/python benchmarks/bench.py
 
 clean:
 	rm -rf $(VENV) demo_output

@@ -23,7 +23,7 @@ import time
 from importlib import metadata
 
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import add_tasks_argument, positive_int
 from franka_composer.tasks import ALL_TASKS
 
 #: Issue 5's targets: (JSON path within a task's result, comparison, bound).
@@ -56,9 +56,8 @@ print(time.perf_counter() - start, resource.getrusage(resource.RUSAGE_SELF).ru_m
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--tasks", nargs="+", default=list(ALL_TASKS), choices=ALL_TASKS,
-                        metavar="TASK", help=f"tasks to measure (default: all of "
-                        f"{', '.join(ALL_TASKS)})")
+    add_tasks_argument(parser, ALL_TASKS,
+                       f"tasks to measure (default: all of {','.join(ALL_TASKS)})")
     parser.add_argument("--steps", type=positive_int, default=3000,
                         help="env steps per measured run: random actions, then the scripted "
                         "expert, each replayed on the bare-MuJoCo floor (default: 3000)")

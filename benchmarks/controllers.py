@@ -12,14 +12,14 @@ from __future__ import annotations
 import argparse
 
 from franka_composer.cli.bench import best_of_rounds
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import add_tasks_argument, positive_int
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=list(ALL_TASKS), choices=ALL_TASKS)
+    add_tasks_argument(parser, ALL_TASKS, "tasks to time (default: all)")
     parser.add_argument("--steps", type=positive_int, default=2000)
     parser.add_argument("--rounds", type=positive_int, default=3)
     args = parser.parse_args(argv)

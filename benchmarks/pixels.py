@@ -15,8 +15,7 @@ import argparse
 import os
 
 from franka_composer.cli.bench import best_of_rounds
-from franka_composer.cli.options import positive_int
-from franka_composer.tasks import ALL_TASKS
+from franka_composer.cli.options import add_tasks_argument, positive_int
 
 SETTINGS = {
     "state": {},
@@ -29,8 +28,8 @@ SETTINGS = {
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=["push", "pick_and_place"],
-                        choices=ALL_TASKS)
+    add_tasks_argument(parser, ("push", "pick_and_place"),
+                       "tasks to time (default: push, pick_and_place)")
     parser.add_argument("--steps", type=positive_int, default=1000)
     parser.add_argument("--rounds", type=positive_int, default=2)
     args = parser.parse_args(argv)

@@ -15,9 +15,8 @@ from __future__ import annotations
 import argparse
 
 from franka_composer.cli.bench import best_of_rounds
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import add_tasks_argument, positive_int
 from franka_composer.randomization import PARAMETERS, PRESETS
-from franka_composer.tasks import ALL_TASKS
 
 DEFAULT = PRESETS["default"]
 
@@ -44,8 +43,8 @@ SETTINGS = {
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tasks", nargs="+", default=["push", "pick_and_place"],
-                        choices=ALL_TASKS)
+    add_tasks_argument(parser, ("push", "pick_and_place"),
+                       "tasks to time (default: push, pick_and_place)")
     parser.add_argument("--steps", type=positive_int, default=1000)
     parser.add_argument("--rounds", type=positive_int, default=3)
     args = parser.parse_args(argv)

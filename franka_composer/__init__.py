@@ -1,7 +1,9 @@
 """franka_composer: goal-conditioned Franka Panda manipulation as a dm_control Composer suite.
 
+Six tasks: push, slide and pick_and_place (the paper's), reach, stack and flip (panda-gym's).
 `load(name)` gives a dm_env environment; importing this package also registers the
-Gymnasium ids `Franka{Push,Slide,PickAndPlace}{Sparse,Dense}-v0`.
+Gymnasium ids `Franka{Push,Slide,PickAndPlace,Reach,Stack,Flip}{Sparse,Dense}-v0`, with `Osc`
+and `Joints` after the task name for the other controllers.
 """
 
 import warnings as _warnings
@@ -21,7 +23,7 @@ from franka_composer.adapters import ENV_IDS, FrankaGoalEnv, register_envs  # no
 from franka_composer.suite import load  # noqa: E402
 from franka_composer.tasks import ALL_TASKS  # noqa: E402
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 register_envs()
 

@@ -32,6 +32,14 @@ def panda_dir() -> pathlib.Path:
         ) from error
 
 
+def panda_in_cache() -> bool:
+    """Whether mujoco-menagerie's own cache already holds the Panda, so that nothing needs
+    downloading and no MENAGERIE_ROOT is needed (the Makefile's test before it sets one)."""
+    import mujoco_menagerie
+
+    return mujoco_menagerie.Cache().is_cached(mujoco_menagerie.get(PANDA_NAME))
+
+
 def panda_xml() -> pathlib.Path:
     """Menagerie's arm-and-hand model file."""
     return panda_dir() / "panda.xml"

@@ -15,7 +15,8 @@ from franka_composer.tasks.layout import layout_for
 
 #: Line width of the page.
 WIDTH = 88
-#: What each version changed, newest last (the ids keep -v0 until a release: see README).
+#: What each version changed, newest last (bumped when a task's dynamics, initial state or
+#: reward changes: docs/guide/quickstart.md, "Ids and their versions").
 VERSION_HISTORY = (
     "v0: this implementation of the paper's tasks on the Menagerie Panda, with contacts "
     "that hold when the hand presses (objects cannot be pressed into the floor or "

@@ -16,7 +16,7 @@ import time
 import gymnasium as gym
 
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import add_tasks_argument, positive_int
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 
@@ -25,9 +25,8 @@ def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "bench", help="a quick speed check of this install: env steps/s and reset time",
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--tasks", nargs="+", default=list(ALL_TASKS), choices=ALL_TASKS,
-                        metavar="TASK", help=f"tasks to time (default: all of "
-                                             f"{', '.join(ALL_TASKS)})")
+    add_tasks_argument(parser, ALL_TASKS,
+                       f"tasks to time (default: all of {','.join(ALL_TASKS)})")
     parser.add_argument("--control", choices=CONTROLS, default="mocap",
                         help="controller to time (default: mocap)")
     parser.add_argument("--steps", type=positive_int, default=2000,

@@ -14,7 +14,8 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import episode_seed, frame_size, output_folder, positive_int
+from franka_composer.cli.options import (add_tasks_argument, episode_seed, frame_size,
+                                         output_folder, positive_int)
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -31,9 +32,8 @@ def add_parser(subparsers) -> None:
                     "trained in RUN_DIR plays instead, on that run's task, controller and "
                     "environment options.",
     )
-    parser.add_argument("--tasks", type=parse_tasks, default=franka_composer.ALL_TASKS,
-                        help="comma-separated tasks to run (default: all of "
-                             f"{','.join(franka_composer.ALL_TASKS)})")
+    add_tasks_argument(parser, franka_composer.ALL_TASKS,
+                       f"tasks to run (default: all of {','.join(franka_composer.ALL_TASKS)})")
     parser.add_argument("--episodes", type=positive_int, default=10,
                         help="episodes per task (default: 10)")
     parser.add_argument("--control", choices=("mocap", "osc"), default=None,
@@ -136,13 +136,3 @@ def format_table(rows: list[tuple]) -> str:
     lines.insert(1, "  ".join("-" * width for width in widths))
     return "\n".join(lines)
 
-
-def parse_tasks(text: str) -> tuple[str, ...]:
-    """Comma-separated task names, checked against `franka_composer.ALL_TASKS`."""
-    tasks = tuple(name.strip() for name in text.split(",") if name.strip())
-    unknown = [name for name in tasks if name not in franka_composer.ALL_TASKS]
-    if unknown or not tasks:
-        raise argparse.ArgumentTypeError(
-            f"unknown task(s) {', '.join(unknown) or '(none given)'}; valid tasks: "
-            f"{', '.join(franka_composer.ALL_TASKS)}")
-    return tasks

@@ -122,3 +122,32 @@ def add_run_dirs(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
                         help="run directories written by `franka-composer train`, or "
                              "sweep directories (every run in them)")
+
+
+def task_names(text: str) -> tuple[str, ...]:
+    """One `--tasks` word: a task name, or several joined by commas (push,slide), each
+    checked against `franka_composer.tasks.ALL_TASKS`."""
+    from franka_composer.tasks import ALL_TASKS
+
+    tasks = tuple(name.strip() for name in text.split(",") if name.strip())
+    unknown = [name for name in tasks if name not in ALL_TASKS]
+    if unknown or not tasks:
+        raise argparse.ArgumentTypeError(
+            f"unknown task(s) {', '.join(unknown) or '(none given)'}; valid tasks: "
+            f"{', '.join(ALL_TASKS)}")
+    return tasks
+
+
+class _JoinTasks(argparse.Action):
+    """Joins the `--tasks` words, each a tuple of names, into one tuple, in order."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, tuple(name for word in values for name in word))
+
+
+def add_tasks_argument(parser: argparse.ArgumentParser, default, help_text: str) -> None:
+    """`--tasks`, one syntax for every subcommand: names separated by spaces, commas or
+    both (`--tasks push slide`, `--tasks push,slide`), as one tuple of task names."""
+    parser.add_argument("--tasks", nargs="+", type=task_names, action=_JoinTasks,
+                        default=default, metavar="TASK[,TASK]",
+                        help=f"{help_text}; names separated by spaces or commas")

@@ -4,7 +4,7 @@ trained policy, as `.npz`, a Minari dataset or an RLDS dataset (`franka_composer
 The `.npz` file holds every episode concatenated (`observation`, `achieved_goal`,
 `desired_goal` with one more row per episode than `action`, `reward`, `is_success`,
 `terminated`, `truncated`) and `episode_length`; `franka_composer.policies.Trajectories.load`
-splits it. Minari and RLDS need the `[data]` extra (README, Datasets).
+splits it. Minari and RLDS need the `[data]` extra (docs/guide/datasets.md).
 """
 
 from __future__ import annotations

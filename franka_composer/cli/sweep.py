@@ -6,8 +6,8 @@ from __future__ import annotations
 import argparse
 import fnmatch
 
-from franka_composer.cli.options import (output_folder, positive_int, positive_seconds,
-                                         training_seed)
+from franka_composer.cli.options import (add_tasks_argument, output_folder, positive_int,
+                                         positive_seconds, training_seed)
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
 
@@ -34,9 +34,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--out", type=output_folder, required=True,
                         help="the sweep's directory: one run directory per cell")
     parser.add_argument("--grid", choices=sorted(GRIDS),
-                        help="a named grid: table2 is the paper's Table II with issue 15's "
+                        help="a named grid: table2 is the paper's Table II with this suite's "
                              "budgets and the early-stopping rule")
-    parser.add_argument("--tasks", nargs="+", choices=ALL_TASKS, metavar="TASK")
+    add_tasks_argument(parser, None, "the grid's tasks (with --algos, --seeds and --steps)")
     parser.add_argument("--algos", nargs="+", choices=ALGOS, metavar="ALGO")
     parser.add_argument("--seeds", nargs="+", type=training_seed, metavar="SEED")
     parser.add_argument("--steps", type=_budgets, metavar="N|TASK=N,...",

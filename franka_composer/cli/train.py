@@ -101,7 +101,7 @@ def add_parser(subparsers) -> None:
                              "multiplied by 0.05 s)")
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
-                             "(default: none); README, Domain randomisation")
+                             "(default: none); docs/guide/randomization.md")
     parser.add_argument("--demos", type=pathlib.Path, default=None, metavar="DATASET",
                         help="fill the replay buffer with these demonstrations before "
                              "learning: a .npz, Minari or RLDS dataset of the same task "

@@ -35,7 +35,7 @@ class Parameter:
       kind: "factor" (scales a nominal value, > 0), "colour" (RGB in [0, 1]), "offset" (a
         3-vector added to a nominal one), "angle" (rad), "steps" (control steps, >= 0), or
         "noise" (added to every reading or action).
-      meaning: what it changes, for the README's table.
+      meaning: what it changes, for the guide's table.
       unit: of a sample.
       per_object: drawn once per object (each object its own), else once per episode.
     """

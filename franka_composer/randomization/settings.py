@@ -97,7 +97,7 @@ class RandomizationSettings:
 
 
 def markdown_table(preset: str = "default") -> str:
-    """The README's table: every parameter, what a sample is and does, the preset's range
+    """The guide's table: every parameter, what a sample is and does, the preset's range
     and why."""
     reasons = PRESET_REASONS[preset]
     lines = [f"| parameter | group | sample | unit | what it does | `{preset}` | why |",

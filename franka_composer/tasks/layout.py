@@ -2,7 +2,7 @@
 
 `layout_for(config)` says what the vector holds (the paper's order); the task enables
 exactly those observables, the Gymnasium adapter flattens observations with it, the
-scripted experts read their fields from it by name, and the README's tables and each id's
+scripted experts read their fields from it by name, and the guide's tables and each id's
 documentation page are generated from it (`markdown_table`, checked by `tests/test_docs.py`).
 No offset into the vector is written anywhere else.
 """
@@ -77,7 +77,7 @@ class ObservationLayout:
         return vector
 
     def markdown_table(self) -> str:
-        """The README's table: index, field name, meaning, unit, frame, Composer observable."""
+        """The guide's table: index, field name, meaning, unit, frame, Composer observable."""
         lines = ["| index | field | meaning | unit | frame | Composer observable |",
                  "|---|---|---|---|---|---|"]
         for field in self.fields:

@@ -1,0 +1,62 @@
+"""The Makefile's MENAGERIE_ROOT: the user's when set; left unset when mujoco-menagerie's
+cache has the Panda or there is no local copy; else the local copy beside the project.
+Run through `make demo` with a stand-in venv whose franka-composer prints what it got."""
+
+from __future__ import annotations
+
+import os
+import pathlib
+import shutil
+import subprocess
+import sys
+
+import mujoco_menagerie
+import pytest
+from mujoco_menagerie._cache import SENTINEL
+
+from franka_composer.assets import PANDA_NAME
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+
+
+def _make_demo(tmp_path: pathlib.Path, cache: pathlib.Path, copy: pathlib.Path,
+               menagerie_root: str | None = None) -> str:
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True, exist_ok=True)
+    python, command = venv / "bin" / "python", venv / "bin" / "franka-composer"
+    python.write_text(f'#!/bin/sh\nexec "{sys.executable}" "$@"\n')
+    command.write_text('#!/bin/sh\necho "MENAGERIE_ROOT=${MENAGERIE_ROOT-unset}"\n')
+    python.chmod(0o755)
+    command.chmod(0o755)
+    env = {key: value for key, value in os.environ.items() if key != "MENAGERIE_ROOT"}
+    env["MENAGERIE_CACHE_DIR"] = str(cache)
+    if menagerie_root is not None:
+        env["MENAGERIE_ROOT"] = menagerie_root
+    completed = subprocess.run(
+        ["make", "-s", "-C", str(REPO), "demo", f"VENV={venv}", f"MENAGERIE_COPY={copy}"],
+        env=env, capture_output=True, text=True, check=True, timeout=120)
+    return completed.stdout.strip().splitlines()[-1]
+
+
+@pytest.fixture
+def copy(tmp_path):
+    (tmp_path / "copy" / PANDA_NAME).mkdir(parents=True)
+    return tmp_path / "copy"
+
+
+def test_the_users_menagerie_root_is_kept(tmp_path, copy):
+    assert _make_demo(tmp_path, tmp_path / "cache", copy, "/mine") == "MENAGERIE_ROOT=/mine"
+
+
+def test_without_one_and_without_the_panda_cached_the_local_copy_is_used(tmp_path, copy):
+    assert _make_demo(tmp_path, tmp_path / "cache", copy) == f"MENAGERIE_ROOT={copy}"
+
+
+def test_a_cached_panda_or_no_local_copy_leaves_it_unset(tmp_path, copy, monkeypatch):
+    assert _make_demo(tmp_path, tmp_path / "cache", tmp_path / "none") == "MENAGERIE_ROOT=unset"
+    monkeypatch.setenv("MENAGERIE_CACHE_DIR", str(tmp_path / "cache"))
+    published = mujoco_menagerie.Cache().model_path(mujoco_menagerie.get(PANDA_NAME))
+    published.mkdir(parents=True)
+    (published / SENTINEL).touch()
+    assert _make_demo(tmp_path, tmp_path / "cache", copy) == "MENAGERIE_ROOT=unset"
