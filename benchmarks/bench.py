@@ -1,4 +1,4 @@
-"""Every speed and memory figure of `BENCHMARKS.md`, as a table and a JSON file.
+"""Every speed and memory figure of docs/guide/benchmarks.md, as a table and a JSON file.
 
     python benchmarks/bench.py                    # every task (make bench)
     python benchmarks/bench.py --tasks push --steps 200 --skip-render --vector-workers

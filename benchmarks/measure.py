@@ -1,7 +1,7 @@
 """Measures one task's speed through `gym.make`, beside the bare-MuJoCo baseline of its model.
 
-Users compare suites by env steps per second (see `BENCHMARKS.md`), so everything here goes
-through `gym.make(id)` with its default wrappers. The floor is the same compiled model,
+Users compare suites by env steps per second (docs/guide/benchmarks.md), so everything here
+goes through `gym.make(id)` with its default wrappers. The floor is the same compiled model,
 started from the same states and driven by the same actions through the same control law in
 a plain `mujoco.mj_step(model, data, nstep)` loop: the ratio of the two is what Composer and
 the adapter cost on top of the physics. `benchmarks/bench.py` runs `measure_task` once per

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Whether this tree trains as older ones do (the trees a campaign's cells ran on, RESULTS.md),
+# Whether this tree trains as older ones do (the trees a campaign's cells ran on:
+# docs/experiments/table2-campaign.md),
 # at any settings: the same `train` run with this tree and with each older tree on
 # PYTHONPATH; their eval.csv (less wall times) and the actor in policy.pt must be identical.
 #

@@ -6,8 +6,8 @@ dm_control, first sets `MUJOCO_GL=egl` (a GPU's EGL, or Mesa's software EGL) whe
 user nor a display has chosen: frames render headless out of the box. A `MUJOCO_GL`,
 `DISPLAY` or `WAYLAND_DISPLAY` the user set is left alone (`osmesa` with Debian's
 `libosmesa6` where EGL is missing). dm_control's EGL backend opens its display at import,
-~55 MB in every process (BENCHMARKS.md); a process that never renders can avoid it with
-`MUJOCO_GL=disable`.
+~55 MB in every process (docs/guide/benchmarks.md); a process that never renders can avoid
+it with `MUJOCO_GL=disable`.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Env steps per second through `gym.make` (its default wrappers) under seeded random actions,
 resets included, and the median time of a reset, each task in this process. The full
-benchmark behind BENCHMARKS.md (the bare-MuJoCo baseline, scripted experts, cold start,
+benchmark behind docs/guide/benchmarks.md (the bare-MuJoCo baseline, scripted experts, cold start,
 rendering, vector envs, memory per env) is `python benchmarks/bench.py` in a source
 checkout.
 """

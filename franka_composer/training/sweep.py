@@ -67,10 +67,10 @@ def _repeated(values) -> list[str]:
 #: [256]^3 and batch 512 instead of Table I's [512]^3 and 2048 (~6x the cost per step on a
 #: CPU): the one deviation of the networks, stated with the results. How each algorithm's
 #: networks are computed is the fastest way that learned as SB3 in fp32 (the paper's) does,
-#: 3 seeds to 1e5 steps on push (RESULTS.md): SAC's gradient steps in bf16 (2x fp32's
-#: speed here); TQC on sbx in fp32 (1.5x SB3-bf16's), because TQC in bf16 learned slower
-#: than in fp32; DDPG, not checked in bf16, as the paper computed it. Cells in the order
-#: they are run.
+#: 3 seeds to 1e5 steps on push (docs/experiments/computation-checks.md): SAC's gradient
+#: steps in bf16 (2x fp32's speed here); TQC on sbx in fp32 (1.5x SB3-bf16's), because TQC
+#: in bf16 learned slower than in fp32; DDPG, not checked in bf16, as the paper computed it.
+#: Cells in the order they are run.
 _SAC = ("--precision", "bf16")
 _TQC = ("--backend", "sbx")
 _DDPG = ()

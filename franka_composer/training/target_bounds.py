@@ -6,7 +6,7 @@ return lies in [-1/(1-gamma), 0], so a target critic value outside that range is
 critic's error, not something to learn from. Bootstrapping from such values lets a critic
 that extrapolates feed on itself without bound: SAC with expert demonstrations in its
 replay buffer did on pick_and_place, its values rising to 2e5-4e5 within 4k steps
-(RESULTS.md, issue 17). OpenAI baselines' HER clips its TD targets to this range
+(docs/experiments/demonstrations.md). OpenAI baselines' HER clips its TD targets to this range
 (`clip_return`); SB3 has no such bound. Here the target critic's outputs are clamped to
 it, so SB3 forms r + gamma (1 - done) (clamp(Q') - alpha log pi') for SAC and TQC (each
 quantile clamped) and r + gamma (1 - done) clamp(Q') for DDPG.
