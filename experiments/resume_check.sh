@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Whether a run stopped by SIGTERM and resumed ends as the uninterrupted run does (docs/guide/training.md,
-# `train --resume`), at any settings: the same `train` twice, one stopped once its
+# Whether a run stopped by SIGTERM and resumed ends as the uninterrupted run does
+# (docs/guide/training.md, `train --resume`), at any settings: the same `train` twice, one stopped once its
 # evaluation at STOP_AT steps is written, then resumed; their eval.csv (less wall times)
 # and the actor in policy.pt must be identical.
 #
