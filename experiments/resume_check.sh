@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Whether a run stopped by SIGTERM and resumed ends as the uninterrupted run does
-# (docs/guide/training.md, `train --resume`), at any settings: the same `train` twice, one stopped once its
-# evaluation at STOP_AT steps is written, then resumed; their eval.csv (less wall times)
-# and the actor in policy.pt must be identical.
+# (docs/guide/training.md, `train --resume`), at any settings: the same `train` twice, one
+# stopped once its evaluation at STOP_AT steps is written, then resumed; their eval.csv
+# (less wall times) and the actor in policy.pt must be identical.
 #
 #   experiments/resume_check.sh [train options]       (default: push, SAC in bf16, Table I,
 #                                                     1500 steps, evaluated every 200)
