@@ -185,3 +185,18 @@ def test_rgb_array_frames_render_at_the_reference_timing():
     env.step(np.ones(3, np.float32))
     frame = env.render()
     assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8 and frame.std() > 5
+
+
+def test_each_env_page_says_its_timing_and_how_to_get_the_reference_codes():
+    from franka_composer.adapters.pages import page
+
+    default = " ".join(page(task_config("slide"), ("FrankaSlideSparse-v0",)).split())
+    assert ("Timing 0.05 s of physics per step (25 MuJoCo steps of 2 ms); velocities as "
+            "displacements per 0.05 s.") in default
+    assert 'timing="reference" reproduces it (0.5 s per step, velocities multiplied by ' \
+           "0.05 s)" in default
+    reference = " ".join(page(task_config("slide", timing="reference"), ()).split())
+    assert ("0.5 s of physics per step (250 MuJoCo steps of 2 ms); velocities as "
+            "displacements per 0.05 s.") in reference
+    assert "Timing 0.05 s of physics" in " ".join(
+        gym.make("FrankaSlideSparse-v0").unwrapped.__doc__.split())
