@@ -8,7 +8,10 @@ alone builds the whole site.
 from __future__ import annotations
 
 import pathlib
+import re
 import sys
+
+from sphinx import addnodes
 
 DOCS = pathlib.Path(__file__).resolve().parent
 sys.path[:0] = [str(DOCS.parent), str(DOCS / "_scripts")]
@@ -54,5 +57,28 @@ def _write_task_pages(app) -> None:
     gen_task_pages.write_pages()
 
 
+def included_root_files() -> dict[pathlib.Path, str]:
+    """The repository's own Markdown files that a page of the site includes whole
+    (`changelog.md` is CHANGELOG.md), as {the file without its suffix: that page}."""
+    pages = {}
+    for page in DOCS.glob("*.md"):
+        included = re.match(r"```\{include\} \.\./(\S+)\.md\n", page.read_text())
+        if included:
+            pages[DOCS.parent / included.group(1)] = page.stem
+    return pages
+
+
+def _link_root_files_to_their_pages(app, doctree) -> None:
+    """A page's link to a repository file the site includes (`../../RESULTS.md`, right on
+    GitHub) goes to the page that includes it."""
+    pages = included_root_files()
+    for xref in doctree.findall(addnodes.pending_xref):
+        if xref.get("reftype") == "myst" and xref.get("refdomain") == "doc":
+            target = pathlib.Path(app.srcdir, xref["reftarget"]).resolve()
+            if target in pages:
+                xref["reftarget"] = pages[target]
+
+
 def setup(app) -> None:
     app.connect("builder-inited", _write_task_pages)
+    app.connect("doctree-read", _link_root_files_to_their_pages)

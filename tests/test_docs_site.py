@@ -71,3 +71,29 @@ def test_the_tasks_index_links_every_task_page():
     assert toctree.splitlines() == list(franka_composer.ALL_TASKS)
     for task in franka_composer.ALL_TASKS:
         assert f"[{gen_task_pages.title(task)}]({task}.md)" in index
+
+
+def _conf():
+    spec = importlib.util.spec_from_file_location("docs_conf", REPO / "docs" / "conf.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_links_to_the_repositorys_included_files_go_to_their_pages():
+    """`[results](../../RESULTS.md)` in docs/experiments/ is right on GitHub; on the site it
+    goes to results.html, the page that includes RESULTS.md (likewise CHANGELOG.md)."""
+    from types import SimpleNamespace
+
+    from docutils import nodes
+    from sphinx import addnodes
+
+    conf = _conf()
+    assert conf.included_root_files() == {REPO / "CHANGELOG": "changelog",
+                                          REPO / "RESULTS": "results"}
+    doctree = nodes.document(None, None)
+    for target in (str(REPO / "RESULTS"), "../CHANGELOG", "guide/quickstart"):
+        doctree += addnodes.pending_xref(refdomain="doc", reftype="myst", reftarget=target)
+    conf._link_root_files_to_their_pages(SimpleNamespace(srcdir=str(REPO / "docs")), doctree)
+    assert [xref["reftarget"] for xref in doctree.findall(addnodes.pending_xref)] == [
+        "results", "changelog", "guide/quickstart"]
