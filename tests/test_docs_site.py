@@ -20,14 +20,15 @@ SCRIPTS = REPO / "docs" / "_scripts"
 MARKUP = {"##", "```python", "```"}
 
 
-def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
+def _load(path: pathlib.Path):
+    """The module in `path` (the docs' scripts and conf.py are not a package)."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-gen_task_pages = _script("gen_task_pages")
+gen_task_pages = _load(SCRIPTS / "gen_task_pages.py")
 
 
 @pytest.mark.parametrize("task", franka_composer.ALL_TASKS)
@@ -73,13 +74,6 @@ def test_the_tasks_index_links_every_task_page():
         assert f"[{gen_task_pages.title(task)}]({task}.md)" in index
 
 
-def _conf():
-    spec = importlib.util.spec_from_file_location("docs_conf", REPO / "docs" / "conf.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_links_to_the_repositorys_included_files_go_to_their_pages():
     """`[results](../../RESULTS.md)` in docs/experiments/ is right on GitHub; on the site it
     goes to results.html, the page that includes RESULTS.md (likewise CHANGELOG.md)."""
@@ -88,7 +82,7 @@ def test_links_to_the_repositorys_included_files_go_to_their_pages():
     from docutils import nodes
     from sphinx import addnodes
 
-    conf = _conf()
+    conf = _load(REPO / "docs" / "conf.py")
     assert conf.included_root_files() == {REPO / "CHANGELOG": "changelog",
                                           REPO / "RESULTS": "results"}
     doctree = nodes.document(None, None)
