@@ -82,7 +82,7 @@ def task_page(task: str) -> str:
 def index_page() -> str:
     """The tasks' index: a table of every task (first frame, description, ids) and the
     toctree of their pages."""
-    rows = ["| task | first frame | what the expert does | Gymnasium ids |", "|---|---|---|---|"]
+    rows = ["| task | first frame | what it asks | Gymnasium ids |", "|---|---|---|---|"]
     for task, config in TASK_CONFIGS.items():
         description = re.sub(r"\s+", " ", config.description).strip()
         ids = ", ".join(f"`{id_}`" for id_ in franka_composer.ENV_IDS
