@@ -74,8 +74,8 @@ def task_page(task: str) -> str:
             f"```{{image}} {STATIC}/{task}.gif\n:alt: One episode of the {title(task).lower()} "
             f"task's scripted expert\n:width: 240px\n```\n\n"
             f"One episode of the scripted expert (`franka-composer demo --tasks {task}`). "
-            f"This page is the docstring of `{cls.__module__}.{cls.__name__}`: "
-            f"`help(gym.make(\"{sparse}\").unwrapped)` prints the same text.\n\n"
+            f"The rest of this page is the docstring of `{cls.__module__}.{cls.__name__}`, "
+            f"which `help(gym.make(\"{sparse}\").unwrapped)` shows.\n\n"
             + markdown(cls.__doc__))
 
 
