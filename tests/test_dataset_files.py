@@ -211,3 +211,28 @@ def test_a_custom_randomisation_is_kept_readably_or_refused_before_recording(tmp
     with zipfile.ZipFile(tmp_path / "custom.npz") as archive:
         assert "metadata.npy" in archive.namelist()
     assert json.loads(np.load(tmp_path / "custom.npz")["metadata"].item())["task"] == "push"
+
+
+def test_a_minari_recording_that_fails_leaves_nothing_behind(tmp_path, monkeypatch):
+    """Minari's collector keeps the episodes in a temporary folder until the end: a run that
+    fails on the way removes it, and the dataset folder it made."""
+    import gymnasium as gym
+
+    from franka_composer.adapters.registration import env_id
+    from franka_composer.datasets import minari_format
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari-home"))
+    env = gym.make(env_id("push", "sparse"))
+    steps = []
+
+    def failing_policy(obs):
+        steps.append(obs)
+        if len(steps) == 60:  # In the second episode.
+            raise RuntimeError("the policy failed")
+        return env.action_space.sample()
+
+    with pytest.raises(RuntimeError, match="the policy failed"):
+        minari_format.write(env, failing_policy, 3, 0, tmp_path / "out",
+                            "franka_composer/push/expert-v0", "a test")
+    env.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

@@ -48,7 +48,7 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     root.mkdir(parents=True, exist_ok=True)
     with datasets_root(root):
         collector = minari.DataCollector(env, record_infos=True)
-    successes = 0
+    successes, finished = 0, False
     try:
         for index in range(episodes):
             if hasattr(policy, "reset"):
@@ -68,11 +68,11 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
                 dataset_id=dataset_id, eval_env=env.spec, algorithm_name=description,
                 description=f"{description}; made by franka_composer {_version()}",
                 author="franka_composer")
-    except BaseException:
-        shutil.rmtree(root if made_root else root / dataset_id, ignore_errors=True)
-        raise
+        finished = True
     finally:
         collector.close()
+        if not finished:
+            shutil.rmtree(root if made_root else root / dataset_id, ignore_errors=True)
     return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
             "success_rate": successes / episodes}
 
