@@ -3,8 +3,10 @@ trained policy, as `.npz`, a Minari dataset or an RLDS dataset (`franka_composer
 
 The `.npz` file holds every episode concatenated (`observation`, `achieved_goal`,
 `desired_goal` with one more row per episode than `action`, `reward`, `is_success`,
-`terminated`, `truncated`) and `episode_length`; `franka_composer.policies.Trajectories.load`
-splits it. Minari and RLDS need the `[data]` extra (README, Datasets).
+`terminated`, `truncated`), `episode_length` and `metadata` (what it was recorded with: task,
+control, reward type, options); `franka_composer.policies.Trajectories.load` checks and
+splits it (`franka_composer.datasets.npz_format`). Minari and RLDS need the `[data]` extra
+(README, Datasets).
 """
 
 from __future__ import annotations

@@ -246,6 +246,28 @@ def run_config(args: argparse.Namespace):
 
 
 
+def check_new_run(args: argparse.Namespace):
+    """The run these `train` arguments start, once everything that would refuse it has been
+    found out, before its directory exists: a missing sbx, --device cuda without CUDA, a
+    replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
+    each cell's options with it before Ray starts."""
+    from franka_composer.tasks import TASK_CONFIGS
+    from franka_composer.training.models import algorithm_class, resolve_device
+
+    settings = with_defaults(args)
+    algorithm_class(settings.algo, settings.backend)
+    resolve_device(args.device)
+    config = run_config(args)
+    hp = config.hyperparameters
+    episode = TASK_CONFIGS[config.task].max_episode_steps
+    if hp.buffer_size < episode:
+        raise ValueError(f"--buffer-size {hp.buffer_size} is smaller than one {config.task} "
+                         f"episode ({episode} steps): HER stores whole episodes (Table I: "
+                         "1e6)")
+    _check_demos(settings, hp.buffer_size, args.total_steps or hp.total_steps)
+    return config
+
+
 def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
     """A resumed run goes on with its own settings: an option given with --resume that says
     otherwise is refused, not ignored (one that agrees, such as the --task that names the
@@ -270,7 +292,6 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training import loop
-    from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunDir
 
     settings = with_defaults(args)
@@ -281,12 +302,7 @@ def run(args: argparse.Namespace) -> int:
         _check_resumed_as_given(args, run_dir)
         run_dir.recover_checkpoint()
     else:
-        # A missing sbx fails before the run exists.
-        algorithm_class(settings.algo, settings.backend)
-        config = run_config(args)
-        _check_demos(settings, config.hyperparameters.buffer_size,
-                     args.total_steps or config.hyperparameters.total_steps)
-        run_dir = loop.start(out, config)
+        run_dir = loop.start(out, check_new_run(args))
     threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
