@@ -42,6 +42,13 @@ test: setup
 test-fast: setup
 	$(WITH_MENAGERIE) $(BIN)/python -m pytest -q -m "not slow"
 
+# The documentation site, warnings as errors, into docs/_build/html (docs/_scripts/screenshots.sh
+# then shows it in a headless browser).
+.PHONY: docs
+docs: setup
+	$(BIN)/pip install -c constraints.txt -e ".[docs]"
+	$(BIN)/sphinx-build -W --keep-going -b html docs docs/_build/html
+
 bench: setup
 	$(WITH_MENAGERIE) $(BIN)/python benchmarks/bench.py
 

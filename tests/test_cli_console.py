@@ -42,3 +42,10 @@ def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
         "to a folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when "
         "offline.")
     assert not out.exists()  # No empty video folder left behind.
+
+
+def test_version_prints_the_package_version():
+    from franka_composer import __version__
+
+    result = franka_composer("--version", stdout=subprocess.PIPE)
+    assert (result.returncode, result.stdout) == (0, f"franka-composer {__version__}\n")

@@ -114,6 +114,17 @@ def test_rollout_records_at_the_control_timestep_it_is_given(tmp_path):
     assert not (tmp_path / "x.npz").exists()
 
 
+def test_rollout_records_at_the_reference_timing(tmp_path):
+    assert main(["rollout", "--task", "push", "--episodes", "1", "--timing", "reference",
+                 "--format", "rlds", "--out", str(tmp_path / "reference")]) == 0
+    assert rlds_format.read(tmp_path / "reference")["metadata"]["options"] == {
+        "control_timestep": 0.5, "velocity_timestep": 0.05}
+    with pytest.raises(ValueError, match="give --timing or --control-timestep, not both"):
+        main(["rollout", "--task", "push", "--timing", "reference", "--control-timestep",
+              "0.5", "--out", str(tmp_path / "x.npz")])
+    assert not (tmp_path / "x.npz").exists()
+
+
 @pytest.mark.parametrize("argv, message", [
     (["--format", "parquet"], "invalid choice: 'parquet'"),
     (["--action-noise", "-0.1"], "must be a standard deviation >= 0, got '-0.1'"),

@@ -926,6 +926,35 @@ def test_a_run_trains_and_is_evaluated_at_its_own_control_timestep(tmp_path, cap
         assert not (tmp_path / "bad").exists()
 
 
+def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, capsys):
+    """--timing reference: config.json holds 0.5 s per step and velocities per 0.05 s, the
+    variant says "reference timing", evaluation's env is made so, a resume that says another
+    timing is refused naming --timing, and a policy will not act at another timing."""
+    from franka_composer.datasets.sources import TrainedPolicy
+    from franka_composer.training.policy_file import trained_on_its_task
+
+    out = tmp_path / "reference"
+    assert _train(out, "sac", 100, "--timing", "reference") == 0
+    config = RunDir(out).read_config()
+    assert config.variant.endswith(", reference timing")
+    saved = json.loads(RunDir(out).config_path.read_text())
+    assert (saved["control_timestep"], saved["velocity_timestep"]) == (0.5, 0.05)
+    with trained_on_its_task(out, device="cpu") as (_, env, _policy):
+        assert env.unwrapped.task.config.control_timestep == 0.5
+        assert env.unwrapped.task.config.velocity_timestep == 0.05
+    with pytest.raises(ValueError, match="--resume goes on with the run's own settings, and "
+                                         ".* has control_timestep 0.5, not --timing's 0.05; "
+                                         "velocity_timestep 0.05, not --timing's None"):
+        _train(out, "sac", 200, "--resume", "--timing", "default")
+    with pytest.raises(ValueError, match="observes velocities per 0.05 s, not per 0.5 s"):
+        TrainedPolicy(out, make_env("push", control_timestep=0.5))
+    with pytest.raises(ValueError, match="--timing sets the control timestep: give --timing "
+                                         "or --control-timestep, not both"):
+        _train(tmp_path / "both", "sac", 100, "--timing", "reference",
+               "--control-timestep", "0.5")
+    assert not (tmp_path / "both").exists()
+
+
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])
 def test_a_seed_sb3_cannot_take_is_refused_before_the_run_exists(tmp_path, capsys, seed):
     """SB3 seeds NumPy with the seed plus the evaluation offset (and plus the steps on a
@@ -981,10 +1010,9 @@ def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
     record("slide", 1, tmp_path / "slide", format="minari", seed=0)
     record("push", 1, tmp_path / "dense-rlds", format="rlds", seed=0, reward_type="dense")
     for extra, message in (
-            (["--demos", str(tmp_path / "dense.npz")], "holds rewards other than the sparse "
-                                                       "[-1.0, 0.0] that training uses "
-                                                       "(episode 0; recorded with "
-                                                       "--reward-type dense?)"),
+            (["--demos", str(tmp_path / "dense.npz")], "was recorded with dense rewards, not "
+                                                       "the sparse [-1.0, 0.0] that "
+                                                       "training uses"),
             (["--demos", str(tmp_path / "dense-rlds")], "was recorded with dense rewards, not "
                                                         "the sparse [-1.0, 0.0] that "
                                                         "training uses"),
@@ -992,8 +1020,8 @@ def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
                                                  "run trains through mocap"),
             (["--demos", str(tmp_path / "slide" / "franka_composer" / "slide" / "expert-v0")],
              "holds demonstrations of slide, not push"),
-            (["--demos", str(tmp_path / "pnp.npz")], "holds observation of shape (19,), but "
-                                                     "this task's is (18,)"),
+            (["--demos", str(tmp_path / "pnp.npz")], "holds demonstrations of pick_and_place, "
+                                                     "not push"),
             (["--demos", str(tmp_path / "push.npz"), "--demo-episodes", "3"],
              "--demo-episodes 3, but"),
             (["--demo-episodes", "2"], "--demo-episodes takes the first episodes of --demos"),

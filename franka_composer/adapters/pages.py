@@ -71,6 +71,19 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             "terminate_on_success is True (the paper's default; False gives Fetch "
             "semantics, for which HER relabelling is exact), or if the physics diverges "
             "(with a warning)."]),
+        ("Timing", [
+            f"{config.control_timestep:g} s of physics per step "
+            f"({round(config.control_timestep / config.physics.timestep)} MuJoCo steps of "
+            f"{config.physics.timestep * 1000:g} ms); velocities as displacements per "
+            f"{config.velocity_period:g} s. The paper's reference code (panda_mujoco_gym) "
+            "runs 0.5 s of physics per step (ten mj_step calls of 25 steps) while its dt "
+            "says 0.05 s, so each action lands with the arm at rest on its target: "
+            'timing="reference" reproduces it (0.5 s per step, velocities multiplied by 0.05 '
+            's); timing="default" is 0.05 s with velocities per step. The action law and '
+            "the observation layout are those above at either timing; what differs from "
+            "the reference code at both is Menagerie's Panda, a stiffer mocap weld, the "
+            "guard that keeps the hand's target out of the floor, and the contact "
+            "parameters."]),
         ("Arguments", [
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',

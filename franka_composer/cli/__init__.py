@@ -12,6 +12,7 @@ import os
 import signal
 import sys
 
+from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
 
 #: Subcommand modules, in the order `--help` lists them.
@@ -24,6 +25,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="franka-composer",
         description="Goal-conditioned Franka Panda manipulation (dm_control Composer suite).",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:
         importlib.import_module(f"franka_composer.cli.{name}").add_parser(subparsers)

@@ -151,3 +151,30 @@ def add_tasks_argument(parser: argparse.ArgumentParser, default, help_text: str)
     parser.add_argument("--tasks", nargs="+", type=task_names, action=_JoinTasks,
                         default=default, metavar="TASK[,TASK]",
                         help=f"{help_text}; names separated by spaces or commas")
+
+
+def add_timing(parser: argparse.ArgumentParser, control_timestep_help: str) -> None:
+    """--control-timestep SECONDS and --timing NAME (`tasks.config.TIMINGS`), one or the
+    other; `timing_options` reads them."""
+    from franka_composer.tasks.config import TIMINGS
+
+    parser.add_argument("--control-timestep", type=number, default=None, metavar="SECONDS",
+                        help=control_timestep_help)
+    parser.add_argument("--timing", choices=tuple(TIMINGS), default=None,
+                        help="a named timing instead of --control-timestep: 'default' "
+                             "(0.05 s of physics per step, velocities per step) or "
+                             "'reference' (what the paper's code runs: 0.5 s of physics per "
+                             "step, velocities multiplied by 0.05 s)")
+
+
+def timing_options(args: argparse.Namespace) -> dict:
+    """`control_timestep` and `velocity_timestep` from --timing or --control-timestep
+    (None: the task's); both given is refused."""
+    from franka_composer.tasks.config import TIMINGS
+
+    if args.timing is None:
+        return {"control_timestep": args.control_timestep, "velocity_timestep": None}
+    if args.control_timestep is not None:
+        raise ValueError("--timing sets the control timestep: give --timing or "
+                         "--control-timestep, not both")
+    return dict(TIMINGS[args.timing])

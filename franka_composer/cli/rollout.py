@@ -3,8 +3,10 @@ trained policy, as `.npz`, a Minari dataset or an RLDS dataset (`franka_composer
 
 The `.npz` file holds every episode concatenated (`observation`, `achieved_goal`,
 `desired_goal` with one more row per episode than `action`, `reward`, `is_success`,
-`terminated`, `truncated`) and `episode_length`; `franka_composer.policies.Trajectories.load`
-splits it. Minari and RLDS need the `[data]` extra (docs/guide/datasets.md).
+`terminated`, `truncated`), `episode_length` and `metadata` (what it was recorded with: task,
+control, reward type, options); `franka_composer.policies.Trajectories.load` checks and
+splits it (`franka_composer.datasets.npz_format`). Minari and RLDS need the `[data]` extra
+(docs/guide/datasets.md).
 """
 
 from __future__ import annotations
@@ -13,8 +15,8 @@ import argparse
 import pathlib
 
 import franka_composer
-from franka_composer.cli.options import (episode_seed, number, positive_int,
-                                         standard_deviation)
+from franka_composer.cli.options import (add_timing, episode_seed, positive_int,
+                                         standard_deviation, timing_options)
 from franka_composer.controllers import CONTROLS
 
 
@@ -37,10 +39,9 @@ def add_parser(subparsers) -> None:
                         help="npz (default), minari or rlds")
     parser.add_argument("--control", choices=CONTROLS, default="mocap",
                         help="the controller (default: mocap; the experts take mocap and osc)")
-    parser.add_argument("--control-timestep", type=number, default=None, metavar="SECONDS",
-                        help="physics seconds per step (default: the task's, 0.05); a "
-                             "--policy acts at the period it trained at (train "
-                             "--control-timestep), and another is refused")
+    add_timing(parser, "physics seconds per step (default: the task's, 0.05); a --policy "
+                       "acts at the timing it trained at (train --control-timestep or "
+                       "--timing), and another is refused")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="act with the policy trained in this run directory instead of "
                              "the scripted expert")
@@ -58,8 +59,8 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
-    task_options = ({} if args.control_timestep is None
-                    else {"control_timestep": args.control_timestep})
+    task_options = {name: value for name, value in timing_options(args).items()
+                    if value is not None}
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,

@@ -128,19 +128,41 @@ def _check_trained_as(run, config) -> None:
                          "--out")
 
 
-def cell_config(cell, out, train_args: tuple[str, ...]):
-    """The run (`RunConfig`) the sweep trains as `cell` under `out` with `train_args`, its
-    options read by train's own parser."""
+def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace:
+    """The `train` arguments of `cell` under `out` with `train_args`, read by train's own
+    parser."""
     from franka_composer.cli import build_parser
-    from franka_composer.cli.train import run_config
     from franka_composer.training.sweep import train_command
 
-    return run_config(build_parser().parse_args(train_command(cell, out, train_args)[3:]))
+    return build_parser().parse_args(train_command(cell, out, train_args)[3:])
+
+
+def cell_config(cell, out, train_args: tuple[str, ...]):
+    """The run (`RunConfig`) the sweep trains as `cell` under `out` with `train_args`."""
+    from franka_composer.cli.train import run_config
+
+    return run_config(cell_arguments(cell, out, train_args))
+
+
+def check_cells(cells, out, train_args: tuple[str, ...]) -> None:
+    """What `train` would refuse of any cell (`train.check_new_run`: its options, sbx, the
+    device, the buffer, --demos), and a cell trained before as another run, found out
+    before Ray starts. Cells that differ only in seed and directory are checked once (a
+    --demos dataset is loaded once per task and algorithm, not once per seed)."""
+    from franka_composer.cli.train import check_new_run, run_config
+    from franka_composer.training.runs import RunDir
+
+    checked = set()
+    for cell in cells:
+        args = cell_arguments(cell, out, train_args)
+        alike = repr(sorted((name, value) for name, value in vars(args).items()
+                            if name not in ("seed", "out", "func")))
+        config = run_config(args) if alike in checked else check_new_run(args)
+        checked.add(alike)
+        _check_trained_as(RunDir(out / cell.name), config)
 
 
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training.models import algorithm_class
-    from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import (cell_status, run_sweep, status_table,
                                                 sync_cell)
 
@@ -162,12 +184,7 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise ValueError("franka-composer sweep runs its cells on Ray: pip install "
                          "'franka_composer[sweep]' (or pip install ray)") from error
-    for cell in cells:  # Every cell's options are checked by train's own parser first,
-        # its library must be there (sbx is an extra), and a cell trained before must be
-        # the run the grid describes.
-        config = cell_config(cell, args.out, train_args)
-        algorithm_class(config.algo, config.backend)
-        _check_trained_as(RunDir(args.out / cell.name), config)
+    check_cells(cells, args.out, train_args)
     try:
         statuses = run_sweep(cells, args.out, train_args, address=args.address,
                              num_cpus=args.num_cpus, refresh_s=args.refresh,

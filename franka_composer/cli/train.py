@@ -7,12 +7,12 @@ import contextlib
 import os
 import pathlib
 
-from franka_composer.cli.options import (non_negative_int, number, output_folder,
-                                         positive_int, training_seed)
+from franka_composer.cli.options import (add_timing, non_negative_int, number,
+                                         output_folder, positive_int, timing_options,
+                                         training_seed)
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
-from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
@@ -89,16 +89,10 @@ def add_parser(subparsers) -> None:
                         help="learning algorithm (default: tqc)")
     parser.add_argument("--control", choices=CONTROLS, default=None,
                         help="how actions move the arm (default: mocap, the paper's)")
-    parser.add_argument("--control-timestep", type=number, default=None, metavar="SECONDS",
-                        help="physics seconds per step, a whole number of 2 ms physics "
-                             "steps (default: the task's, 0.05); 0.5 is what the paper's "
-                             "code ran (10 x its stated 0.05 s: the arm at rest after "
-                             "each action); --timing reference is all of that code's timing")
-    parser.add_argument("--timing", choices=tuple(TIMINGS), default=None,
-                        help="a named timing instead of --control-timestep: 'default' "
-                             "(0.05 s per step, velocities per step) or 'reference' (what "
-                             "the paper's code runs: 0.5 s of physics per step, velocities "
-                             "multiplied by 0.05 s)")
+    add_timing(parser, "physics seconds per step, a whole number of 2 ms physics steps "
+                       "(default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
+                       "its stated 0.05 s: the arm at rest after each action); --timing "
+                       "reference is all of that code's timing")
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
                              "(default: none); docs/guide/randomization.md")
@@ -251,15 +245,27 @@ def run_config(args: argparse.Namespace):
                      **timing_options(args))
 
 
-def timing_options(args: argparse.Namespace) -> dict:
-    """`control_timestep` and `velocity_timestep` from --timing or --control-timestep
-    (None: the task's); both given is refused."""
-    if args.timing is None:
-        return {"control_timestep": args.control_timestep, "velocity_timestep": None}
-    if args.control_timestep is not None:
-        raise ValueError("--timing sets the control timestep: give --timing or "
-                         "--control-timestep, not both")
-    return dict(TIMINGS[args.timing])
+
+def check_new_run(args: argparse.Namespace):
+    """The run these `train` arguments start, once everything that would refuse it has been
+    found out, before its directory exists: a missing sbx, --device cuda without CUDA, a
+    replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
+    each cell's options with it before Ray starts."""
+    from franka_composer.tasks import TASK_CONFIGS
+    from franka_composer.training.models import algorithm_class, resolve_device
+
+    settings = with_defaults(args)
+    algorithm_class(settings.algo, settings.backend)
+    resolve_device(args.device)
+    config = run_config(args)
+    hp = config.hyperparameters
+    episode = TASK_CONFIGS[config.task].max_episode_steps
+    if hp.buffer_size < episode:
+        raise ValueError(f"--buffer-size {hp.buffer_size} is smaller than one {config.task} "
+                         f"episode ({episode} steps): HER stores whole episodes (Table I: "
+                         "1e6)")
+    _check_demos(settings, hp.buffer_size, args.total_steps or hp.total_steps)
+    return config
 
 
 def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
@@ -286,7 +292,6 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training import loop
-    from franka_composer.training.models import algorithm_class
     from franka_composer.training.runs import RunDir
 
     settings = with_defaults(args)
@@ -297,12 +302,7 @@ def run(args: argparse.Namespace) -> int:
         _check_resumed_as_given(args, run_dir)
         run_dir.recover_checkpoint()
     else:
-        # A missing sbx fails before the run exists.
-        algorithm_class(settings.algo, settings.backend)
-        config = run_config(args)
-        _check_demos(settings, config.hyperparameters.buffer_size,
-                     args.total_steps or config.hyperparameters.total_steps)
-        run_dir = loop.start(out, config)
+        run_dir = loop.start(out, check_new_run(args))
     threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")

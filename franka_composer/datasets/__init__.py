@@ -10,6 +10,7 @@ Minari and envlogger are the `[data]` extra.
 
 from __future__ import annotations
 
+import json
 import pathlib
 
 import gymnasium as gym
@@ -46,13 +47,18 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     if format == "minari":
         dataset_id = dataset_id or default_dataset_id(task, control, source)
     _check_destination(out, format, dataset_id)
+    if format == "minari":
+        _check_json_options(options)
+    metadata = {"task": task, "control": control, "reward_type": reward_type,
+                "source": source, "seed": seed, "action_noise": float(action_noise),
+                "options": readable_options(options)}
     env = gym.make(env_id(task, reward_type, control), **options)
     try:
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)
         if format == "npz":
             trajectories = rollout(env, policy, episodes, seed=seed)
             out.parent.mkdir(parents=True, exist_ok=True)
-            trajectories.save(out)
+            trajectories.save(out, metadata)
             return {"episodes": len(trajectories), "steps": int(trajectories.lengths.sum()),
                     "success_rate": trajectories.success_rate, "path": str(out)}
         if format == "minari":
@@ -63,14 +69,32 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
             return dict(summary, path=str(out), dataset_id=dataset_id)
         from franka_composer.datasets import rlds_format
 
-        metadata = {"task": task, "control": control, "reward_type": reward_type,
-                    "source": source, "seed": seed, "action_noise": float(action_noise),
-                    "options": {name: value if isinstance(value, (bool, int, float, str))
-                                else repr(value) for name, value in options.items()}}
         summary = rlds_format.write(env, policy, episodes, seed, out, metadata)
         return dict(summary, path=str(out))
     finally:
         env.close()
+
+
+def readable_options(options: dict) -> dict:
+    """Task options as a dataset's metadata keeps them: plain values as they are, others
+    (a custom randomisation's distributions) as their repr, which reads like the Python
+    that made them."""
+    return {name: value if isinstance(value, (bool, int, float, str, type(None)))
+            else repr(value) for name, value in options.items()}
+
+
+def _check_json_options(options: dict) -> None:
+    """Minari keeps the env's options as JSON, for `recover_environment` to make the env
+    again: an option JSON cannot hold (a custom randomisation's distributions) is refused
+    before anything is recorded, not after every episode was."""
+    for name, value in options.items():
+        try:
+            json.dumps(value)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"a Minari dataset keeps its env's options as JSON (recover_environment "
+                f"makes the env from them), and {name}={value!r} is not JSON: use a preset "
+                f"name, or record as npz or rlds, which keep it as text") from None
 
 
 def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -> None:
@@ -92,4 +116,4 @@ def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -
                          "another --out or --dataset-id")
 
 
-__all__ = ["FORMATS", "default_dataset_id", "record"]
+__all__ = ["FORMATS", "default_dataset_id", "readable_options", "record"]

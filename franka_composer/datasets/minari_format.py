@@ -12,6 +12,7 @@ import contextlib
 import importlib.metadata
 import os
 import pathlib
+import shutil
 import warnings
 
 #: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
@@ -35,30 +36,43 @@ def datasets_root(root: pathlib.Path):
 def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id: str,
           description: str) -> dict:
     """Records `episodes` episodes of `policy` in `env` (episode i reset with seed + i) as
-    the Minari dataset `dataset_id` under `root`; returns its size and success rate."""
+    the Minari dataset `dataset_id` under `root`; returns its size and success rate.
+
+    Minari's collector keeps the episodes in a temporary folder under its datasets root
+    until `create_dataset`, and joins that root to itself if it is relative: the collector
+    is made with `root` (absolute) as its root, and closed (its temporary folder removed)
+    whatever happens; a dataset that was not finished is removed (with `root` if it made it)."""
     import minari
 
-    collector = minari.DataCollector(env, record_infos=True)
-    successes = 0
-    for index in range(episodes):
-        if hasattr(policy, "reset"):
-            policy.reset()
-        obs, _ = collector.reset(seed=seed + index)
-        done, info = False, {"is_success": False}
-        while not done:
-            obs, _, terminated, truncated, info = collector.step(policy(obs))
-            done = terminated or truncated
-        successes += bool(info["is_success"])
-    with datasets_root(root), warnings.catch_warnings():
-        # Minari recommends a contact e-mail and a link to versioned code; a dataset made
-        # on a user's machine has neither, and says which package version made it instead.
-        warnings.filterwarnings("ignore", message="`(author_email|code_permalink)` is set",
-                                category=UserWarning)
-        dataset = collector.create_dataset(
-            dataset_id=dataset_id, eval_env=env.spec, algorithm_name=description,
-            description=f"{description}; made by franka_composer {_version()}",
-            author="franka_composer")
-    collector.close()
+    made_root = not root.exists()
+    root.mkdir(parents=True, exist_ok=True)
+    with datasets_root(root):
+        collector = minari.DataCollector(env, record_infos=True)
+    successes, finished = 0, False
+    try:
+        for index in range(episodes):
+            if hasattr(policy, "reset"):
+                policy.reset()
+            obs, _ = collector.reset(seed=seed + index)
+            done, info = False, {"is_success": False}
+            while not done:
+                obs, _, terminated, truncated, info = collector.step(policy(obs))
+                done = terminated or truncated
+            successes += bool(info["is_success"])
+        with datasets_root(root), warnings.catch_warnings():
+            # Minari recommends a contact e-mail and a link to versioned code; a dataset
+            # made on a user's machine has neither, and says which package version made it.
+            warnings.filterwarnings("ignore", message="`(author_email|code_permalink)` is set",
+                                    category=UserWarning)
+            dataset = collector.create_dataset(
+                dataset_id=dataset_id, eval_env=env.spec, algorithm_name=description,
+                description=f"{description}; made by franka_composer {_version()}",
+                author="franka_composer")
+        finished = True
+    finally:
+        collector.close()
+        if not finished:
+            shutil.rmtree(root if made_root else root / dataset_id, ignore_errors=True)
     return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
             "success_rate": successes / episodes}
 

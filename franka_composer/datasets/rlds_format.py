@@ -60,18 +60,27 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
 
 def read(root: pathlib.Path) -> dict:
     """The dataset under `root`: its metadata, and per episode its seed, observations (the
-    reset's first), actions, rewards and whether it ended on a LAST step."""
+    reset's first), actions, rewards and whether it ended on a LAST step. A dataset
+    envlogger cannot read, or that holds no episodes (its step files emptied or cut short
+    read as none), is a ValueError naming `root`."""
     envlogger = _envlogger()
-    with envlogger.Reader(data_directory=str(root)) as reader:
-        metadata = reader.metadata()
-        episodes = []
-        for steps, info in zip(reader.episodes, reader.episode_metadata()):
-            steps = list(steps)
-            episodes.append({
-                "seed": int(info["seed"]),
-                "observations": [step.timestep.observation for step in steps],
-                "actions": [step.action for step in steps[1:]],
-                "rewards": [step.timestep.reward for step in steps[1:]],
-                "last": bool(steps[-1].timestep.last()),
-            })
+    try:
+        with envlogger.Reader(data_directory=str(root)) as reader:
+            metadata = reader.metadata()
+            episodes = []
+            for steps, info in zip(reader.episodes, reader.episode_metadata()):
+                steps = list(steps)
+                episodes.append({
+                    "seed": int(info["seed"]),
+                    "observations": [step.timestep.observation for step in steps],
+                    "actions": [step.action for step in steps[1:]],
+                    "rewards": [step.timestep.reward for step in steps[1:]],
+                    "last": bool(steps[-1].timestep.last()),
+                })
+    except Exception as error:  # envlogger's riegeli reader raises what it meets.
+        first_line = (str(error).splitlines() or [""])[0]
+        raise ValueError(f"{root} is not a readable RLDS dataset (damaged?): envlogger "
+                         f"says {type(error).__name__}: {first_line}") from None
+    if not episodes:
+        raise ValueError(f"{root} holds no episodes (its step files empty or damaged?)")
     return {"metadata": metadata, "episodes": episodes}

@@ -50,10 +50,14 @@ class TrainedPolicy:
         if config.control != control:  # Its actions mean what they did in training.
             raise ValueError(f"{run_dir} acts through {config.control} control, not "
                              f"{control}")
-        period = env.unwrapped.task.config.control_timestep
-        if config.control_timestep != period:  # And last as long.
+        env_config = env.unwrapped.task.config
+        if config.control_timestep != env_config.control_timestep:  # And last as long.
             raise ValueError(f"{run_dir} acts every {config.control_timestep} s, not every "
-                             f"{period} s")
+                             f"{env_config.control_timestep} s")
+        if config.velocity_timestep != env_config.velocity_timestep:  # Sees as it learned.
+            raise ValueError(f"{run_dir} observes velocities per "
+                             f"{config.velocity_timestep or config.control_timestep} s, not "
+                             f"per {env_config.velocity_period} s")
         self._model = load_trained(run, env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:

@@ -22,11 +22,13 @@ class Trajectories:
     Each episode of T steps has `observation`, `achieved_goal`, `desired_goal` with T + 1
     rows (the reset observation first), and `action`, `reward`, `is_success` (the step's
     `info["is_success"]`), `terminated`, `truncated` with T rows.
-    `env_seconds` is the wall time spent inside `env.reset` and `env.step` only.
+    `env_seconds` is the wall time spent inside `env.reset` and `env.step` only;
+    `metadata`, what a loaded file says they were recorded with ({} if it says nothing).
     """
 
     episodes: list[dict[str, np.ndarray]]
     env_seconds: float = 0.0
+    metadata: dict = dataclasses.field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -46,22 +48,19 @@ class Trajectories:
     def success_rate(self) -> float:
         return float(np.mean(self.successes)) if self.episodes else 0.0
 
-    def save(self, path: str | os.PathLike) -> None:
-        """Writes every episode, concatenated, to a `.npz` file with `episode_length`."""
-        arrays = {key: np.concatenate([e[key] for e in self.episodes])
-                  for key in OBSERVATION_KEYS + STEP_KEYS}
-        np.savez_compressed(path, episode_length=self.lengths, **arrays)
+    def save(self, path: str | os.PathLike, metadata: dict | None = None) -> None:
+        """Writes every episode to a `.npz` file, with `metadata` (what they were recorded
+        with; `franka_composer.datasets.npz_format`)."""
+        from franka_composer.datasets import npz_format
+
+        npz_format.write(self, path, metadata)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Trajectories":
-        """Reads what `save` wrote."""
-        with np.load(path) as data:
-            lengths = data["episode_length"]
-            step_ends = np.cumsum(lengths)[:-1]
-            obs_ends = np.cumsum(lengths + 1)[:-1]
-            split = {key: np.split(data[key], obs_ends) for key in OBSERVATION_KEYS}
-            split.update({key: np.split(data[key], step_ends) for key in STEP_KEYS})
-        return cls([{key: split[key][i] for key in split} for i in range(len(lengths))])
+        """Reads what `save` wrote, checked whole: a damaged file is a ValueError naming it."""
+        from franka_composer.datasets import npz_format
+
+        return npz_format.read(path)
 
 
 def rollout(env, policy, episodes: int, seed: int | None = None,

@@ -189,7 +189,7 @@ class TaskConfig:
     Attributes:
       name: the task's name (`franka_composer.load(name)`), by which its expert is found.
       description: what the task asks, for its documentation page.
-      objects: the objects the robot moves (`BlockSpec`s or `PuckSpec`s; none for reach).
+      objects: the objects the robot moves (each a `BlockSpec` or `PuckSpec`; none for reach).
       goal: what the task asks for, a kind of `goals.GOALS`.
       object_orientation: how the observation gives each object's orientation: "euler"
         (roll, pitch, yaw; the paper's) or "quaternion" (w, x, y, z).

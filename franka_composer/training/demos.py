@@ -3,8 +3,10 @@
 whole, so HER relabels their goals like the agent's own.
 
 A dataset is any of `franka_composer.datasets`' formats: a `.npz` file, a Minari dataset
-folder (the one holding `data/`), or an RLDS folder (holding `metadata.riegeli`). Its
-episodes must be of the task being trained (the same observation shapes). They are kept:
+folder (the one holding `data/`), or an RLDS folder (holding `metadata.riegeli`). It must
+be whole (`datasets.episodes`) and say it was recorded with the task and controller being
+trained and sparse rewards (npz files written before they recorded it are refused), and
+its episodes must fit the task (the same observation shapes). They are kept:
 a run whose buffer cannot hold them and every step it will take is refused, since SB3's
 buffer would otherwise overwrite them first.
 """
@@ -15,6 +17,8 @@ import pathlib
 
 import numpy as np
 
+from franka_composer.adapters.registration import ENV_IDS
+from franka_composer.datasets.episodes import check_episodes
 from franka_composer.policies.rollout import OBSERVATION_KEYS, Trajectories
 from franka_composer.tasks.rewards import reward_from_distance
 
@@ -22,91 +26,134 @@ from franka_composer.tasks.rewards import reward_from_distance
 def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     """The episodes of the dataset at `path` as goal-dict arrays (observation keys with one
     more row than `action`, `reward`, `terminated`, `truncated`, `is_success`), checked
-    against `env`'s observation space."""
+    whole (`datasets.episodes`), as recorded with `env`'s task and controller and sparse
+    rewards, and against its observation space: anything else is a ValueError naming the
+    file and what is wrong."""
     path = pathlib.Path(path)
     if path.is_file() and path.suffix == ".npz":
-        episodes, recorded = Trajectories.load(path).episodes, {}
+        episodes = _npz_episodes(path, env)
     elif (path / "metadata.riegeli").is_file():
-        episodes, recorded = _rlds_episodes(path, env)
+        episodes = _rlds_episodes(path, env)
     elif (path / "data").is_dir() or (path / "metadata.json").is_file():
-        episodes, recorded = _minari_episodes(path)
+        episodes = _minari_episodes(path, env)
     else:
         raise ValueError(f"{path} is not a dataset: expected a .npz file, a Minari dataset "
                          f"folder (holding data/) or an RLDS folder (holding metadata.riegeli)")
+    check_episodes(path, episodes)
     spaces = env.observation_space.spaces
     for key in OBSERVATION_KEYS:
-        shape = episodes[0][key].shape[1:] if episodes else spaces[key].shape
+        shape = episodes[0][key].shape[1:]
         if shape != spaces[key].shape:
             raise ValueError(f"{path} holds {key} of shape {shape}, but this task's is "
                              f"{spaces[key].shape}: demonstrations of another task?")
-    _check_recorded_as_trained(path, episodes, recorded, env)
+    _check_sparse_rewards(path, episodes)
     return episodes
 
 
-def _check_recorded_as_trained(path, episodes: list[dict], recorded: dict, env) -> None:
+def _check_recorded_as_trained(path, recorded: dict, env) -> None:
     """The transitions go into the buffer as they are, so they must be of the task and the
-    controller being trained, with the sparse rewards training uses. `recorded` is what the
-    dataset says it was recorded with (Minari and RLDS keep it; npz does not)."""
+    controller being trained, with the sparse rewards training uses: `recorded`, what the
+    dataset says it was recorded with, is checked before its observations are read as the
+    task's."""
     config = env.unwrapped.task.config
-    if recorded.get("task", config.name) != config.name:
+    control = config.control.kind
+    unsaid = [key for key in ("task", "control", "reward_type") if key not in recorded]
+    if unsaid:
+        raise ValueError(f"{path} does not say which {', '.join(unsaid)} it was recorded "
+                         "with, so it cannot be checked against this run (an npz written "
+                         "before franka_composer recorded them?): record it again, e.g. "
+                         f"franka-composer rollout --task {config.name} --control {control} "
+                         f"--out {path}")
+    if recorded["task"] != config.name:
         raise ValueError(f"{path} holds demonstrations of {recorded['task']}, not "
                          f"{config.name}")
-    control = config.control.kind
-    if recorded.get("control", control) != control:
+    if recorded["control"] != control:
         raise ValueError(f"{path} was recorded through {recorded['control']} control, and "
                          f"this run trains through {control}: its actions would mean other "
                          "motions")
-    sparse = np.unique(reward_from_distance(np.array([0.0, np.inf]), "sparse", 1.0))
-    if recorded.get("reward_type", "sparse") != "sparse":
+    if recorded["reward_type"] != "sparse":
         raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
-                         f"the sparse {sparse.tolist()} that training uses")
+                         f"the sparse {_SPARSE.tolist()} that training uses")
+
+
+#: The rewards training uses: -1 until the goal is reached, 0 there.
+_SPARSE = np.unique(reward_from_distance(np.array([0.0, np.inf]), "sparse", 1.0))
+
+
+def _check_sparse_rewards(path, episodes: list[dict]) -> None:
     for index, episode in enumerate(episodes):
-        if not np.isin(episode["reward"], sparse).all():
-            raise ValueError(f"{path} holds rewards other than the sparse {sparse.tolist()} "
+        if not np.isin(episode["reward"], _SPARSE).all():
+            raise ValueError(f"{path} holds rewards other than the sparse {_SPARSE.tolist()} "
                              f"that training uses (episode {index}; recorded with "
                              "--reward-type dense?)")
 
 
-def _minari_episodes(path: pathlib.Path) -> tuple[list[dict], dict]:
-    """The episodes, and what the dataset's env spec says they were recorded with."""
+def _npz_episodes(path: pathlib.Path, env) -> list[dict]:
+    trajectories = Trajectories.load(path)
+    _check_recorded_as_trained(path, trajectories.metadata, env)
+    return trajectories.episodes
+
+
+def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
+    """The episodes, once the dataset's env spec says they are of this task."""
     import minari
 
     data = path / "data" if (path / "data").is_dir() else path
-    dataset = minari.MinariDataset(data)
-    env_spec = dataset.spec.env_spec
-    episodes = []
-    for episode in dataset.iterate_episodes():
-        episodes.append({**{key: np.asarray(episode.observations[key])
-                            for key in OBSERVATION_KEYS},
-                         "action": np.asarray(episode.actions, dtype=np.float32),
-                         "reward": np.asarray(episode.rewards, dtype=np.float64),
-                         "terminated": np.asarray(episode.terminations, dtype=bool),
-                         "truncated": np.asarray(episode.truncations, dtype=bool),
-                         "is_success": np.asarray(episode.infos["is_success"][1:],
-                                                  dtype=bool)})
-    return episodes, dict(env_spec.kwargs) if env_spec is not None else {}
+    try:
+        dataset = minari.MinariDataset(data)
+        env_spec = dataset.spec.env_spec
+    except Exception as error:  # h5py, json and Minari raise what they meet.
+        raise _unreadable_minari(path, error) from None
+    _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env)
+    try:
+        return [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
+                 "action": np.asarray(episode.actions, dtype=np.float32),
+                 "reward": np.asarray(episode.rewards, dtype=np.float64),
+                 "terminated": np.asarray(episode.terminations, dtype=bool),
+                 "truncated": np.asarray(episode.truncations, dtype=bool),
+                 "is_success": np.asarray(episode.infos["is_success"][1:], dtype=bool)}
+                for episode in dataset.iterate_episodes()]
+    except Exception as error:
+        raise _unreadable_minari(path, error) from None
 
 
-def _rlds_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
-    """The episodes, and the dataset's metadata (task, control, reward type, ...)."""
+def _recorded_by_spec(env_spec) -> dict:
+    """What a Minari dataset's env spec says its env was: what its id fixes (the plain ids'
+    mocap control among it), and the options it was made with."""
+    if env_spec is None:
+        return {}
+    registered = ENV_IDS.get(env_spec.id)
+    return {**(registered._asdict() if registered else {}), **env_spec.kwargs}
+
+
+def _unreadable_minari(path, error: Exception) -> ValueError:
+    first_line = (str(error).splitlines() or [""])[0]
+    return ValueError(f"{path} is not a readable Minari dataset (damaged?): "
+                      f"{type(error).__name__}: {first_line}")
+
+
+def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
+    """The episodes, once the dataset's metadata says they are of this task (its
+    observations are read as this task's)."""
     from franka_composer.datasets import rlds_format
 
     adapter = env.unwrapped
     task, episodes = adapter.task, []
     dataset = rlds_format.read(path)
+    _check_recorded_as_trained(path, dict(dataset["metadata"] or {}), env)
     for episode in dataset["episodes"]:
         observations = [adapter.goal_observation(o) for o in episode["observations"]]
         steps = len(episode["actions"])
         goals = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
         success = task.is_success(goals["achieved_goal"][1:], goals["desired_goal"][1:])
         terminated = np.zeros(steps, dtype=bool)
-        terminated[-1] = episode["last"]
+        terminated[-1:] = episode["last"]
         episodes.append({**goals, "action": np.array(episode["actions"], dtype=np.float32),
                          "reward": np.array(episode["rewards"], dtype=np.float64),
                          "terminated": terminated, "truncated": ~terminated & (
                              np.arange(steps) == steps - 1),
                          "is_success": np.asarray(success, dtype=bool)})
-    return episodes, dict(dataset["metadata"] or {})
+    return episodes
 
 
 def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> int:

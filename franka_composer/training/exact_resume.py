@@ -28,6 +28,8 @@ import random
 
 import numpy as np
 
+from franka_composer.training.run_files import unpickling
+
 #: The JAX keys of an sbx model and its policy (absent from SB3 models).
 _JAX_KEYS = (("model", "key"), ("policy", "key"), ("policy", "noise_key"))
 
@@ -70,8 +72,9 @@ def restore(model, path: pathlib.Path) -> EpisodeStream | None:
     env's resets) where the rebuilt env's observation is not the model's `_last_obs`."""
     import torch
 
-    state = pickle.loads(path.read_bytes())
-    stream = EpisodeStream(**state["stream"])
+    with unpickling(path):
+        state = pickle.loads(path.read_bytes())
+        stream = EpisodeStream(**state["stream"])
     env = model.get_env()
     env.seed(stream.seed)
     for _ in range(stream.resets(model)):

@@ -24,6 +24,7 @@ from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.run_config import RunConfig
+from franka_composer.training.run_files import checked_model, replace_atomically, unpickling
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, RunDir, write_eval_rows
 from franka_composer.training.signals import stop_requests
 from franka_composer.training.target_bounds import clip_target_critic
@@ -53,9 +54,10 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
     the run left them where the checkpoint allows (`exact_resume`), else with a fresh
     episode stream, seeded by the run's seed and step."""
     exact = bool(state.get("exact")) and run.checkpoint_generators.is_file()
-    model = load_model(config.algo, run.checkpoint_model, env=env, device=device,
-                       backend=config.backend, force_reset=not exact)
-    model.load_replay_buffer(run.checkpoint_buffer)
+    model = load_model(config.algo, checked_model(run.checkpoint_model), env=env,
+                       device=device, backend=config.backend, force_reset=not exact)
+    with unpickling(run.checkpoint_buffer):
+        model.load_replay_buffer(run.checkpoint_buffer)
     stream = exact_resume.restore(model, run.checkpoint_generators) if exact else None
     if stream is None:
         if exact:
@@ -170,8 +172,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         # Where training ended: exact at an episode's end, unless the stopping rule ended it
         # inside a step (before SB3 stored the transition).
         checkpoint.save(exact=checkpoint.episode_ended and not evaluation.stopped_early)
-    model.save(run.final_model)
-    save_policy(model, run.policy_file)
+    replace_atomically(run.final_model, model.save)
+    replace_atomically(run.policy_file, lambda path: save_policy(model, path))
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
     run.write_outcome(int(model.num_timesteps), stopped_early, clock(), clock.cpu())
     return model

@@ -127,16 +127,16 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
 
 def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
     """What `run` trained, ready to act on `env`: its full model (model.zip, else its latest
-    checkpoint) where it has one, else its policy file (a run as committed)."""
+    checkpoint: `RunDir.best_model`) where it has one, else its policy file (a run as
+    committed)."""
     config = run.read_config()
-    try:
-        path = run.best_model()
-    except ValueError:
-        if not run.policy_file.is_file():
-            raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
-                             "no policy.pt)") from None
-        return load_policy(config, run.policy_file, env, device)
-    return load_model(config.algo, path, env=env, device=device, backend=config.backend)
+    if run.final_model.is_file() or run.checkpoint_model.is_file():
+        return load_model(config.algo, run.best_model(), env=env, device=device,
+                          backend=config.backend)
+    if not run.policy_file.is_file():
+        raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
+                         "no policy.pt)")
+    return load_policy(config, run.policy_file, env, device)
 
 
 @contextlib.contextmanager

@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
+import io
 import json
 import os
 import pathlib
@@ -29,6 +30,8 @@ import uuid
 import warnings
 
 from franka_composer.training.run_config import RunConfig
+from franka_composer.training.run_files import (checked_model, model_damage, read_json,
+                                                replace_atomically, steps_of)
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
@@ -59,14 +62,14 @@ class RunDir:
         time None or absent where it was not recorded throughout); {} before it ends."""
         if not self.outcome_path.is_file():
             return {}
-        return json.loads(self.outcome_path.read_text())
+        return read_json(self.outcome_path, "a run's outcome")
 
     def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
                       cpu_time_s: float | None = None) -> None:
-        self.outcome_path.write_text(json.dumps(
+        replace_atomically(self.outcome_path, lambda path: path.write_text(json.dumps(
             {"steps": steps, "stopped_early": stopped_early,
              "wall_time_s": round(wall_time_s, 2),
-             "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2)}) + "\n")
+             "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2)}) + "\n"))
 
     @property
     def final_model(self) -> pathlib.Path:
@@ -160,11 +163,11 @@ class RunDir:
         aside and linking its successor, links the newest complete one again."""
         if self.checkpoint.exists():
             return
-        complete = [path for path in self.root.glob("checkpoint-*")
-                    if (path / "state.json").is_file()]
+        complete = {path: steps_of(path / "state.json")
+                    for path in self.root.glob("checkpoint-*")}
+        complete = {path: steps for path, steps in complete.items() if steps is not None}
         if complete:
-            newest = max(complete, key=lambda p: json.loads((p / "state.json").read_text())[
-                "steps"])
+            newest = max(complete, key=complete.get)
             self.checkpoint.unlink(missing_ok=True)  # A link to nothing.
             self.checkpoint.symlink_to(newest.name)
 
@@ -201,17 +204,19 @@ class RunDir:
     def read_config(self) -> RunConfig:
         if not self.config_path.is_file():
             raise ValueError(f"{self.root} is not a training run (no config.json)")
+        recorded = read_json(self.config_path, "a run's config")
         try:
-            return RunConfig.from_dict(json.loads(self.config_path.read_text()))
+            return RunConfig.from_dict(recorded)
         except KeyError as error:
             raise ValueError(f"{self.config_path} is not a run's config: it has no "
                              f"{error}") from None
-        except (TypeError, ValueError) as error:  # json's JSONDecodeError is a ValueError.
+        except (TypeError, ValueError) as error:
             raise ValueError(f"{self.config_path} is not a run's config: {error}") from None
 
     def write_config(self, config: RunConfig) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
-        self.config_path.write_text(json.dumps(config.to_dict(), indent=2) + "\n")
+        replace_atomically(self.config_path, lambda path: path.write_text(
+            json.dumps(config.to_dict(), indent=2) + "\n"))
 
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
@@ -220,7 +225,11 @@ class RunDir:
         checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
-        return json.loads(self.checkpoint_state.read_text())
+        state = read_json(self.checkpoint_state, "a checkpoint's state")
+        if not isinstance(state.get("steps"), int):
+            raise ValueError(f"{self.checkpoint_state} is not a checkpoint's state: it has "
+                             "no whole number of steps")
+        return state
 
     def evaluations(self) -> list[dict[str, float]]:
         """eval.csv's rows; a run with no evaluations yet is a ValueError."""
@@ -240,10 +249,20 @@ class RunDir:
         return rows
 
     def best_model(self) -> pathlib.Path:
-        """The final model, else the latest checkpoint (a run that was interrupted)."""
-        for path in (self.final_model, self.checkpoint_model):
-            if path.is_file():
-                return path
+        """The final model, else the latest checkpoint (a run that was interrupted, or whose
+        model.zip is damaged: the checkpoint written at the end of training is the same
+        model, and a warning says which file was passed over)."""
+        if self.final_model.is_file():
+            damage = model_damage(self.final_model)
+            if damage is None:
+                return self.final_model
+            if not self.checkpoint_model.is_file():
+                raise ValueError(f"{self.final_model} is damaged ({damage}), and the run has "
+                                 "no checkpoint to use instead")
+            warnings.warn(f"{self.final_model} is damaged ({damage}): using the latest "
+                          f"checkpoint, {self.checkpoint_model}", RuntimeWarning, stacklevel=2)
+        if self.checkpoint_model.is_file():
+            return checked_model(self.checkpoint_model)
         raise ValueError(f"{self.root} has no model yet (neither model.zip nor a checkpoint)")
 
 
@@ -283,29 +302,37 @@ def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
     """The rows of an eval.csv as floats (steps as int); [] when it does not exist."""
     if not path.is_file():
         return []
-    with path.open(newline="") as f:
-        reader = csv.DictReader(f)
-        if tuple(reader.fieldnames or ()) != EVAL_COLUMNS:
-            raise ValueError(f"{path} is not an eval.csv: its columns are "
-                             f"{', '.join(reader.fieldnames or ()) or 'none'}, not "
-                             f"{', '.join(EVAL_COLUMNS)}")
-        rows = []
-        for line, row in enumerate(reader, start=2):
-            try:
-                rows.append({k: (int(float(v)) if k == "steps" else float(v))
-                             for k, v in row.items()})
-            except (TypeError, ValueError):
-                raise ValueError(f"{path}, line {line}: expected numbers for "
-                                 f"{', '.join(EVAL_COLUMNS)}, got {row}") from None
-        return rows
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path} is not an eval.csv (damaged?): it is not UTF-8 text "
+                         f"({error})") from None
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    if tuple(reader.fieldnames or ()) != EVAL_COLUMNS:
+        raise ValueError(f"{path} is not an eval.csv: its columns are "
+                         f"{', '.join(reader.fieldnames or ()) or 'none'}, not "
+                         f"{', '.join(EVAL_COLUMNS)}")
+    rows = []
+    for line, row in enumerate(reader, start=2):
+        try:
+            rows.append({k: (int(float(v)) if k == "steps" else float(v))
+                         for k, v in row.items()})
+        except (TypeError, ValueError):
+            raise ValueError(f"{path}, line {line}: expected numbers for "
+                             f"{', '.join(EVAL_COLUMNS)}, got {row}") from None
+    return rows
 
 
 def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
-    """Rewrites an eval.csv with `rows` (used to drop rows past a checkpoint on resume)."""
-    with path.open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=EVAL_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
+    """Rewrites an eval.csv with `rows` (used to drop rows past a checkpoint on resume),
+    in one step."""
+    def write(partial: pathlib.Path) -> None:
+        with partial.open("w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=EVAL_COLUMNS)
+            writer.writeheader()
+            writer.writerows(rows)
+
+    replace_atomically(path, write)
 
 
 def append_eval_row(path: pathlib.Path, row: dict[str, float]) -> None:

@@ -1,0 +1,101 @@
+"""This package's own dataset file: every episode concatenated in one `.npz`.
+
+    observation, achieved_goal, desired_goal   one row per step plus the reset's, per episode
+    action, reward, is_success, terminated,    one row per step
+    truncated
+    episode_length                             steps of each episode, in order
+    metadata                                   JSON: what it was recorded with (task,
+                                               control, reward_type, source, seed,
+                                               action_noise, options); absent in files
+                                               written before it was recorded
+
+`read` checks the file whole (a readable archive, every key, one-dimensional episode
+lengths that add up to the arrays, each episode ending where its done flags say) and
+names the file and what is wrong.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+import zlib
+
+import numpy as np
+
+from franka_composer.datasets.episodes import check_episodes
+from franka_composer.policies.rollout import OBSERVATION_KEYS, STEP_KEYS, Trajectories
+
+#: The key holding `metadata`, a JSON string.
+METADATA_KEY = "metadata"
+#: What numpy raises on a damaged archive: truncated, emptied, garbage, or a bad member.
+_DAMAGED = (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError)
+
+
+def write(trajectories: Trajectories, path: str | os.PathLike, metadata: dict | None = None
+          ) -> None:
+    """Writes every episode, concatenated, with `episode_length` and `metadata` (JSON)."""
+    arrays = {key: np.concatenate([e[key] for e in trajectories.episodes])
+              for key in OBSERVATION_KEYS + STEP_KEYS}
+    if metadata:
+        arrays[METADATA_KEY] = np.array(json.dumps(metadata))
+    np.savez_compressed(path, episode_length=trajectories.lengths, **arrays)
+
+
+def read(path: str | os.PathLike) -> Trajectories:
+    """The episodes `write` wrote, with their metadata ({} in files from before it was
+    recorded); a ValueError naming `path` and what is wrong if the file is not whole."""
+    try:
+        data = np.load(path)
+        if not isinstance(data, np.lib.npyio.NpzFile):  # A .npy file under an .npz name.
+            raise ValueError("it holds one array, not an npz archive")
+        with data:
+            arrays = {key: data[key] for key in data.files}
+    except FileNotFoundError:
+        raise ValueError(f"{path} does not exist") from None
+    except _DAMAGED as error:
+        raise ValueError(f"{path} is not a readable npz file (truncated or damaged?): "
+                         f"{type(error).__name__}: {error}") from None
+    missing = [key for key in ("episode_length",) + OBSERVATION_KEYS + STEP_KEYS
+               if key not in arrays]
+    if missing:
+        raise ValueError(f"{path} is not a franka_composer npz dataset: it has no "
+                         f"{', '.join(missing)}")
+    lengths = _episode_lengths(path, arrays["episode_length"])
+    for keys, rows in ((OBSERVATION_KEYS, int((lengths + 1).sum())),
+                       (STEP_KEYS, int(lengths.sum()))):
+        for key in keys:
+            if arrays[key].ndim == 0 or len(arrays[key]) != rows:
+                raise ValueError(f"{path}: its episode_length adds up to {rows} rows of "
+                                 f"{key}, and it holds {len(np.atleast_1d(arrays[key]))}: "
+                                 "its episode boundaries do not match its arrays")
+    split = {key: np.split(arrays[key], np.cumsum(lengths + 1)[:-1])
+             for key in OBSERVATION_KEYS}
+    split.update({key: np.split(arrays[key], np.cumsum(lengths)[:-1]) for key in STEP_KEYS})
+    episodes = [{key: split[key][i] for key in split} for i in range(len(lengths))]
+    check_episodes(path, episodes)
+    return Trajectories(episodes, metadata=_metadata(path, arrays.get(METADATA_KEY)))
+
+
+def _episode_lengths(path, lengths: np.ndarray) -> np.ndarray:
+    if lengths.ndim != 1 or not np.issubdtype(lengths.dtype, np.integer):
+        raise ValueError(f"{path}: episode_length must be a list of whole step counts, got "
+                         f"{lengths.dtype} of shape {lengths.shape}")
+    if len(lengths) == 0:
+        raise ValueError(f"{path} holds no episodes (an empty episode_length)")
+    if lengths.min() < 1:
+        raise ValueError(f"{path}: episode {int(np.argmin(lengths))} has "
+                         f"{int(lengths.min())} steps by its episode_length")
+    return lengths.astype(np.int64)
+
+
+def _metadata(path, stored) -> dict:
+    if stored is None:
+        return {}
+    try:
+        metadata = json.loads(str(stored))
+    except ValueError:
+        metadata = None
+    if not isinstance(metadata, dict):
+        raise ValueError(f"{path}: its metadata is not a JSON object: {str(stored)[:80]!r}")
+    return metadata

@@ -1,0 +1,79 @@
+"""A run's files, written so that a kill never leaves half of one, and read so that a
+damaged one is named with what is wrong rather than met as a traceback from the library
+that reads it."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import pathlib
+import pickle
+import zipfile
+import zlib
+
+
+def replace_atomically(path: pathlib.Path, write) -> None:
+    """`write(partial)` writes the file beside `path` (the same suffix), which then takes
+    `path`'s place in one step: a run killed while writing leaves the file it had whole,
+    or none, never half of one."""
+    partial = path.with_name(f"{path.stem}.partial{path.suffix}")
+    write(partial)
+    with open(partial, "rb+") as written:
+        os.fsync(written.fileno())
+    os.replace(partial, path)
+
+
+def model_damage(path: pathlib.Path) -> str | None:
+    """What is wrong with the SB3 (or sbx) model file at `path`, or None if it is a whole
+    archive with its "data" (what SB3's load asserts) and every member's checksum right."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            if "data" not in archive.namelist():
+                return "no data in the archive"
+            bad = archive.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error) as error:
+        return f"not a readable zip archive: {error}"
+    return None if bad is None else f"{bad} fails its checksum"
+
+
+def checked_model(path: pathlib.Path) -> pathlib.Path:
+    """`path`, if `model_damage` finds nothing wrong; else a ValueError naming it."""
+    damage = model_damage(path)
+    if damage is not None:
+        raise ValueError(f"{path} is damaged ({damage})")
+    return path
+
+
+def read_json(path: pathlib.Path, what: str) -> dict:
+    """The JSON object in `path`; a ValueError naming it if it is not one (`what` says what
+    it should be)."""
+    try:
+        value = json.loads(path.read_text(encoding="utf-8"))
+    except ValueError as error:  # JSONDecodeError and UnicodeDecodeError are ValueErrors.
+        raise ValueError(f"{path} is not {what}: {error}") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{path} is not {what}: it holds {type(value).__name__}, not an "
+                         "object")
+    return value
+
+
+def steps_of(state_path: pathlib.Path) -> int | None:
+    """The steps of the checkpoint whose state file is `state_path`, or None if it has no
+    whole one (a checkpoint not finished)."""
+    try:
+        steps = json.loads(state_path.read_text(encoding="utf-8")).get("steps")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return steps if isinstance(steps, int) else None
+
+
+@contextlib.contextmanager
+def unpickling(path: pathlib.Path):
+    """Reading the pickle at `path` (a replay buffer, the generators' states) inside the
+    block: one that is truncated, garbage or of something else is a ValueError naming it."""
+    try:
+        yield
+    except (pickle.UnpicklingError, EOFError, AssertionError, KeyError, TypeError) as error:
+        raise ValueError(f"{path} is damaged (truncated or not what a checkpoint writes): "
+                         f"{type(error).__name__}: {error}") from None

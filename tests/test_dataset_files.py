@@ -1,0 +1,238 @@
+"""Damaged and foreign dataset files (datasets/npz_format.py, datasets/episodes.py,
+training/demos.py): each is refused by name, saying what is wrong, before anything
+trains; and recording never leaves half a dataset behind."""
+
+from __future__ import annotations
+
+import json
+import re
+import zipfile
+
+import numpy as np
+import pytest
+from dm_control.composer.variation import distributions
+
+from franka_composer.cli import main
+from franka_composer.datasets import record
+from franka_composer.policies import Trajectories
+from franka_composer.training import demos
+from franka_composer.training.models import make_env
+
+pytest.importorskip("minari")
+pytest.importorskip("envlogger")
+pytest.importorskip("stable_baselines3")
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """Two-episode push datasets in each format, and others to be refused."""
+    root = tmp_path_factory.mktemp("datasets")
+    record("push", 2, root / "push.npz", seed=0)
+    record("push", 2, root / "rlds", format="rlds", seed=0)
+    record("push", 2, root / "minari", format="minari", seed=0)
+    record("slide", 1, root / "slide.npz", seed=0)
+    record("pick_and_place", 1, root / "pnp.npz", seed=0)
+    record("push", 1, root / "osc.npz", seed=0, control="osc")
+    record("reach", 1, root / "reach-rlds", format="rlds", seed=0)
+    return root
+
+
+@pytest.fixture(scope="module")
+def push_env():
+    env = make_env("push")
+    yield env
+    env.close()
+
+
+def _copy(source, destination):
+    destination.write_bytes(source.read_bytes())
+    return destination
+
+
+def _refused(path, env, message):
+    with pytest.raises(ValueError, match=re.escape(message)) as error:
+        demos.load_episodes(path, env)
+    assert str(path) in str(error.value)
+    return str(error.value)
+
+
+def test_a_recorded_npz_says_what_it_was_recorded_with_and_loads_whole(recorded):
+    loaded = Trajectories.load(recorded / "push.npz")
+    assert len(loaded) == 2
+    assert {key: loaded.metadata[key] for key in ("task", "control", "reward_type")} == {
+        "task": "push", "control": "mocap", "reward_type": "sparse"}
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda path: path.write_bytes(b""), "is not a readable npz file (truncated or damaged?): "
+                                         "EOFError"),
+    (lambda path: path.write_bytes(path.read_bytes()[:2000]), "is not a readable npz file "
+                                                               "(truncated or damaged?): "
+                                                               "BadZipFile"),
+    (lambda path: path.write_bytes(b"\x93NUMPY garbage" * 50), "is not a readable npz file"),
+])
+def test_a_truncated_emptied_or_garbage_npz_is_refused_by_name(recorded, push_env, tmp_path,
+                                                               damage, message):
+    path = _copy(recorded / "push.npz", tmp_path / "demos.npz")
+    damage(path)
+    _refused(path, push_env, message)
+
+
+def _rewrite(source, destination, **changes):
+    """`source`'s arrays with `changes` (None: left out), as a new npz."""
+    with np.load(source) as data:
+        arrays = {key: data[key] for key in data.files}
+    arrays.update(changes)
+    np.savez(destination, **{key: value for key, value in arrays.items() if value is not None})
+    return destination
+
+
+def test_an_npz_missing_a_key_or_whose_episode_lengths_disagree_is_refused(recorded,
+                                                                           push_env, tmp_path):
+    source = recorded / "push.npz"
+    with np.load(source) as data:
+        lengths = data["episode_length"]
+    assert len(lengths) == 2
+    _refused(_rewrite(source, tmp_path / "no-reward.npz", reward=None), push_env,
+             "is not a franka_composer npz dataset: it has no reward")
+    # The same total, cut elsewhere: the first episode's end flag falls inside the second.
+    moved = _rewrite(source, tmp_path / "moved.npz", episode_length=lengths + [1, -1])
+    _refused(moved, push_env, f"episode 0 ({lengths[0] + 1} steps) ends at step(s) "
+                              f"[{lengths[0] - 1}] by its terminated and truncated flags, not "
+                              f"at its last, {lengths[0]}: its episode boundaries do not match "
+                              "its arrays")
+    longer = _rewrite(source, tmp_path / "longer.npz", episode_length=lengths + [2, 0])
+    _refused(longer, push_env, f"its episode_length adds up to {lengths.sum() + 4} rows of "
+                               f"observation, and it holds {lengths.sum() + 2}")
+    none = _rewrite(source, tmp_path / "none.npz", episode_length=np.zeros(0, np.int64))
+    _refused(none, push_env, "holds no episodes")
+    with np.load(source) as data:
+        dense = -np.linalg.norm(data["achieved_goal"] - data["desired_goal"], axis=1)[1:]
+    says_sparse = _rewrite(source, tmp_path / "says-sparse.npz",
+                           reward=np.delete(dense, np.cumsum(lengths + 1)[:-1] - 1))
+    _refused(says_sparse, push_env, "holds rewards other than the sparse [-1.0, 0.0] that "
+                                    "training uses (episode 0; recorded with --reward-type "
+                                    "dense?)")
+
+
+def test_an_npz_of_another_task_or_controller_is_refused(recorded, push_env, tmp_path):
+    """Slide's observations have push's shapes: only what the file says tells them apart."""
+    _refused(recorded / "slide.npz", push_env, "holds demonstrations of slide, not push")
+    _refused(recorded / "osc.npz", push_env, "was recorded through osc control, and this run "
+                                             "trains through mocap")
+    # And what it holds is checked too: pick-and-place's observations, said to be push's.
+    with np.load(recorded / "push.npz") as data:
+        push_metadata = data["metadata"]
+    _refused(_rewrite(recorded / "pnp.npz", tmp_path / "pnp.npz", metadata=push_metadata),
+             push_env, "holds observation of shape (19,), but this task's is (18,): "
+                       "demonstrations of another task?")
+
+
+def test_an_npz_from_before_metadata_is_refused_saying_how_to_record_it_again(recorded,
+                                                                              push_env,
+                                                                              tmp_path):
+    old = _rewrite(recorded / "push.npz", tmp_path / "old.npz", metadata=None)
+    assert len(Trajectories.load(old)) == 2  # Still a readable file,
+    _refused(old, push_env,  # but not one a run can check.
+             f"does not say which task, control, reward_type it was recorded with, so it "
+             f"cannot be checked against this run (an npz written before franka_composer "
+             f"recorded them?): record it again, e.g. franka-composer rollout --task push "
+             f"--control mocap --out {old}")
+
+
+def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env, tmp_path):
+    import shutil
+
+    for name, files, message in (
+            # What envlogger reads as no episodes at all: it said so, and training went on.
+            ("emptied", "*/*.riegeli", "holds no episodes (its step files empty or damaged?)"),
+            ("cut-index", "*/episode_index.riegeli", "holds no episodes"),
+            ("cut-steps", "*/steps.riegeli", "is not a readable RLDS dataset (damaged?): "
+                                             "envlogger says TypeError")):
+        path = tmp_path / name
+        shutil.copytree(recorded / "rlds", path)
+        for damaged in path.glob(files):
+            damaged.write_bytes(damaged.read_bytes()[:40 if name.startswith("cut") else 0])
+        _refused(path, push_env, message)
+        with pytest.raises(ValueError, match=re.escape(message)):
+            main(["train", "--task", "push", "--demos", str(path), "--out",
+                  str(tmp_path / "run")])
+        assert not (tmp_path / "run").exists()
+    garbage = tmp_path / "garbage"
+    shutil.copytree(recorded / "rlds", garbage)
+    (garbage / "metadata.riegeli").write_bytes(b"garbage" * 10)
+    _refused(garbage, push_env, "is not a readable RLDS dataset (damaged?): envlogger says "
+                                "RuntimeError: INTERNAL: Failed to parse riegeli record")
+
+
+def test_an_rlds_dataset_of_another_task_is_refused_before_its_observations_are_read(
+        recorded, push_env):
+    _refused(recorded / "reach-rlds", push_env, "holds demonstrations of reach, not push")
+
+
+def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_path):
+    import shutil
+
+    path = tmp_path / "minari"
+    shutil.copytree(recorded / "minari", path)
+    dataset = path / "franka_composer" / "push" / "expert-v0"
+    assert len(demos.load_episodes(dataset, push_env)) == 2
+    data = dataset / "data" / "main_data.hdf5"
+    data.write_bytes(data.read_bytes()[:3000])
+    _refused(dataset, push_env, "is not a readable Minari dataset (damaged?): OSError: "
+                                "Unable to synchronously open file (truncated file")
+
+
+def test_minari_records_under_a_relative_datasets_path(tmp_path, monkeypatch):
+    """Minari's collector joined a relative MINARI_DATASETS_PATH to itself once every
+    episode was recorded."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", "datasets")
+    summary = record("push", 1, "out", format="minari", seed=0)
+    assert summary["episodes"] == 1
+    assert (tmp_path / "out" / "franka_composer" / "push" / "expert-v0" / "data" /
+            "main_data.hdf5").is_file()
+    assert not (tmp_path / "datasets").exists()  # Nor a temporary folder left anywhere.
+    assert [p.name for p in (tmp_path / "out").iterdir()] == ["franka_composer"]
+
+
+def test_a_custom_randomisation_is_kept_readably_or_refused_before_recording(tmp_path):
+    custom = {"object_mass": distributions.Uniform(low=0.8, high=1.2)}
+    with pytest.raises(ValueError, match=re.escape(
+            "a Minari dataset keeps its env's options as JSON (recover_environment makes the "
+            "env from them), and randomization={'object_mass': Uniform(")):
+        record("push", 1, tmp_path / "minari", format="minari", randomization=custom)
+    assert not (tmp_path / "minari").exists()
+    record("push", 1, tmp_path / "custom.npz", randomization=custom)
+    options = Trajectories.load(tmp_path / "custom.npz").metadata["options"]
+    assert options == {"randomization": "{'object_mass': Uniform(args=(), kwargs={'low': 0.8, "
+                                        "'high': 1.2}, single_sample=False)}"}
+    record("push", 1, tmp_path / "preset", format="minari", randomization="default")
+    with zipfile.ZipFile(tmp_path / "custom.npz") as archive:
+        assert "metadata.npy" in archive.namelist()
+    assert json.loads(np.load(tmp_path / "custom.npz")["metadata"].item())["task"] == "push"
+
+
+def test_a_minari_recording_that_fails_leaves_nothing_behind(tmp_path, monkeypatch):
+    """Minari's collector keeps the episodes in a temporary folder until the end: a run that
+    fails on the way removes it, and the dataset folder it made."""
+    import gymnasium as gym
+
+    from franka_composer.adapters.registration import env_id
+    from franka_composer.datasets import minari_format
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari-home"))
+    env = gym.make(env_id("push", "sparse"))
+    steps = []
+
+    def failing_policy(obs):
+        steps.append(obs)
+        if len(steps) == 60:  # In the second episode.
+            raise RuntimeError("the policy failed")
+        return env.action_space.sample()
+
+    with pytest.raises(RuntimeError, match="the policy failed"):
+        minari_format.write(env, failing_policy, 3, 0, tmp_path / "out",
+                            "franka_composer/push/expert-v0", "a test")
+    env.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

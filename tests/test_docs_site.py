@@ -1,0 +1,93 @@
+"""The documentation site's generated task pages say what `help(env)` says: each is its env
+class's docstring as Markdown (docs/_scripts/gen_task_pages.py), under the animation of its
+expert (docs/_scripts/gen_animations.py), which is committed for every task."""
+
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+
+import pytest
+
+import franka_composer
+from franka_composer.adapters.registration import TASK_ENV_CLASSES
+from franka_composer.tasks import TASK_CONFIGS
+from franka_composer.tasks.layout import layout_for
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+SCRIPTS = REPO / "docs" / "_scripts"
+#: What `gen_task_pages.markdown` adds around the docstring's words.
+MARKUP = {"##", "```python", "```"}
+
+
+def _load(path: pathlib.Path):
+    """The module in `path` (the docs' scripts and conf.py are not a package)."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+gen_task_pages = _load(SCRIPTS / "gen_task_pages.py")
+
+
+@pytest.mark.parametrize("task", franka_composer.ALL_TASKS)
+def test_each_task_page_is_its_class_docstring_word_for_word(task):
+    doc = TASK_ENV_CLASSES[task].__doc__
+    page = gen_task_pages.task_page(task)
+    body = gen_task_pages.markdown(doc)
+    assert page.endswith(body)
+    assert [word for word in body.split() if word not in MARKUP] == doc.split()
+
+
+@pytest.mark.parametrize("task", franka_composer.ALL_TASKS)
+def test_each_task_page_lays_the_docstring_out_as_markdown(task):
+    config = TASK_CONFIGS[task]
+    page = gen_task_pages.task_page(task)
+    for section in ("Action space", "Observation space", "Rewards", "Starting state",
+                    "Episode end", "Arguments", "Version history"):
+        assert f"\n\n## {section}\n\n" in page, section
+    # The observation table is a table (unindented), not a code block.
+    assert f"\n\n{layout_for(config).markdown_table()}\n\n" in page
+    options = page.split("\n## Arguments\n", 1)[1].split("```python\n", 1)[1].split("\n```")[0]
+    assert options.splitlines() == [f"{name} = {value!r}" for name, value
+                                    in config.options.items() if name != "reward_type"]
+    assert page.startswith(f"# {gen_task_pages.title(task)}\n\n```{{image}} "
+                           f"../_static/tasks/{task}.gif\n")
+
+
+def test_every_task_has_its_committed_animation_and_first_frame():
+    from PIL import Image
+
+    for task in franka_composer.ALL_TASKS:
+        with Image.open(REPO / "docs" / "_static" / "tasks" / f"{task}.gif") as gif:
+            assert gif.size == (240, 240) and gif.n_frames >= 2, task
+        with Image.open(REPO / "docs" / "_static" / "tasks" / f"{task}.png") as png:
+            assert png.size == (240, 240), task
+
+
+def test_the_tasks_index_links_every_task_page():
+    index = gen_task_pages.index_page()
+    toctree = index.split("```{toctree}\n:hidden:\n\n", 1)[1].split("\n```")[0]
+    assert toctree.splitlines() == list(franka_composer.ALL_TASKS)
+    for task in franka_composer.ALL_TASKS:
+        assert f"[{gen_task_pages.title(task)}]({task}.md)" in index
+
+
+def test_links_to_the_repositorys_included_files_go_to_their_pages():
+    """`[results](../../RESULTS.md)` in docs/experiments/ is right on GitHub; on the site it
+    goes to results.html, the page that includes RESULTS.md (likewise CHANGELOG.md)."""
+    from types import SimpleNamespace
+
+    from docutils import nodes
+    from sphinx import addnodes
+
+    conf = _load(REPO / "docs" / "conf.py")
+    assert conf.included_root_files() == {REPO / "CHANGELOG": "changelog",
+                                          REPO / "RESULTS": "results"}
+    doctree = nodes.document(None, None)
+    for target in (str(REPO / "RESULTS"), "../CHANGELOG", "guide/quickstart"):
+        doctree += addnodes.pending_xref(refdomain="doc", reftype="myst", reftarget=target)
+    conf._link_root_files_to_their_pages(SimpleNamespace(srcdir=str(REPO / "docs")), doctree)
+    assert [xref["reftarget"] for xref in doctree.findall(addnodes.pending_xref)] == [
+        "results", "changelog", "guide/quickstart"]

@@ -1,0 +1,202 @@
+"""`timing="reference"`: the paper's code's timing (0.5 s of physics per step, velocities
+multiplied by its stated 0.05 s). Its physics pinned against the default 0.05 s, and the
+contracts every env keeps (reward, seeding, both stepping paths, pickling, vector envs,
+rendering) at that timing."""
+
+from __future__ import annotations
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import franka_composer
+from franka_composer import fast_path
+from franka_composer.adapters.registration import env_id
+from franka_composer.policies import make_expert
+from franka_composer.tasks import task_config
+from franka_composer.tasks.layout import layout_for
+from conftest import SPEC, spec_distance
+
+CONTROLS = ("mocap", "osc", "joints")
+
+
+def _rollout(env, seed: int, steps: int):
+    """Random actions from `seed`, resetting after each episode: the observations, rewards,
+    terminations, truncations and infos."""
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    records = [(obs, None, False, False, None)]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        records.append((obs, reward, terminated, truncated, info))
+        if terminated or truncated:
+            obs, _ = env.reset()
+    return records
+
+
+def _assert_same_records(first, second) -> None:
+    for a, b in zip(first, second, strict=True):
+        for key in a[0]:
+            np.testing.assert_array_equal(a[0][key], b[0][key])
+        assert a[1:4] == b[1:4]
+
+
+def test_reference_timing_steps_half_a_second_and_scales_velocities_by_its_stated_dt():
+    config = task_config("pick_and_place", timing="reference")
+    assert (config.control_timestep, config.velocity_timestep) == (0.5, 0.05)
+    layout = layout_for(config)
+    velocities = [name for name in layout.names if "velocity" in name]
+    assert velocities == ["tcp_velocity", "object_linear_velocity", "object_angular_velocity"]
+    for name in layout.names:
+        np.testing.assert_array_equal(layout.scale[layout.slice(name)],
+                                      0.05 if name in velocities else 1.0)
+    env = franka_composer.load("pick_and_place", timing="reference")
+    assert env.control_timestep() == 0.5
+    assert env.task.physics_steps_per_control_step == 250
+    default = task_config("pick_and_place")
+    assert (default.control_timestep, default.velocity_timestep) == (0.05, None)
+    assert task_config("pick_and_place", timing="default") == default
+
+
+def test_timing_is_one_of_the_named_ones_and_not_given_beside_what_it_sets():
+    with pytest.raises(ValueError, match="unknown timing 'fast'; valid timings: default, "
+                                         "reference"):
+        task_config("push", timing="fast")
+    with pytest.raises(ValueError, match="timing sets control_timestep and velocity_timestep: "
+                                         "give it or control_timestep, not both"):
+        gym.make("FrankaPushSparse-v0", timing="reference", control_timestep=0.1)
+    with pytest.raises(ValueError, match="velocity_timestep"):
+        task_config("push", velocity_timestep=-0.05)
+
+
+@pytest.mark.parametrize("timing", ["default", "reference"])
+def test_a_full_action_lands_at_rest_only_at_the_reference_timing(timing):
+    """One full +x step with the gripper closing, from the open hand at reset: the paper's
+    code's 0.5 s brings the hand onto its target (5 cm) and the fingers shut, both at rest;
+    0.05 s leaves both on their way."""
+    env = gym.make("FrankaPickAndPlaceSparse-v0", timing=timing)
+    layout = env.unwrapped.observation_layout
+    before, _ = env.reset(seed=3)
+    after = env.step(np.array([1, 0, 0, -1], np.float32))[0]["observation"]
+    moved = layout.read(after, "tcp_position")[0] - layout.read(before["observation"],
+                                                                "tcp_position")[0]
+    velocity = layout.read(after, "tcp_velocity")  # m per 0.05 s at both timings.
+    width = layout.read(after, "finger_width")[0]
+    assert layout.read(before["observation"], "finger_width")[0] > 0.07
+    if timing == "reference":
+        assert moved == pytest.approx(0.05, abs=2e-4)
+        assert np.linalg.norm(velocity) < 1e-6 and width < 1e-4
+    else:
+        assert 0.045 < moved < 0.049
+        assert velocity[0] > 0.008 and width > 0.01
+
+
+@pytest.mark.parametrize("timing", ["default", "reference"])
+def test_a_pushed_block_rests_at_each_step_end_only_at_the_reference_timing(timing):
+    """The push expert, three seeded episodes: both timings solve them; at the reference
+    timing the block is at rest whenever the agent sees it (< 2 cm/s), at 0.05 s it is seen
+    sliding (> 20 cm/s)."""
+    env = gym.make("FrankaPushSparse-v0", timing=timing)
+    layout = env.unwrapped.observation_layout
+    expert = make_expert(env)
+    fastest = 0.0
+    for seed in range(3):
+        obs, _ = env.reset(seed=seed)
+        for _ in range(SPEC["push"]["steps"]):
+            obs, _, terminated, truncated, info = env.step(expert(obs))
+            speed = np.linalg.norm(layout.read(obs["observation"], "object_linear_velocity"))
+            fastest = max(fastest, speed / 0.05)  # Observed per 0.05 s at both timings.
+            if terminated or truncated:
+                break
+        assert info["is_success"]
+    if timing == "reference":
+        assert fastest < 0.02
+    else:
+        assert fastest > 0.2
+
+
+@pytest.mark.parametrize("control", CONTROLS)
+def test_reward_success_and_time_limit_hold_at_the_reference_timing(task_name, control):
+    env = gym.make(env_id(task_name, "sparse", control), timing="reference",
+                   terminate_on_success=False)
+    unwrapped = env.unwrapped
+    records = _rollout(env, seed=1, steps=SPEC[task_name]["steps"])[1:]
+    for obs, reward, terminated, truncated, info in records:
+        expected = unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
+        assert reward == expected
+        distance = spec_distance(task_name, obs["achieved_goal"], obs["desired_goal"])
+        assert info["is_success"] == (distance < SPEC[task_name]["threshold"])
+        assert (reward == 0.0) == info["is_success"] and not terminated
+    assert [r[3] for r in records] == [False] * (SPEC[task_name]["steps"] - 1) + [True]
+
+
+@pytest.mark.parametrize("control", CONTROLS)
+def test_same_seed_same_episode_on_both_stepping_paths(control, monkeypatch):
+    """Two runs on the fast path are equal bit for bit, and Composer's stock stepping gives
+    the same episode (the same arithmetic in the same order)."""
+    name = env_id("pick_and_place", "sparse", control)
+    first = _rollout(gym.make(name, timing="reference"), seed=4, steps=12)
+    second = _rollout(gym.make(name, timing="reference"), seed=4, steps=12)
+    _assert_same_records(first, second)
+    monkeypatch.setenv(fast_path.ENV_VARIABLE, "0")
+    stock_env = gym.make(name, timing="reference")
+    assert not isinstance(stock_env.unwrapped.composer_env, fast_path.FastEnvironment)
+    _assert_same_records(first, _rollout(stock_env, seed=4, steps=12))
+
+
+def test_pickled_env_keeps_the_reference_timing():
+    env = gym.make("FrankaPushSparse-v0", timing="reference")
+    clone = pickle.loads(pickle.dumps(env))
+    assert clone.unwrapped.task.config.control_timestep == 0.5
+    assert clone.unwrapped.task.config.velocity_timestep == 0.05
+    a, b = env.reset(seed=5)[0], clone.reset(seed=5)[0]
+    action = env.action_space.sample()
+    np.testing.assert_array_equal(env.step(action)[0]["observation"],
+                                  clone.step(action)[0]["observation"])
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])
+
+
+@pytest.mark.slow
+def test_async_vector_env_at_the_reference_timing_equals_single_envs():
+    name = "FrankaPickAndPlaceSparse-v0"
+    envs = gym.make_vec(name, num_envs=2, vectorization_mode="async", timing="reference")
+    try:
+        obs, _ = envs.reset(seed=[0, 1])
+        actions = np.array([[1, 0, 0, -1], [0, 1, 0, 1]], np.float32)
+        stepped = envs.step(actions)[0]
+    finally:
+        envs.close()
+    for index in range(2):
+        single = gym.make(name, timing="reference")
+        single_obs, _ = single.reset(seed=index)
+        single_stepped = single.step(actions[index])[0]
+        for key in obs:
+            np.testing.assert_array_equal(obs[key][index], single_obs[key])
+            np.testing.assert_array_equal(stepped[key][index], single_stepped[key])
+
+
+def test_rgb_array_frames_render_at_the_reference_timing():
+    env = gym.make("FrankaSlideSparse-v0", timing="reference", render_mode="rgb_array",
+                   width=160, height=120)
+    env.reset(seed=0)
+    env.step(np.ones(3, np.float32))
+    frame = env.render()
+    assert frame.shape == (120, 160, 3) and frame.dtype == np.uint8 and frame.std() > 5
+
+
+def test_each_env_page_says_its_timing_and_how_to_get_the_reference_codes():
+    from franka_composer.adapters.pages import page
+
+    default = " ".join(page(task_config("slide"), ("FrankaSlideSparse-v0",)).split())
+    assert ("Timing 0.05 s of physics per step (25 MuJoCo steps of 2 ms); velocities as "
+            "displacements per 0.05 s.") in default
+    assert 'timing="reference" reproduces it (0.5 s per step, velocities multiplied by ' \
+           "0.05 s)" in default
+    reference = " ".join(page(task_config("slide", timing="reference"), ()).split())
+    assert ("0.5 s of physics per step (250 MuJoCo steps of 2 ms); velocities as "
+            "displacements per 0.05 s.") in reference
+    assert "Timing 0.05 s of physics" in " ".join(
+        gym.make("FrankaSlideSparse-v0").unwrapped.__doc__.split())

@@ -1,0 +1,198 @@
+"""A run's files (training/run_files.py, runs.py): every refusal comes before the run
+directory exists, the final model is written in one step, and a damaged file is named
+(or, for model.zip, passed over for the final checkpoint)."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import re
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from franka_composer import cli  # noqa: E402
+from franka_composer.training.run_files import replace_atomically  # noqa: E402
+from franka_composer.training.runs import RunDir, read_eval_rows  # noqa: E402
+
+#: Small enough for seconds per run; learning starts after two 50-step episodes.
+TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
+        "--learning-starts", "100", "--eval-every", "100", "--eval-episodes", "1",
+        "--threads", "1", "--no-progress", "--device", "cpu"]
+
+
+def _train(out, steps, *extra):
+    return cli.main(["train", "--task", "push", "--algo", "sac", "--seed", "1",
+                     "--out", str(out), "--total-steps", str(steps), *TINY, *extra])
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--buffer-size", "40"], "--buffer-size 40 is smaller than one push episode (50 steps): "
+                              "HER stores whole episodes"),
+    (["--device", "cuda"], "--device cuda, but torch sees no CUDA GPU"),
+])
+def test_a_run_train_cannot_start_is_refused_before_its_directory_exists(tmp_path,
+                                                                         monkeypatch, extra,
+                                                                         message):
+    """Else a rerun said the directory already held a run, and --resume that it had no
+    checkpoint."""
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        _train(tmp_path / "run", 100, *extra)
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_sweep_checks_what_it_forwards_to_train_before_ray_starts(tmp_path, monkeypatch):
+    """Each cell's train options, --timing among them, are read by train's parser and
+    checked as train checks them: a missing dataset is refused before any cell runs."""
+    pytest.importorskip("ray")
+    from franka_composer.cli import sweep
+
+    def no_ray(*args, **kwargs):
+        raise AssertionError("Ray was started")
+
+    monkeypatch.setattr("franka_composer.training.sweep.run_sweep", no_ray)
+    out = tmp_path / "sweep"
+    base = ["sweep", "--out", str(out), "--tasks", "push", "--algos", "sac", "--seeds", "0",
+            "1", "--steps", "100", "--", "--timing", "reference"]
+    with pytest.raises(ValueError, match=re.escape(f"{tmp_path / 'missing.npz'} is not a "
+                                                   "dataset")):
+        cli.main([*base, "--demos", str(tmp_path / "missing.npz")])
+    with pytest.raises(ValueError, match="--buffer-size 40 is smaller than one push episode"):
+        cli.main([*base, "--buffer-size", "40"])
+    assert not out.exists()
+    # The options the grid gives its cells pass, --timing's settings among them.
+    cells, _ = sweep.cells_of(cli.build_parser().parse_args(base[:-3]))
+    sweep.check_cells(cells, out, ("--timing", "reference"))
+    assert sweep.cell_config(cells[0], out, ("--timing", "reference")).control_timestep == 0.5
+
+
+def test_a_file_written_in_one_step_is_whole_or_as_it_was(tmp_path):
+    path = tmp_path / "model.zip"
+    path.write_bytes(b"the model before")
+
+    def killed_while_writing(partial: pathlib.Path) -> None:
+        partial.write_bytes(b"half of the")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        replace_atomically(path, killed_while_writing)
+    assert path.read_bytes() == b"the model before"
+    replace_atomically(path, lambda partial: partial.write_bytes(b"the model after"))
+    assert path.read_bytes() == b"the model after"
+    assert [p.name for p in tmp_path.iterdir()] == ["model.zip"]
+
+
+@pytest.mark.parametrize("name, content, message", [
+    ("outcome.json", b"{\"steps\": 3", "is not a run's outcome: Expecting"),
+    ("eval.csv", b"steps,wall_time_s,success_rate,mean_reward\n0,1,\xff\xfe,0\n",
+     "is not an eval.csv (damaged?): it is not UTF-8 text"),
+])
+def test_a_damaged_run_file_is_named(tmp_path, name, content, message):
+    run = RunDir(tmp_path / "run")
+    run.root.mkdir()
+    (run.root / name).write_bytes(content)
+    with pytest.raises(ValueError, match=re.escape(f"{run.root / name} {message}")):
+        run.read_outcome() if name == "outcome.json" else read_eval_rows(run.eval_csv)
+
+
+def test_a_garbage_checkpoint_state_is_named_and_never_recovered(tmp_path):
+    run = RunDir(tmp_path / "run")
+    run.root.mkdir()
+    folder = run.new_checkpoint(100)
+    (folder / "state.json").write_text(json.dumps({"steps": 100}))
+    run.publish_checkpoint(folder)
+    assert run.read_state() == {"steps": 100}
+    run.checkpoint_state.write_bytes(b"\xff\xfe garbage")
+    with pytest.raises(ValueError, match=re.escape(f"{run.checkpoint_state} is not a "
+                                                   "checkpoint's state: 'utf-8' codec")):
+        run.read_state()
+    # A stop between moving a folder aside and linking: only a whole state file counts.
+    run.checkpoint.unlink()
+    for index, text in enumerate(("garbage", json.dumps({"steps": 50}), "[1]")):
+        (run.root / f"checkpoint-{index}-x").mkdir()
+        (run.root / f"checkpoint-{index}-x" / "state.json").write_text(text)
+    run.recover_checkpoint()
+    assert run.checkpoint.resolve().name == "checkpoint-1-x"
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A 200-step run, finished: model.zip and its final checkpoint."""
+    out = tmp_path_factory.mktemp("runs") / "run"
+    assert _train(out, 200) == 0
+    return RunDir(out)
+
+
+def _copy_run(run: RunDir, destination: pathlib.Path) -> RunDir:
+    import shutil
+
+    shutil.copytree(run.root, destination, symlinks=True)
+    return RunDir(destination)
+
+
+def _success_line(capsys):
+    return [line for line in capsys.readouterr().out.splitlines() if "success" in line][0]
+
+
+@pytest.mark.slow
+def test_evaluate_passes_over_a_damaged_model_zip_for_the_final_checkpoint(finished,
+                                                                           tmp_path, capsys):
+    assert cli.main(["evaluate", str(finished.root), "--episodes", "2", "--device",
+                     "cpu"]) == 0
+    whole = _success_line(capsys).split(": ", 1)[1]
+    run = _copy_run(finished, tmp_path / "run")
+    run.final_model.write_bytes(run.final_model.read_bytes()[:1000])  # Killed while writing.
+    with pytest.warns(RuntimeWarning, match=re.escape(
+            f"{run.final_model} is damaged (not a readable zip archive: ") + ".*" + re.escape(
+            f"using the latest checkpoint, {run.checkpoint_model}")):
+        assert cli.main(["evaluate", str(run.root), "--episodes", "2", "--device",
+                         "cpu"]) == 0
+    assert _success_line(capsys).split(": ", 1)[1] == whole  # The same model, 200 steps.
+    (run.checkpoint_model).write_bytes(b"")
+    with pytest.raises(ValueError, match=re.escape(f"{run.checkpoint_model} is damaged "
+                                                   "(not a readable zip archive")):
+        cli.main(["evaluate", str(run.root), "--episodes", "2", "--device", "cpu"])
+
+
+@pytest.mark.slow
+def test_a_kill_while_the_final_model_is_written_leaves_no_damaged_model_zip(tmp_path,
+                                                                             monkeypatch):
+    from stable_baselines3 import SAC
+
+    out = tmp_path / "run"
+    save = SAC.save
+
+    def killed_in_the_run_directory(model, path, *args, **kwargs):
+        if pathlib.Path(path).parent == out:  # The final model, not a checkpoint's.
+            pathlib.Path(path).write_bytes(b"PK\x03\x04 half")
+            raise KeyboardInterrupt
+        return save(model, path, *args, **kwargs)
+
+    monkeypatch.setattr(SAC, "save", killed_in_the_run_directory)
+    assert _train(out, 100) == 130  # As Ctrl-C there ends it.
+    run = RunDir(out)
+    assert not run.final_model.exists()
+    assert run.best_model() == run.checkpoint_model
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, damage, message", [
+    ("replay_buffer.pkl", lambda b: b[:len(b) // 2], "is damaged (truncated or not what a "
+                                                     "checkpoint writes): UnpicklingError"),
+    ("generators.pkl", lambda b: b"", "is damaged (truncated or not what a checkpoint "
+                                      "writes): EOFError"),
+    ("model.zip", lambda b: b"garbage", "is damaged (not a readable zip archive"),
+])
+def test_a_resume_names_the_damaged_checkpoint_file(finished, tmp_path, name, damage,
+                                                    message):
+    run = _copy_run(finished, tmp_path / "run")
+    path = run.checkpoint / name
+    path.write_bytes(damage(path.read_bytes()))
+    with pytest.raises(ValueError, match=re.escape(str(path)) + " " + re.escape(message)):
+        cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "300",
+                  "--no-progress", "--device", "cpu"])
+    assert run.read_state()["steps"] == 200  # Left as it was.
