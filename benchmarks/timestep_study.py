@@ -10,7 +10,8 @@ each (task, policy, step) it reports the success rate; the object's final positi
 blocks for stack, the tool centre point for reach) against the same episode at 0.5 ms (mean
 and largest distance over episodes); the deepest contact penetration and the largest
 contact normal force seen at any physics substep (any pair of geoms); and env steps per
-second (the time inside `env.step`, less the measuring). Writes `timestep-study.csv` and
+CPU second (the process's CPU time inside `env.step`, less the measuring: on a shared
+machine wall time measures the neighbours). Writes `timestep-study.csv` and
 `timestep-study.md` into `--out`.
 
 Forces are read consistently: after each substep the data is copied and `mj_forward` solves
@@ -37,13 +38,13 @@ POLICIES = ("expert", "random")
 COLUMNS = ("task", "policy", "timestep_ms", "substeps", "episodes", "success_rate",
            "final_position_diff_mean_mm", "final_position_diff_max_mm",
            "penetration_peak_mm", "penetration_peak_bodies", "contact_force_peak_n",
-           "contact_force_peak_bodies", "steps_per_s")
+           "contact_force_peak_bodies", "steps_per_cpu_s")
 
 
 class ContactPeaks:
     """The deepest penetration (m) and largest contact normal force (N) over every physics
     substep, read through Composer's public `after_substep` hook; `seconds` is the time the
-    reading itself took (taken off the speed)."""
+    reading itself took (CPU seconds, taken off the speed)."""
 
     def __init__(self, composer_env) -> None:
         self._scratch = None
@@ -53,7 +54,7 @@ class ContactPeaks:
         composer_env.add_extra_hook("after_substep", self._read)
 
     def _read(self, physics, random_state) -> None:
-        start = time.perf_counter()
+        start = time.process_time()
         model, data = physics.model.ptr, physics.data.ptr
         if self._scratch is None:
             if model.opt.cone != mujoco.mjtCone.mjCONE_ELLIPTIC:
@@ -73,7 +74,7 @@ class ContactPeaks:
             if forces[strongest] > self.force:
                 self.force = float(forces[strongest])
                 self.force_pair = _pair(model, contacts, strongest)
-        self.seconds += time.perf_counter() - start
+        self.seconds += time.process_time() - start
 
 
 def _pair(model, contacts, index: int) -> str:
@@ -114,9 +115,9 @@ def run_cell(task_name: str, policy: str, timestep: float, episodes: int) -> dic
         while not done:
             action = (expert(obs) if expert is not None else
                       actions.uniform(-1, 1, env.action_space.shape).astype(np.float32))
-            start = time.perf_counter()
+            start = time.process_time()
             obs, _, terminated, truncated, info = env.step(action)
-            seconds += time.perf_counter() - start
+            seconds += time.process_time() - start
             steps += 1
             done = terminated or truncated
         successes.append(bool(info["is_success"]))
@@ -129,7 +130,7 @@ def run_cell(task_name: str, policy: str, timestep: float, episodes: int) -> dic
             "contact_force_peak_n": peaks.force,
             "penetration_peak_bodies": peaks.penetration_pair,
             "contact_force_peak_bodies": peaks.force_pair,
-            "steps_per_s": steps / (seconds - peaks.seconds), "finals": np.array(finals)}
+            "steps_per_cpu_s": steps / (seconds - peaks.seconds), "finals": np.array(finals)}
 
 
 def final_differences(cells: list[dict]) -> None:
@@ -152,7 +153,8 @@ def write(cells: list[dict], out: pathlib.Path) -> None:
         writer.writeheader()
         writer.writerows(cells)
     header = ("| task | policy | step (ms) | success | final pos. diff. mean / max (mm) | "
-              "penetration peak (mm), bodies | contact force peak (N), bodies | steps/s |")
+              "penetration peak (mm), bodies | contact force peak (N), bodies | "
+              "steps per CPU s |")
     lines = [header, "|---|---|---|---|---|---|---|---|"]
     for c in cells:
         lines.append(
@@ -160,7 +162,7 @@ def write(cells: list[dict], out: pathlib.Path) -> None:
             f"{c['success_rate']:.0%} | {c['final_position_diff_mean_mm']:.1f} / "
             f"{c['final_position_diff_max_mm']:.1f} | {c['penetration_peak_mm']:.2f} "
             f"{c['penetration_peak_bodies']} | {c['contact_force_peak_n']:.0f} "
-            f"{c['contact_force_peak_bodies']} | {c['steps_per_s']:.0f} |")
+            f"{c['contact_force_peak_bodies']} | {c['steps_per_cpu_s']:.0f} |")
     (out / "timestep-study.md").write_text("\n".join(lines) + "\n")
 
 
