@@ -88,3 +88,40 @@ def test_the_baseline_follows_the_env_trajectory_bit_for_bit(control):
     np.testing.assert_array_equal(baseline.data.qvel, physics.data.qvel)
 
 
+def test_the_timestep_study_writes_its_table_against_the_finest_step(tmp_path):
+    study = load_script(BENCHMARKS / "timestep_study.py")
+    assert study.main(["--episodes", "1", "--tasks", "reach", "--out", str(tmp_path)]) == 0
+    import csv
+
+    with open(tmp_path / "timestep-study.csv") as handle:
+        rows = list(csv.DictReader(handle))
+    assert [(r["policy"], float(r["timestep_ms"]), int(r["substeps"])) for r in rows] == [
+        (policy, ms, substeps) for policy in ("expert", "random")
+        for ms, substeps in ((2.0, 25), (1.0, 50), (0.5, 100))]
+    finest = [r for r in rows if float(r["timestep_ms"]) == 0.5]
+    assert all(float(r["final_position_diff_max_mm"]) == 0.0 for r in finest)
+    # The same random actions at 2 ms end the hand elsewhere, by millimetres, not metres.
+    coarse = next(r for r in rows if r["policy"] == "random" and r["substeps"] == "25")
+    assert 0.0 < float(coarse["final_position_diff_max_mm"]) < 50.0
+    assert (tmp_path / "timestep-study.md").read_text().count("| reach |") == 6
+
+
+def test_the_timestep_study_reads_a_resting_blocks_weight_on_the_floor():
+    """A 1 kg block resting on the floor: four corner contacts share its 9.81 N, and the
+    stiff contacts (contacts.py) leave it tens of microns deep (0.04 mm measured)."""
+    study = load_script(BENCHMARKS / "timestep_study.py")
+    env = gym.make("FrankaPushSparse-v0")
+    peaks = study.ContactPeaks(env.unwrapped.composer_env)
+    env.reset(seed=0)
+    for _ in range(10):
+        env.step(np.zeros(3, np.float32))
+    assert 9.81 / 4 * 0.9 < peaks.force < 9.81
+    assert peaks.force_pair == "world/block/"
+    assert 0.0 < peaks.penetration < 1e-4
+
+
+def test_the_timestep_study_refuses_an_unknown_task(capsys):
+    study = load_script(BENCHMARKS / "timestep_study.py")
+    with pytest.raises(SystemExit):
+        study.main(["--tasks", "push,fly"])
+    assert "unknown task(s) fly; valid tasks: push, slide" in capsys.readouterr().err

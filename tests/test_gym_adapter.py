@@ -35,8 +35,10 @@ def _random_rollout(env, seed: int, steps: int):
 
 
 def test_every_task_is_registered_under_every_controller_with_its_episode_length():
-    assert set(ALL_IDS) == {f"Franka{t}{c}{r}-v0" for t in ("Push", "Slide", "PickAndPlace",
-                                                             "Reach", "Stack", "Flip")
+    tasks = {"Push": "push", "Slide": "slide", "PickAndPlace": "pick_and_place",
+             "Reach": "reach", "Stack": "stack", "Flip": "flip"}
+    assert set(ALL_IDS) == {f"Franka{t}{c}{r}-v{SPEC[task].get('version', 0)}"
+                            for t, task in tasks.items()
                             for c in ("", "Osc", "Joints") for r in ("Sparse", "Dense")}
     for id_, registered in franka_composer.ENV_IDS.items():
         assert gym.spec(id_).max_episode_steps == SPEC[registered.task]["steps"]
@@ -44,6 +46,13 @@ def test_every_task_is_registered_under_every_controller_with_its_episode_length
         assert env.unwrapped.task.config.control.kind == registered.control
     assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
     assert env_id("stack", "sparse", "osc") == "FrankaStackOscSparse-v0"
+    assert env_id("flip", "dense", "osc") == "FrankaFlipOscDense-v1"
+
+
+def test_the_replaced_flip_ids_point_to_their_successor():
+    """Flip's goals changed in v1: Gymnasium names the new id for the old one."""
+    with pytest.raises(gym.error.DeprecatedEnv, match="Please use `FrankaFlipSparse-v1`"):
+        gym.make("FrankaFlipSparse-v0")
 
 
 def test_spaces_match_the_spec(env_name):

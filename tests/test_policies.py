@@ -11,11 +11,10 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.policies import EXPERTS, Trajectories, make_expert, rollout
 
 #: Lowest success rate over `EPISODES` seeded episodes. Measured over 100 episodes (seeds
-#: 0-99): push 97 %, slide 100 %, pick_and_place 100 %, reach 100 %, stack 96 %. Flip: 0 %
-#: (a resting cube can match only ~6 % of uniform goals; see policies/flip.py), so its
-#: expert is held to what it does, turning the goal's up-face up (below).
+#: 0-99): push 97 %, slide 100 %, pick_and_place 100 %, reach 100 %, stack 96 %, flip 96 %
+#: (98 % under osc).
 MIN_SUCCESS = {"push": 0.9, "pick_and_place": 0.9, "slide": 0.9, "reach": 0.95,
-               "stack": 0.85, "flip": 0.0}
+               "stack": 0.85, "flip": 0.9}
 EPISODES = 20
 
 
@@ -23,7 +22,7 @@ def test_every_task_has_an_expert():
     assert set(EXPERTS) == set(franka_composer.ALL_TASKS)
 
 
-@pytest.mark.parametrize("task", [t for t in franka_composer.ALL_TASKS if t != "flip"])
+@pytest.mark.parametrize("task", franka_composer.ALL_TASKS)
 def test_expert_reaches_its_success_rate(task):
     env = gym.make(env_id(task, "sparse"))
     trajectories = rollout(env, make_expert(env), EPISODES, seed=0)
@@ -96,12 +95,22 @@ def test_rollout_rejects_zero_episodes():
         rollout(env, make_expert(env), 0)
 
 
-def test_the_flip_expert_turns_the_goals_up_face_up():
-    """Measured over seeds 0-99: the face the goal points up is up at the end in 60 %
-    (48 of the 80 cubes that needed tipping were tipped right)."""
+@pytest.mark.slow
+@pytest.mark.parametrize("control", ["mocap", "osc"])
+def test_the_flip_expert_reaches_nine_in_ten_face_up_goals(control):
+    """Flip's goals are reachable: 96 % under mocap, 98 % under osc over seeds 0-99 (the
+    uniform goals of v0: 0 %)."""
+    env = gym.make(env_id("flip", "sparse", control))
+    assert rollout(env, make_expert(env), 50, seed=100).success_rate >= 0.9
+
+
+def test_the_flip_expert_turns_a_uniform_goals_up_face_up():
+    """Under panda-gym's uniform goals (mostly out of reach) the expert still turns up the
+    face the goal points most nearly up."""
     from franka_composer.policies.flip import _axes
 
-    env = gym.make(env_id("flip", "sparse"))
+    env = gym.make(env_id("flip", "sparse"), orientation_goal="uniform",
+                   max_episode_steps=50)
     expert = make_expert(env)
     right = 0
     for seed in range(EPISODES):

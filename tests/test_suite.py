@@ -103,12 +103,61 @@ def test_reach_goals_fill_the_box_above_the_object_square():
     assert np.ptp(goals[:, 0]) > 0.25 and np.ptp(goals[:, 1]) > 0.25
 
 
-def test_flip_goals_are_uniform_orientations():
-    """A uniform orientation's quaternion is uniform on the 3-sphere: each component's
-    square averages 1/4."""
+def _face_up_and_yaw(quaternion) -> tuple[int, float]:
+    """The face (+x, -x, +y, -y, +z, -z: 0-5) a goal turns up, and its yaw about world z
+    from the orientation the fewest tips give (a quarter turn about the horizontal axis
+    the cube tips over; half a turn about y for -z), written out here from SPEC's words."""
+    import mujoco
+
+    matrix = np.zeros(9)
+    mujoco.mju_quat2Mat(matrix, np.asarray(quaternion, dtype=np.float64))
+    matrix = matrix.reshape(3, 3)
+    axis = int(np.argmax(np.abs(matrix[2])))
+    sign = np.sign(matrix[2, axis])
+    np.testing.assert_allclose(abs(matrix[2, axis]), 1.0, atol=1e-12)  # A face exactly up.
+    normal = np.zeros(3)
+    normal[axis] = sign
+    if axis == 2 and sign < 0:
+        tipped = np.diag([-1.0, 1.0, -1.0])
+    else:
+        k = np.cross(normal, [0.0, 0.0, 1.0])
+        skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+        tipped = np.eye(3) + skew + skew @ skew  # A quarter turn about k.
+    turn = matrix @ tipped.T  # What is left: a turn about z.
+    np.testing.assert_allclose(turn[2], [0.0, 0.0, 1.0], atol=1e-12)
+    return 2 * axis + int(sign < 0), float(np.arctan2(turn[1, 0], turn[0, 0]))
+
+
+def test_flip_goals_are_a_face_up_at_a_yaw_within_the_range():
+    """SPEC: a face up, uniform yaw. Every face comes up, the bottom one too, and the yaw
+    fills [-0.3, 0.3] rad and stays inside it."""
     env = franka_composer.load("flip", seed=4)
+    drawn = [_face_up_and_yaw(env.reset().observation["goal"]) for _ in range(600)]
+    faces, yaws = np.array([f for f, _ in drawn]), np.array([y for _, y in drawn])
+    np.testing.assert_allclose(np.bincount(faces, minlength=6) / len(faces), 1 / 6, atol=0.05)
+    assert np.all(np.abs(yaws) <= 0.3 + 1e-9)
+    assert yaws.min() < -0.28 and yaws.max() > 0.28 and abs(yaws.mean()) < 0.03
+    narrow = franka_composer.load("flip", seed=4, goal_yaw_range=0.1)
+    assert max(abs(_face_up_and_yaw(narrow.reset().observation["goal"])[1])
+               for _ in range(100)) <= 0.1 + 1e-9
+
+
+def test_flip_goals_come_from_the_seed_alone():
+    np.random.seed(123)
+    before = np.random.get_state()[1].copy()
+    first = [franka_composer.load("flip", seed=9).reset().observation["goal"]
+             for _ in range(2)]
+    np.testing.assert_array_equal(first[0], first[1])
+    np.testing.assert_array_equal(np.random.get_state()[1], before)  # Global RNG untouched.
+
+
+def test_the_uniform_orientation_goal_option_gives_panda_gyms_goals():
+    """A uniform orientation's quaternion is uniform on the 3-sphere: each component's
+    square averages 1/4 (face-up goals' do not: a face up has w^2 + z^2 = 1/2 or 1)."""
+    env = franka_composer.load("flip", seed=4, orientation_goal="uniform")
     goals = np.array([env.reset().observation["goal"] for _ in range(400)])
     np.testing.assert_allclose((goals ** 2).mean(axis=0), 0.25, atol=0.03)
+    assert np.mean(np.abs(goals[:, 0] ** 2 + goals[:, 3] ** 2 - 0.5) < 0.01) < 0.1
 
 
 def test_objects_rest_and_nothing_jerks_on_the_first_zero_action(object_task_name):

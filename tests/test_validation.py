@@ -48,6 +48,8 @@ NAN, INF = float("nan"), float("inf")
     ("distance_threshold", True, "distance_threshold must be a finite number > 0, got True"),
     ("reward_type", "shaped", "unknown reward_type 'shaped'; valid reward_types: sparse, dense"),
     ("physics", None, "physics must be a PhysicsSettings record, got None"),
+    ("goal_yaw_range", 0.2, "goal_yaw_range does not apply to push: it has no orientation "
+                            "goal"),
 ])
 def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, message):
     with pytest.raises(ValueError, match=message):
@@ -55,6 +57,17 @@ def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, messa
     if option != "reward_type":  # A Gymnasium id fixes its reward type.
         with pytest.raises(ValueError, match=message):
             gym.make("FrankaPushSparse-v0", **{option: value})
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("orientation_goal", "random", "unknown orientation_goal 'random'; valid "
+                                   "orientation_goals: face_up, uniform"),
+    ("goal_yaw_range", -0.1, "goal_yaw_range must be >= 0 and <= 3.14159"),
+    ("goal_yaw_range", 4.0, "goal_yaw_range must be >= 0 and <= 3.14159"),
+])
+def test_a_bad_flip_goal_option_names_itself(option, value, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("FrankaFlipSparse-v1", **{option: value})
 
 
 @pytest.mark.parametrize("field, value, message", [

@@ -15,8 +15,9 @@ from franka_composer.tasks.layout import layout_for
 
 #: Line width of the page.
 WIDTH = 88
-#: What each version changed, newest last (bumped when a task's dynamics, initial state or
-#: reward changes: docs/guide/quickstart.md, "Ids and their versions").
+#: What each version changed, newest last (an id's version is bumped when its task's
+#: dynamics, initial state, goals or reward change: docs/guide/quickstart.md, "Ids and their
+#: versions"); a task whose goals changed adds its lines (`TaskConfig.version_history`).
 VERSION_HISTORY = (
     "v0: this implementation of the paper's tasks on the Menagerie Panda, with contacts "
     "that hold when the hand presses (objects cannot be pressed into the floor or "
@@ -88,7 +89,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',
             "\n".join(options)]),
-        ("Version history", list(VERSION_HISTORY)),
+        ("Version history", list(VERSION_HISTORY) + list(config.version_history)),
     ]
     lines = [textwrap.fill(config.description, WIDTH), "",
              textwrap.fill(f"Ids: {', '.join(ids)} (sparse and dense reward), "
@@ -132,10 +133,18 @@ def _goal_words(config: TaskConfig) -> tuple[str, str, str]:
                 f"{objects}; the goal's (x, y) uniform in the {_square(workspace.goal_box)}.",
                 "m")
     if config.goal == "orientation":
+        settings = config.orientation_goal
+        goal = ("uniformly random (orientation_goal='uniform', panda-gym's: 94 % of such "
+                "goals are more than 0.2 rad from every orientation of a cube resting on a "
+                "face, out of a top-down hand's reach)" if settings.kind == "uniform" else
+                "one of the six faces up, drawn uniformly, turned a uniform yaw in "
+                f"[-{settings.yaw_range:g}, {settings.yaw_range:g}] rad about the vertical "
+                "from the heading the fewest tips give it (orientation_goal='face_up', "
+                "goal_yaw_range)")
         return ("achieved_goal is the cube's orientation, desired_goal the goal orientation "
                 "(unit quaternions w, x, y, z; q and -q are the same orientation, and the "
                 "distance is the rotation angle between them).",
-                f"{objects}; the goal orientation uniformly random.", "rad")
+                f"{objects}; the goal orientation {goal}.", "rad")
     return ("achieved_goal is the object's position, desired_goal the goal (m, world frame).",
             f"{objects}; the goal's (x, y) uniform in the {_square(workspace.goal_box)}, "
             f"{lifted}.", "m")

@@ -1,10 +1,12 @@
 """Registers the Gymnasium ids, generated from the task and controller registries: one
 loop, no list.
 
-`Franka{Task}{Sparse,Dense}-v0` for every task under the default (mocap) controller (the
+`Franka{Task}{Sparse,Dense}-v<version>` for every task under the default (mocap) controller (the
 paper's three are the reference implementation's ids, so users of `panda_mujoco_gym` switch
 by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v0` under the others,
-panda-gym's naming. Each task has its own class, `Franka{Task}Env`, whose docstring is the
+panda-gym's naming. The suffix is the task's version (`TaskConfig.version`): -v0, except
+flip's -v1 (reachable goals); an older suffix is not registered, so `gym.make` of it raises
+Gymnasium's "deprecated, use -v1" error. Each task has its own class, `Franka{Task}Env`, whose docstring is the
 task's documentation page (`pages.page`: spaces, observation table, rewards, episode rules,
 version history).
 """
@@ -28,10 +30,12 @@ def _camel(task: str) -> str:
     return "".join(part.capitalize() for part in task.split("_"))
 
 
-def env_id(task: str, reward_type: str, control: str = "mocap", version: int = 0) -> str:
+def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`; with `osc` ->
-    `FrankaPickAndPlaceOscDense-v0`."""
+    `FrankaPickAndPlaceOscDense-v0`. The suffix is the task's `TaskConfig.version` (flip's
+    is 1: its goals changed)."""
     controller = "" if control == "mocap" else control.capitalize()
+    version = TASK_CONFIGS[task].version
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
 

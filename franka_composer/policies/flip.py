@@ -1,18 +1,18 @@
 """Flip expert: tip the right face up, then turn the cube about z to the goal's yaw.
 
 The hand is held top-down with a fixed yaw, so it cannot hold the cube in a general
-orientation: the cube can only be brought to rest flat on a face, at any yaw. A uniformly
-random goal is within the success angle (0.2 rad) of such a resting orientation only when
-one of the cube's axes points within 0.2 rad of vertical in the goal: with probability
-6 (1 - cos 0.2) / 2, about 6 %. So the expert aims at the nearest resting orientation, which
-is the goal itself in those episodes and the best it can do in the others:
+orientation: the cube can only be brought to rest flat on a face, at any yaw. The task's
+goals are such orientations (`OrientationGoal`); given panda-gym's uniform goals
+(orientation_goal="uniform") the expert aims at the nearest resting orientation, which is
+within the success angle of the goal in only ~6 % of episodes:
 
 1. The face to end up on top is the one whose normal the goal points most nearly up.
 2. Tipping: a push near the top edge of the face opposite the push (slowly: faster or
    deeper pushes tip it twice) turns that face to the top. A face sideways is tipped up in
    one push, a face down first to the side.
 3. Turning: pushing a side face off its centre, low (so the cube slides and turns rather
-   than tips), until the yaw matches.
+   than tips), from the side that drives the cube back towards the middle of the object
+   square, until the yaw matches.
 """
 
 from __future__ import annotations
@@ -38,12 +38,18 @@ TURN_OFFSET = 0.018
 TURN_SPEED = 0.25
 #: Yaw error (rad) at which the expert stops turning: well inside the 0.2 rad of success.
 YAW_TOLERANCE = 0.06
+#: How far (m) the hand backs away from the cube as it rises after a push, so that it does
+#: not drag the cube up with it.
+RETREAT = 0.03
 #: The longest push (m) before the hand goes round again.
 MAX_PUSH = 0.08
 #: Height (m) of the TCP while it travels around the cube.
 TRAVEL_HEIGHT = 0.1
 #: How close (m) the TCP must be to a push's start before pushing.
 POSITION_TOLERANCE = 0.004
+#: How far (m) off the start, horizontally, a lowered TCP may be and still close in on it
+#: rather than rise and come down again.
+APPROACH_TOLERANCE = 0.012
 
 
 def _axes(quaternion) -> np.ndarray:
@@ -87,29 +93,31 @@ class FlipExpert(Expert):
                 self._pushing = None
                 return np.array([*self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT]), -1.0])
             return self._turn(tcp, cube, current, error, below_tcp)
-        if abs(up[2]) < 0.5:
+        if up[2] > -0.5:  # Sideways, or on its way up: keep pushing the same way.
             horizontal = up[:2] / np.linalg.norm(up[:2])
         else:  # Face down: tip it to a side first (any side: towards +x here).
             horizontal = np.array([-1.0, 0.0])
         # Push from the side the face looks to, towards the other side, near the top edge.
         start = np.array([*(cube[:2] + horizontal * PUSH_OFFSET),
                           cube[2] + half - TIP_DEPTH + below_tcp])
-        return self._push(tcp, start, -horizontal, TIP_SPEED)
+        return self._push(tcp, cube, start, -horizontal, TIP_SPEED)
 
     def _turn(self, tcp, cube, current, error, below_tcp) -> np.ndarray:
-        # Push the side face that looks most towards the robot (x < 0), off its centre.
+        # Push, off its centre, the side face that looks most away from the middle of the
+        # object square: the cube slides back towards it rather than out of reach.
         faces = [current[:2, i] * s for i in range(3) for s in (1, -1)
                  if abs(current[2, i]) < 0.5]
-        normal = min(faces, key=lambda n: n[0])
+        away = cube[:2] - np.asarray(self.config.workspace.object_box.centre)
+        normal = max(faces, key=lambda n: n @ away)
         normal = normal / np.linalg.norm(normal)
         tangent = np.array([-normal[1], normal[0]])  # z x normal.
         # Pushing into the face at +tangent turns the cube positively about z.
         offset = TURN_OFFSET * np.sign(error)
         start = np.array([*(cube[:2] + normal * PUSH_OFFSET + tangent * offset),
                           TURN_HEIGHT + below_tcp])
-        return self._push(tcp, start, -normal, TURN_SPEED)
+        return self._push(tcp, cube, start, -normal, TURN_SPEED)
 
-    def _push(self, tcp, start, direction, speed) -> np.ndarray:
+    def _push(self, tcp, cube, start, direction, speed) -> np.ndarray:
         """Goes to `start` (around the cube, from above) and pushes along `direction` while
         the push still points the same way (the cube moves, and the start with it), for at
         most `MAX_PUSH`."""
@@ -124,10 +132,16 @@ class FlipExpert(Expert):
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._pushing = (start, direction)
             return np.array([*self.move_towards(tcp, start), -1.0])
-        if np.linalg.norm(tcp[:2] - start[:2]) < POSITION_TOLERANCE:
-            return np.array([*self.move_towards(tcp, start), -1.0])  # Straight down.
+        off = np.linalg.norm(tcp[:2] - start[:2])
+        if off < POSITION_TOLERANCE or (off < APPROACH_TOLERANCE
+                                        and tcp[2] < TRAVEL_HEIGHT - 0.02):
+            # Down onto the start, correcting on the way: a hand that lags its target
+            # (osc) lands a few millimetres off and would otherwise go round again.
+            return np.array([*self.move_towards(tcp, start), -1.0])
         if tcp[2] < TRAVEL_HEIGHT - 0.02:
-            return np.array([*self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT]), -1.0])
+            back = tcp[:2] - cube[:2]
+            back = tcp[:2] + RETREAT * back / max(np.linalg.norm(back), 1e-9)
+            return np.array([*self.move_towards(tcp, [*back, TRAVEL_HEIGHT]), -1.0])
         return np.array([*self.move_towards(tcp, [*start[:2], TRAVEL_HEIGHT]), -1.0])
 
 

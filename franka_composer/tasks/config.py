@@ -182,6 +182,28 @@ class PhysicsSettings:
                                           minimum=minimum, integer=True))
 
 
+#: How an orientation goal (flip) is drawn: "face_up", a face of the cube up at a yaw near
+#: the heading the fewest tips give it, which a top-down hand can reach; "uniform",
+#: panda-gym's uniformly random orientation, which it mostly cannot (94 % of such goals are
+#: more than 0.2 rad from every orientation of a cube resting on a face).
+ORIENTATION_GOALS = ("face_up", "uniform")
+
+
+@dataclasses.dataclass(frozen=True)
+class OrientationGoalSettings:
+    """How flip's goal orientations are drawn (`ORIENTATION_GOALS`): `kind`, and for
+    "face_up" the half-width `yaw_range` (rad) of the uniform yaw offset about world z
+    (flip's values, and why, are in `tasks/flip.py`)."""
+
+    kind: str
+    yaw_range: float
+
+    def __post_init__(self) -> None:
+        check_choice("orientation_goal", self.kind, ORIENTATION_GOALS)
+        _set(self, "yaw_range", check_number("goal_yaw_range", self.yaw_range, minimum=0.0,
+                                             maximum=float(np.pi)))
+
+
 @dataclasses.dataclass(frozen=True)
 class TaskConfig:
     """A task's parameters (SI units, world frame, robot base at the origin).
@@ -211,6 +233,11 @@ class TaskConfig:
       observations: the state vector, camera images or both (`ObservationSettings`).
       randomization: what is randomised each episode (`randomization` package); off by
         default.
+      orientation_goal: how orientation goals are drawn (`OrientationGoalSettings`); None
+        for tasks whose goal is not an orientation.
+      version: the suffix of the task's Gymnasium ids, bumped when its goals, dynamics or
+        initial state change.
+      version_history: what each version after v0 changed, and why (its page shows them).
     """
 
     name: str = "push"
@@ -231,6 +258,9 @@ class TaskConfig:
     max_episode_steps: int = 50
     observations: ObservationSettings = ObservationSettings()
     randomization: RandomizationSettings = RandomizationSettings()
+    orientation_goal: OrientationGoalSettings | None = None
+    version: int = 0
+    version_history: tuple[str, ...] = ()
 
     def replace(self, **options) -> "TaskConfig":
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
@@ -284,6 +314,9 @@ class Option:
         return hasattr(record, self.path[-1])
 
     def check(self, name: str, value, config: TaskConfig):
+        if not self.applies_to(config) and self.path[0] != "objects":
+            raise ValueError(f"{name} does not apply to {config.name}: it has no "
+                             f"{self.path[0].replace('_', ' ')}")
         if not self.applies_to(config):
             valid = [n for n, o in OPTIONS.items()
                      if o.path[0] == "objects" and o.applies_to(config)]
@@ -419,6 +452,12 @@ OPTIONS: dict[str, Option] = {
     "camera_meshes": Option(("observations", "camera_meshes"),
                             lambda name, value: check_choice(name, value, CAMERA_MESHES)),
     "randomization": Option(("randomization",), randomization_settings),
+    "orientation_goal": Option(("orientation_goal", "kind"),
+                               lambda name, value: check_choice(name, value,
+                                                                ORIENTATION_GOALS)),
+    "goal_yaw_range": Option(("orientation_goal", "yaw_range"),
+                             lambda name, value: check_number(name, value, minimum=0.0,
+                                                              maximum=float(np.pi))),
     "neutral_arm_qpos": Option(("neutral_arm_qpos",),
                                lambda name, value: check_vector(name, value, 7)),
 }

@@ -11,13 +11,16 @@ HER relabelling is exact) and shows the desired goal with a marker in rendered i
   square.
 - "stacked" (stack): block 1 on the surface at a point of the goal square, block 2 right on
   top of it; the achieved goal is both blocks' positions (6 numbers).
-- "orientation" (flip): the cube to a uniformly random orientation (w, x, y, z).
+- "orientation" (flip): the cube to an orientation (w, x, y, z): by default a face up at a
+  yaw near the heading the fewest tips give it (`config.orientation_goal`), or panda-gym's
+  uniformly random orientation.
 """
 
 from __future__ import annotations
 
 import abc
 
+import mujoco
 import numpy as np
 from dm_control.composer.variation import distributions, rotations
 
@@ -140,16 +143,46 @@ class StackedGoal(Goal):
         self.marker.set_positions(physics, desired.reshape(-1, 3))
 
 
+_HALF_TURN = np.sqrt(0.5)
+#: The smallest rotation from the cube's starting orientation (upright, body axes along the
+#: world's) that turns each face up (w, x, y, z), faces in `faces.FACE_COLOURS`' order +x,
+#: -x, +y, -y, +z, -z: a quarter turn about the horizontal axis the cube tips over for a
+#: side face; half a turn about y (two tips towards +x) for the bottom face.
+FACE_UP_QUATERNIONS = np.array([
+    (_HALF_TURN, 0.0, -_HALF_TURN, 0.0), (_HALF_TURN, 0.0, _HALF_TURN, 0.0),
+    (_HALF_TURN, _HALF_TURN, 0.0, 0.0), (_HALF_TURN, -_HALF_TURN, 0.0, 0.0),
+    (1.0, 0.0, 0.0, 0.0), (0.0, 0.0, 1.0, 0.0)])
+
+
+def face_up_orientation(face: int, yaw: float) -> np.ndarray:
+    """Face `face` (an index of `FACE_UP_QUATERNIONS`) up, turned `yaw` rad about world z
+    from the heading the fewest tips give it (w, x, y, z)."""
+    turn = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+    quaternion = np.zeros(4)
+    mujoco.mju_mulQuat(quaternion, turn, FACE_UP_QUATERNIONS[face])
+    return quaternion
+
+
 class OrientationGoal(Goal):
-    """The cube to a uniformly random orientation (w, x, y, z); the marker is a translucent
-    copy of the cube shown in that orientation beside the workspace."""
+    """The cube to an orientation (w, x, y, z); the marker is a translucent copy of the cube
+    shown in that orientation beside the workspace.
+
+    "face_up" goals (`OrientationGoalSettings`): a face drawn uniformly from the six, up,
+    turned a uniform yaw in [-yaw_range, yaw_range] about world z; orientations a cube
+    resting on the floor has, which a top-down hand reaches by tipping and pushing it.
+    "uniform": panda-gym's uniformly random orientation, mostly out of this hand's reach.
+    """
 
     metric = "rotation_angle"
     size = 4
 
     def __init__(self, config, arena, panda, props) -> None:
         super().__init__(config, arena, panda, props)
+        settings = config.orientation_goal
+        self._uniform = settings.kind == "uniform"
         self._orientation = rotations.UniformQuaternion()
+        self._face = distributions.UniformInteger(low=0, high=len(FACE_UP_QUATERNIONS))
+        self._yaw = distributions.Uniform(low=-settings.yaw_range, high=settings.yaw_range)
 
     def _make_marker(self) -> GoalMarker:
         cube = self._props[0]
@@ -160,7 +193,10 @@ class OrientationGoal(Goal):
         return [(self._props[0].orientation, "sensordata")]
 
     def sample(self, random_state: np.random.RandomState) -> np.ndarray:
-        return np.asarray(self._orientation(random_state=random_state), dtype=np.float64)
+        if self._uniform:
+            return np.asarray(self._orientation(random_state=random_state), dtype=np.float64)
+        face = int(self._face(random_state=random_state))
+        return face_up_orientation(face, float(self._yaw(random_state=random_state)))
 
     def show(self, physics, desired: np.ndarray) -> None:
         self.marker.set_pose(physics, ORIENTATION_MARKER_POSITION, desired)
