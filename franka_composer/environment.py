@@ -2,7 +2,10 @@
 surface. `fast_path.FastEnvironment` is the same environment, faster, where the installed
 dm_control has what it needs; this one is the stock path it falls back to.
 
-Two things differ from plain `composer.Environment`:
+Three things differ from plain `composer.Environment`:
+- Its time limit is a whole number of control steps (`episode_limit`): a time-out is a
+  LAST step with discount 1 after exactly that many steps, whatever the float rounding of
+  physics time.
 - A closed environment says so: `close()` twice is harmless, and `reset`, `step` or
   `physics` afterwards raise `EnvironmentClosedError` (Composer fails deep inside).
 - A step whose physics diverged gets the task's reward for the state it reports (MuJoCo
@@ -16,18 +19,32 @@ import dm_env
 import numpy as np
 from dm_control import composer
 
+from franka_composer import episode_limit
+
 
 class EnvironmentClosedError(RuntimeError):
     """`reset`, `step` or `physics` used after `close()`."""
 
 
 class GoalEnvironment(composer.Environment):
-    """`composer.Environment` with clear errors once closed and the task's reward on a
-    diverged step."""
+    """`composer.Environment` with a time limit of whole control steps, clear errors once
+    closed and the task's reward on a diverged step."""
 
-    def __init__(self, task, **kwargs) -> None:
-        super().__init__(task, **kwargs)
+    def __init__(self, task, *, time_limit: float = episode_limit.NO_LIMIT, **kwargs) -> None:
+        self._episode_steps = episode_limit.episode_steps(time_limit, task.control_timestep)
+        super().__init__(task, time_limit=episode_limit.composer_time_limit(
+            self._episode_steps, task.control_timestep), **kwargs)
         self._closed = False
+
+    @property
+    def episode_steps(self) -> int | None:
+        """Control steps before an episode times out; None: it never does."""
+        return None if self._episode_steps == episode_limit.NO_LIMIT else self._episode_steps
+
+    @property
+    def time_limit(self) -> float:
+        """Seconds of physics before an episode times out (whole control steps; inf: none)."""
+        return self._episode_steps * self.control_timestep()
 
     @property
     def closed(self) -> bool:
