@@ -9,7 +9,8 @@ from typing import Callable
 
 import numpy as np
 
-#: Keys of the Gymnasium goal observation dict, saved side by side.
+#: Keys of the Gymnasium goal observation dict in the state modes (the pixel modes add
+#: "<camera>_pixels" images, and "pixels" alone has no "observation").
 OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
 #: Per-step arrays (one entry per action taken).
 STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
@@ -19,8 +20,8 @@ STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
 class Trajectories:
     """Episodes of one policy in one environment, each a dict of arrays.
 
-    Each episode of T steps has `observation`, `achieved_goal`, `desired_goal` with T + 1
-    rows (the reset observation first), and `action`, `reward`, `is_success` (the step's
+    Each episode of T steps has the env's observation keys (`OBSERVATION_KEYS`, images in
+    the pixel modes) with T + 1 rows (the reset observation first), and `action`, `reward`, `is_success` (the step's
     `info["is_success"]`), `terminated`, `truncated` with T rows.
     `env_seconds` is the wall time spent inside `env.reset` and `env.step` only.
     """
@@ -49,7 +50,7 @@ class Trajectories:
     def save(self, path: str | os.PathLike) -> None:
         """Writes every episode, concatenated, to a `.npz` file with `episode_length`."""
         arrays = {key: np.concatenate([e[key] for e in self.episodes])
-                  for key in OBSERVATION_KEYS + STEP_KEYS}
+                  for key in self.episodes[0]}
         np.savez_compressed(path, episode_length=self.lengths, **arrays)
 
     @classmethod
@@ -59,7 +60,8 @@ class Trajectories:
             lengths = data["episode_length"]
             step_ends = np.cumsum(lengths)[:-1]
             obs_ends = np.cumsum(lengths + 1)[:-1]
-            split = {key: np.split(data[key], obs_ends) for key in OBSERVATION_KEYS}
+            split = {key: np.split(data[key], obs_ends) for key in data.files
+                     if key not in STEP_KEYS and key != "episode_length"}
             split.update({key: np.split(data[key], step_ends) for key in STEP_KEYS})
         return cls([{key: split[key][i] for key in split} for i in range(len(lengths))])
 
@@ -99,7 +101,7 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
                                               terminated, truncated)):
                 steps[key].append(value)
             done = terminated or truncated
-        episode = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
+        episode = {key: np.array([o[key] for o in observations]) for key in observations[0]}
         episode.update({key: np.array(values) for key, values in steps.items()})
         episode["action"] = episode["action"].astype(np.float32)
         episode["reward"] = episode["reward"].astype(np.float64)
