@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from dm_control import composer
 
-from franka_composer import episode_limit, seeding
-from franka_composer.environment import GoalEnvironment
+from franka_composer import seeding
+from franka_composer.environment import GoalEnvironment, check_time_limit
 from franka_composer.fast_path import make_environment
 from franka_composer.tasks import build_task, task_config
 
@@ -52,7 +52,7 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
         seed = seeding.random_state(seed)
     config = task_config(name, reward_type=reward_type, **task_kwargs)
     seconds = (config.time_limit if isinstance(time_limit, str) and time_limit == TASK_TIME_LIMIT
-               else episode_limit.check_time_limit(time_limit))
+               else check_time_limit(time_limit))
     task = build_task(config, renderable=renderable)
     return make_environment(
         task,

@@ -107,7 +107,7 @@ def test_every_rlds_episode_ends_with_a_last_step(tmp_path, capsys):
     assert "push: 3 episodes" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("format", ["npz", "rlds"])
+@pytest.mark.parametrize("format", ["npz", "minari", "rlds"])
 def test_record_works_in_the_pixel_modes(tmp_path, format):
     out = tmp_path / ("pixels.npz" if format == "npz" else "pixels")
     summary = record("push", 1, out, format=format, seed=2, observation_mode="pixels",
@@ -117,6 +117,13 @@ def test_record_works_in_the_pixel_modes(tmp_path, format):
         episode = Trajectories.load(out).episodes[0]
         assert "observation" not in episode
         assert episode["workspace_pixels"].shape == (summary["steps"] + 1, 16, 16, 3)
+    elif format == "minari":
+        with minari_format.datasets_root(out):
+            episode = next(minari.load_dataset(summary["dataset_id"]).iterate_episodes())
+        assert set(episode.observations) == {"achieved_goal", "desired_goal",
+                                             "workspace_pixels"}
+        assert episode.observations["workspace_pixels"].shape == (summary["steps"] + 1, 16,
+                                                                  16, 3)
     else:
         episode = rlds_format.read(out)["episodes"][0]
         assert episode["last"] and episode["observations"][0]["workspace_pixels"].shape == (

@@ -1,6 +1,6 @@
-"""Episode time limits: every task's episodes end with a LAST step after exactly its episode
-length, on both stepping paths and at both timings, and the Gymnasium adapter and Shimmy
-truncate there."""
+"""Episode time limits (environment.py): every task's episodes end with a LAST step after
+exactly its episode length, on both stepping paths and at both timings, and the Gymnasium
+adapter and Shimmy truncate there."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 import franka_composer
 from conftest import SPEC
-from franka_composer import episode_limit
+from franka_composer import environment
 from franka_composer.adapters.registration import ENV_IDS, env_id
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import TASK_CONFIGS
@@ -80,14 +80,14 @@ def test_a_bad_time_limit_is_refused_before_anything_is_built(time_limit):
         franka_composer.load("push", time_limit=time_limit)
 
 
-def test_episode_steps_round_up_to_whole_control_steps_despite_float_division():
+def test_control_steps_round_up_to_whole_steps_despite_float_division():
     assert 0.3 / 0.1 < 3 and 2.1 / 0.3 > 7  # The divisions round both ways.
-    assert episode_limit.episode_steps(0.3, 0.1) == 3
-    assert episode_limit.episode_steps(2.1, 0.3) == 7
-    assert episode_limit.episode_steps(2.11, 0.3) == 8
-    assert episode_limit.check_time_limit(None) == episode_limit.NO_LIMIT
-    assert episode_limit.episode_steps(episode_limit.NO_LIMIT, 0.1) == float("inf")
-    assert episode_limit.composer_time_limit(50, 0.05) == pytest.approx(2.475)
+    assert environment.control_steps(0.3, 0.1) == 3
+    assert environment.control_steps(2.1, 0.3) == 7
+    assert environment.control_steps(2.11, 0.3) == 8
+    assert environment.check_time_limit(None) == environment.NO_LIMIT
+    assert environment.control_steps(environment.NO_LIMIT, 0.1) == float("inf")
+    assert environment.composer_time_limit(50, 0.05) == pytest.approx(2.475)
 
 
 def test_the_gymnasium_adapter_truncates_at_the_time_limit_on_its_own():
