@@ -33,21 +33,22 @@ def breakdown(task: str) -> dict[str, float]:
     action = np.zeros(adapter.action_space.shape, np.float32)
 
     def gym_step():
-        if env.step(action)[2]:
+        if any(env.step(action)[2:4]):  # Terminated or truncated.
             env.reset()
 
     def apply_action():
         task_object.controller.apply(physics, action)  # Writes through views: no mj_forward.
 
     def adapter_step():
-        if adapter.step(action)[2]:
+        if any(adapter.step(action)[2:4]):
             adapter.reset()
 
     observation = composer_env._read_observation()
-    goals = adapter._observation(observation)
+    goals = adapter.goal_observation(observation)
     parts = {
         "gym.make step (wrappers included)": best_us(gym_step, 1000),
         "adapter step": best_us(adapter_step, 1000),
+        # Every 50th step is a reset, as after each of the env's episodes.
         "Composer step": best_us(lambda: composer_env.step(action), 1000),
         "physics.step(25) (the fast path's one call)": best_us(lambda: physics.step(25), 1000),
         "mj_step(model, data, 25)": best_us(
@@ -61,7 +62,7 @@ def breakdown(task: str) -> dict[str, float]:
                      composer_env._make_timestep(False, observation)), 5000),
         "reward + discount + termination (no distance)": best_us(
             lambda: composer_env._make_timestep(False, observation), 5000),
-        "adapter observation dict": best_us(lambda: adapter._observation(observation), 5000),
+        "adapter observation dict": best_us(lambda: adapter.goal_observation(observation), 5000),
         "compute_reward, one pair (HER's call)": best_us(
             lambda: adapter.compute_reward(goals["achieved_goal"], goals["desired_goal"]),
             5000),

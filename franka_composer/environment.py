@@ -2,7 +2,14 @@
 surface. `fast_path.FastEnvironment` is the same environment, faster, where the installed
 dm_control has what it needs; this one is the stock path it falls back to.
 
-Two things differ from plain `composer.Environment`:
+Three things differ from plain `composer.Environment`:
+- Its time limit is a whole number of control steps: a time-out is a LAST step with
+  discount 1 after exactly that many steps, whatever the float rounding of physics time.
+  Composer ends an episode at the first control step whose physics time is >= its time
+  limit, and physics time is a float sum of physics timesteps (1250 additions of 0.002 s
+  in a 50-step episode: 2.4999999999999463 s), so a limit of exactly N periods could make
+  N or N + 1 steps; the limit handed to Composer lies halfway through the last step
+  (`composer_time_limit`).
 - A closed environment says so: `close()` twice is harmless, and `reset`, `step` or
   `physics` afterwards raise `EnvironmentClosedError` (Composer fails deep inside).
 - A step whose physics diverged gets the task's reward for the state it reports (MuJoCo
@@ -12,9 +19,15 @@ Two things differ from plain `composer.Environment`:
 
 from __future__ import annotations
 
+import math
+import numbers
+
 import dm_env
 import numpy as np
 from dm_control import composer
+
+#: No time limit (Composer's own default).
+NO_LIMIT = float("inf")
 
 
 class EnvironmentClosedError(RuntimeError):
@@ -22,12 +35,24 @@ class EnvironmentClosedError(RuntimeError):
 
 
 class GoalEnvironment(composer.Environment):
-    """`composer.Environment` with clear errors once closed and the task's reward on a
-    diverged step."""
+    """`composer.Environment` with a time limit of whole control steps, clear errors once
+    closed and the task's reward on a diverged step."""
 
-    def __init__(self, task, **kwargs) -> None:
-        super().__init__(task, **kwargs)
+    def __init__(self, task, *, time_limit: float = NO_LIMIT, **kwargs) -> None:
+        self._episode_steps = control_steps(time_limit, task.control_timestep)
+        super().__init__(task, time_limit=composer_time_limit(
+            self._episode_steps, task.control_timestep), **kwargs)
         self._closed = False
+
+    @property
+    def episode_steps(self) -> int | None:
+        """Control steps before an episode times out; None: it never does."""
+        return None if self._episode_steps == NO_LIMIT else self._episode_steps
+
+    @property
+    def time_limit(self) -> float:
+        """Seconds of physics before an episode times out (whole control steps; inf: none)."""
+        return self._episode_steps * self.control_timestep()
 
     @property
     def closed(self) -> bool:
@@ -66,3 +91,29 @@ def diverged(physics, warnings_before: np.ndarray) -> bool:
     """Whether MuJoCo raised a warning since `warnings_before` (its warning counters), which
     is when dm_control takes the physics to have diverged."""
     return bool((physics.data.warning.number > warnings_before).any())
+
+
+def check_time_limit(time_limit) -> float:
+    """`time_limit` as seconds (None: `NO_LIMIT`), or a ValueError saying what it may be."""
+    if time_limit is None:
+        return NO_LIMIT
+    if (isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real)
+            or not time_limit > 0):
+        raise ValueError(f"time_limit must be a number of seconds > 0, or None for no limit, "
+                         f"got {time_limit!r}")
+    return float(time_limit)
+
+
+def control_steps(time_limit: float, control_timestep: float) -> float:
+    """Control steps an episode of `time_limit` seconds makes: up to the first step that
+    ends at or after it (an int; `NO_LIMIT` without a limit)."""
+    if time_limit == NO_LIMIT:
+        return NO_LIMIT
+    # A millionth of a step: 2.5 s / 0.05 s is 50 steps even where the division rounds up.
+    return max(1, math.ceil(time_limit / control_timestep - 1e-6))
+
+
+def composer_time_limit(steps: float, control_timestep: float) -> float:
+    """The time limit that makes Composer end episodes after exactly `steps` control steps:
+    half a step before the last one ends."""
+    return NO_LIMIT if steps == NO_LIMIT else (steps - 0.5) * control_timestep

@@ -6,6 +6,12 @@ worker index to it). So a seed becomes Composer's random state through
 `np.random.SeedSequence`, which takes any non-negative int and spreads it over MT19937's
 whole state: `load(name, seed=s)` and `gym.make(id).reset(seed=s)` start the same episode,
 for every s.
+
+Shimmy's `DmControlCompatibilityV0(env).reset(seed=s)` replaces Composer's random state with
+`np.random.RandomState(s)` (numpy's legacy seeding; Shimmy's own code), so it starts the
+episode of `load(name, seed=np.random.RandomState(s))`, not Gymnasium's. Gymnasium's
+episodes for seed s come through Shimmy by seeding at `load(name, seed=s)` and resetting
+without a seed (`tests/test_seeding.py`).
 """
 
 from __future__ import annotations

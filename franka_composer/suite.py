@@ -6,16 +6,19 @@ import numpy as np
 from dm_control import composer
 
 from franka_composer import seeding
-from franka_composer.environment import GoalEnvironment
+from franka_composer.environment import GoalEnvironment, check_time_limit
 from franka_composer.fast_path import make_environment
 from franka_composer.tasks import build_task, task_config
 
 #: Times Composer retries an episode whose initialisation raised EpisodeInitializationError.
 MAX_RESET_ATTEMPTS = 10
 
+#: `load`'s default time limit: the task's episode length (`TaskConfig.time_limit`).
+TASK_TIME_LIMIT = "task"
+
 
 def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool | None = True,
-         **task_kwargs) -> GoalEnvironment:
+         time_limit=TASK_TIME_LIMIT, **task_kwargs) -> GoalEnvironment:
     """Builds the named task as a Composer (dm_env) environment.
 
     Args:
@@ -27,27 +30,34 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
         env, for processes that never render; `physics.render` then shows no arm). The
         simulation is bit-identical either way: the visual geoms have no mass or contacts.
         None: renderable only where the camera observations draw the visual meshes.
+      time_limit: seconds of physics before an episode times out, rounded up to whole
+        control steps; by default the task's `max_episode_steps` control periods (2.5 s,
+        50 steps, for push; 25 s under `timing="reference"`); None: no time limit.
       **task_kwargs: overrides of the task's `TaskConfig` fields, e.g.
         `terminate_on_success=False`, `distance_threshold=0.03`.
 
     Raises:
       ValueError: unknown task name or option, naming the valid ones; a seed that is not a
-        non-negative int.
+        non-negative int; a time limit that is not a positive number or None.
 
-    The environment has no time limit of its own (the Gymnasium adapter truncates at 50
-    steps) and ends an episode with a warning, not an exception, if the physics diverges
-    (the step gets the task's reward). It is a `fast_path.FastEnvironment` where the
-    installed dm_control allows, else Composer's stock stepping (`GoalEnvironment`), with
+    Episodes end with a LAST step: discount 0 on reaching the goal under
+    `terminate_on_success`, discount 1 on a time-out (the Gymnasium adapter truncates
+    there). If the physics diverges, the episode ends with a warning, not an exception,
+    and discount 0 (the step gets the task's reward).
+
+    It is a `fast_path.FastEnvironment` where the installed dm_control allows, else Composer's stock stepping (`GoalEnvironment`), with
     the same trajectories; `FRANKA_COMPOSER_FAST_PATH=0` forces the stock path.
     """
     if seed is not None and not isinstance(seed, np.random.RandomState):
         seed = seeding.random_state(seed)
-    task = build_task(task_config(name, reward_type=reward_type, **task_kwargs),
-                      renderable=renderable)
+    config = task_config(name, reward_type=reward_type, **task_kwargs)
+    seconds = (config.time_limit if isinstance(time_limit, str) and time_limit == TASK_TIME_LIMIT
+               else check_time_limit(time_limit))
+    task = build_task(config, renderable=renderable)
     return make_environment(
         task,
         random_state=seed,
-        time_limit=float("inf"),
+        time_limit=seconds,
         recompile_mjcf_every_episode=False,
         strip_singleton_obs_buffer_dim=True,
         raise_exception_on_physics_error=False,

@@ -71,9 +71,10 @@ def _hover_over_object(env, height):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(object_task_name, seed,
                                                                   control):
-    """Issue 11's press: full -z with x, y following the object for 80 steps."""
+    """Issue 11's press: full -z with x, y following the object for 80 steps, after up to
+    60 steps of hovering: one press, longer than an episode (no time limit)."""
     env = franka_composer.load(object_task_name, seed=seed, terminate_on_success=False,
-                               control=control)
+                               control=control, time_limit=None)
     timestep = _hover_over_object(env, height=0.03)
     name = env.task.prop.mjcf_model.model
     key, velocity_key = f"{name}/position", f"{name}/linear_velocity"

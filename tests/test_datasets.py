@@ -11,6 +11,7 @@ import franka_composer
 from franka_composer import seeding
 from franka_composer.cli import main
 from franka_composer.datasets import record
+from franka_composer.policies import Trajectories
 
 minari = pytest.importorskip("minari")
 pytest.importorskip("envlogger")
@@ -73,7 +74,7 @@ def test_an_rlds_dataset_reads_with_envlogger_and_replays_exactly(tmp_path):
     assert dataset["metadata"]["options"] == {"terminate_on_success": False}
     env = franka_composer.load("pick_and_place", terminate_on_success=False)
     for index, episode in enumerate(dataset["episodes"]):
-        assert episode["seed"] == 5 + index and not episode["last"]  # Truncated.
+        assert episode["seed"] == 5 + index and episode["last"]  # The time-out's LAST.
         seeding.reseed(env.random_state, episode["seed"])
         replayed = [env.reset().observation]
         rewards = []
@@ -89,6 +90,44 @@ def test_an_rlds_dataset_reads_with_envlogger_and_replays_exactly(tmp_path):
         np.testing.assert_array_equal(episode["rewards"], rewards)
     # The noise is drawn per episode from the seed: the episodes differ from the expert's.
     assert np.abs(np.diff(np.array(dataset["episodes"][0]["actions"])[:, 3])).max() > 0.05
+
+
+def test_every_rlds_episode_ends_with_a_last_step(tmp_path, capsys):
+    # The noisy osc expert fails some episodes: those end at the time limit, discount 1.
+    assert main(["rollout", "--task", "push", "--control", "osc", "--action-noise", "0.2",
+                 "--format", "rlds", "--episodes", "3", "--out", str(tmp_path / "rlds")]) == 0
+    envlogger = rlds_format._envlogger()
+    with envlogger.Reader(data_directory=str(tmp_path / "rlds")) as reader:
+        ends = [(len(steps) - 1, steps[-1].timestep) for steps in map(list, reader.episodes)]
+    assert len(ends) == 3 and all(last.last() for _, last in ends)
+    for length, last in ends:
+        assert (length, last.discount) == ((50, 1.0) if last.reward == -1.0 else
+                                           (length, 0.0))
+    assert any(length == 50 for length, _ in ends)
+    assert "push: 3 episodes" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("format", ["npz", "minari", "rlds"])
+def test_record_works_in_the_pixel_modes(tmp_path, format):
+    out = tmp_path / ("pixels.npz" if format == "npz" else "pixels")
+    summary = record("push", 1, out, format=format, seed=2, observation_mode="pixels",
+                     pixel_width=16, pixel_height=16)
+    assert summary["success_rate"] == 1.0
+    if format == "npz":
+        episode = Trajectories.load(out).episodes[0]
+        assert "observation" not in episode
+        assert episode["workspace_pixels"].shape == (summary["steps"] + 1, 16, 16, 3)
+    elif format == "minari":
+        with minari_format.datasets_root(out):
+            episode = next(minari.load_dataset(summary["dataset_id"]).iterate_episodes())
+        assert set(episode.observations) == {"achieved_goal", "desired_goal",
+                                             "workspace_pixels"}
+        assert episode.observations["workspace_pixels"].shape == (summary["steps"] + 1, 16,
+                                                                  16, 3)
+    else:
+        episode = rlds_format.read(out)["episodes"][0]
+        assert episode["last"] and episode["observations"][0]["workspace_pixels"].shape == (
+            16, 16, 3)
 
 
 def test_action_noise_is_a_function_of_the_seed_and_the_command_line_records(tmp_path, capsys):

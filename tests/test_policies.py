@@ -56,6 +56,53 @@ def test_an_expert_is_made_for_an_env_not_a_task_name():
     assert make_expert(dm_env).action_size == 4  # A dm_env works too.
 
 
+def _dm_env_actions(env, expert) -> np.ndarray:
+    """The expert's actions over one episode of the dm_env `env`, acting on its
+    observations as an acme-style loop hands them over."""
+    expert.reset()
+    timestep, actions = env.reset(), []
+    while not timestep.last():
+        actions.append(expert(timestep.observation))
+        timestep = env.step(actions[-1])
+    return np.array(actions)
+
+
+def test_an_expert_acts_on_dm_env_observations_as_on_the_gymnasium_ones(task_name):
+    gym_env = gym.make(env_id(task_name, "sparse"))
+    expected = rollout(gym_env, make_expert(gym_env), 1, seed=3).episodes[0]["action"]
+    dm_env = franka_composer.load(task_name, seed=3)
+    np.testing.assert_array_equal(_dm_env_actions(dm_env, make_expert(dm_env)), expected)
+
+
+def test_an_expert_reads_the_state_through_the_task_in_the_pixel_modes():
+    state = gym.make("FrankaPushSparse-v0")
+    expected = rollout(state, make_expert(state), 1, seed=2).episodes[0]
+    pixels = gym.make("FrankaPushSparse-v0", observation_mode="pixels", pixel_width=16,
+                      pixel_height=16)
+    episode = rollout(pixels, make_expert(pixels), 1, seed=2).episodes[0]
+    assert "observation" not in episode and episode["workspace_pixels"].shape[1:] == (16, 16, 3)
+    for key in ("action", "achieved_goal", "desired_goal"):
+        np.testing.assert_array_equal(episode[key], expected[key])
+    dm_env = franka_composer.load("push", seed=2, observation_mode="pixels", pixel_width=16,
+                                  pixel_height=16)
+    np.testing.assert_array_equal(_dm_env_actions(dm_env, make_expert(dm_env)),
+                                  expected["action"])
+
+
+def test_an_expert_without_its_env_says_how_to_read_pixel_observations():
+    env = gym.make("FrankaPushSparse-v0", observation_mode="pixels", pixel_width=16,
+                   pixel_height=16)
+    task = env.unwrapped.task
+    expert = EXPERTS["push"](task.observation_layout, task.config)
+    obs, _ = env.reset(seed=0)
+    with pytest.raises(ValueError, match=r"holds no state vector \(a pixel mode\?\): build the "
+                                         r"expert with make_expert\(env\)"):
+        expert(obs)
+    with pytest.raises(ValueError, match="an expert needs the desired goal, and this "
+                                         "observation has none"):
+        make_expert(env)({"workspace_pixels": obs["workspace_pixels"]})
+
+
 def test_same_seed_same_trajectories():
     env = gym.make(env_id("slide", "sparse"))
     first = rollout(env, make_expert(env), 2, seed=7)

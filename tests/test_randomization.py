@@ -279,6 +279,16 @@ def test_her_relabelled_rewards_are_exact_under_randomisation():
      "'observation_delay' must draw a whole number of control steps in [0, 50]"),
     ({"camera_position": 0.01}, "'camera_position' must draw 3 finite numbers"),
     ({"position_noise": float("nan")}, "'position_noise' is noise added to each reading"),
+    # A distribution that cannot draw at all (numpy's own errors name no parameter).
+    ({"position_noise": distributions.Normal(0.0, -1.0)},
+     "randomization 'position_noise' cannot draw from Normal(args=(), kwargs={'loc': 0.0, "
+     "'scale': -1.0}, single_sample=False): ValueError: scale < 0"),
+    ({"controller_gain": distributions.Uniform(float("nan"), 1.0)},
+     "randomization 'controller_gain' cannot draw from Uniform("),
+    ({"light_direction": distributions.Uniform(0.0, float("inf"))},
+     "randomization 'light_direction' cannot draw from Uniform("),
+    ({"observation_delay": distributions.UniformInteger(3, 1)},
+     "randomization 'observation_delay' cannot draw from UniformInteger("),
     (3, "randomization must be None, a preset (default) or a mapping"),
 ])
 def test_bad_randomisations_are_refused_before_anything_is_built(value, message):

@@ -34,6 +34,34 @@ def test_the_dm_env_and_gymnasium_interfaces_start_the_same_episode_for_a_seed()
                                       obs["achieved_goal"])
 
 
+def _same_observations(first: dict, second: dict) -> bool:
+    return first.keys() == second.keys() and all(np.array_equal(first[k], second[k])
+                                                 for k in first)
+
+
+def test_shimmy_seeds_numpys_legacy_way_and_a_seed_given_to_load_is_gymnasiums():
+    """The mapping the docs state: Shimmy's `reset(seed=s)` replaces Composer's random state
+    with `np.random.RandomState(s)`; Gymnasium's episodes for seed s come through Shimmy
+    from `load(name, seed=s)` and unseeded resets."""
+    from shimmy import DmControlCompatibilityV0
+
+    shimmy_env = DmControlCompatibilityV0(franka_composer.load("push"))
+    legacy = franka_composer.load("push", seed=np.random.RandomState(5))
+    assert _same_observations(shimmy_env.reset(seed=5)[0], legacy.reset().observation)
+    assert _same_observations(shimmy_env.reset()[0], legacy.reset().observation)
+
+    gym_env = gym.make("FrankaPushSparse-v0")
+    adapter = gym_env.unwrapped
+    seeded_at_load = DmControlCompatibilityV0(franka_composer.load("push", seed=5))
+    for seed in (5, None):  # The stream continues alike.
+        expected = gym_env.reset(seed=seed)[0]
+        obs = adapter.goal_observation(seeded_at_load.reset()[0])
+        assert _same_observations(obs, expected)
+    # Shimmy's own seed 5 is another episode.
+    assert not np.array_equal(shimmy_env.reset(seed=5)[0]["goal"],
+                              gym_env.reset(seed=5)[0]["desired_goal"])
+
+
 @pytest.mark.parametrize("bad", [-1, 1.5, "3", True, np.int64(-2)])
 def test_a_refused_seed_raises_and_leaves_the_episode_stream_as_it_was(bad):
     env = gym.make("FrankaSlideSparse-v0")

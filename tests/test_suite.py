@@ -13,10 +13,11 @@ from dm_env import test_utils
 import franka_composer
 from franka_composer import fast_path
 from conftest import SPEC
+from franka_composer.controllers import CONTROLS
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 
 
-def _make_conformance_case(name: str, path: str) -> type:
+def _make_conformance_case(name: str, path: str, control: str) -> type:
     class Conformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
         def setUp(self):
             self._previous = os.environ.get(fast_path.ENV_VARIABLE)
@@ -31,22 +32,31 @@ def _make_conformance_case(name: str, path: str) -> type:
                 os.environ[fast_path.ENV_VARIABLE] = self._previous
 
         def make_object_under_test(self):
-            return franka_composer.load(name, seed=0)
+            return franka_composer.load(name, seed=0, control=control)
 
         def make_action_sequence(self):
-            # Long enough to cross an episode boundary via a success on some seeds.
+            # Long enough to cross an episode boundary: a success on some seeds, the time
+            # limit on the others.
             rng = np.random.default_rng(0)
             spec = self.environment.action_spec()
-            for _ in range(60):
+            for _ in range(SPEC[name]["steps"] + 10):
                 yield rng.uniform(-1, 1, spec.shape).astype(spec.dtype)
 
-    Conformance.__name__ = Conformance.__qualname__ = f"TestDmEnvConformance_{name}_{path}"
+    Conformance.__name__ = Conformance.__qualname__ = _conformance_name(name, path, control)
     return Conformance
 
 
+def _conformance_name(name: str, path: str, control: str) -> str:
+    return f"TestDmEnvConformance_{name}_{control}_{path}"
+
+
+# dm_env's own conformance tests: every task under every controller on the fast path, and
+# every task on Composer's stock stepping.
 for _name in franka_composer.ALL_TASKS:
-    for _path in ("fast", "stock"):
-        globals()[f"TestDmEnvConformance_{_name}_{_path}"] = _make_conformance_case(_name, _path)
+    for _control in CONTROLS:
+        for _path in ("fast", "stock") if _control == "mocap" else ("fast",):
+            globals()[_conformance_name(_name, _path, _control)] = _make_conformance_case(
+                _name, _path, _control)
 
 
 def test_all_tasks_are_the_papers_and_panda_gyms():
@@ -215,9 +225,10 @@ def test_terminate_on_success_ends_the_episode_with_zero_discount():
     assert timestep.mid() and timestep.discount == 1.0
 
 
-def test_no_composer_time_limit_races_the_fifty_step_episode():
+def test_time_limit_none_removes_the_time_limit():
     env = franka_composer.load("push", seed=0, terminate_on_success=False,
-                               distance_threshold=1e-6)
+                               distance_threshold=1e-6, time_limit=None)
+    assert env.episode_steps is None and env.time_limit == float("inf")
     env.reset()
     for _ in range(200):
         assert env.step(np.zeros(3, np.float32)).mid()

@@ -40,8 +40,12 @@ class FrankaGoalEnv(gym.Env, EzPickle):
       **task_kwargs: overrides of the task's configuration (e.g. terminate_on_success=False).
 
     Episodes end with `terminated=True` on success when the task's `terminate_on_success`
-    is set (the paper's default) or if the physics diverges; truncation at 50 steps comes
-    from Gymnasium's `TimeLimit` alone.
+    is set (the paper's default) or if the physics diverges, and with `truncated=True` at
+    the dm_env environment's time limit: the task's `max_episode_steps`, which the ids
+    register too, so Gymnasium's `TimeLimit` agrees. `TimeLimit` cannot tell the env
+    another length: for one, give both, `gym.make(id, max_episode_steps=100,
+    time_limit=5.0)` (seconds: 100 steps of 0.05 s), or `time_limit=None` to leave the
+    length to `TimeLimit` alone.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
@@ -147,12 +151,16 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         obs = self.goal_observation(self._timestep.observation)
         info = self._info()
         reward = REWARD_DTYPE(self._timestep.reward)
-        terminated = bool(self._timestep.last())
-        if terminated:
+        # dm_env's LAST step: discount 0 ends the episode (goal reached, or diverged
+        # physics), discount 1 is the time-out, Gymnasium's truncation.
+        ended = self._timestep.last()
+        truncated = bool(ended and self._timestep.discount > 0)
+        terminated = bool(ended and not truncated)
+        if ended:
             self._timestep = None  # Composer would reset on the next step: make it explicit.
         if self.render_mode == "human":
             self.render()
-        return obs, reward, terminated, False, info
+        return obs, reward, terminated, truncated, info
 
     def compute_reward(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
         """Reward for goal pairs with any leading batch shape; `info` is ignored (may be a
@@ -165,7 +173,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return success & self._task.terminate_on_success
 
     def compute_truncated(self, achieved_goal, desired_goal, info=None) -> np.ndarray:
-        """Never: truncation comes from the TimeLimit wrapper."""
+        """Never: goals do not truncate an episode, its time limit does."""
         return np.zeros(np.shape(self._task.is_success(achieved_goal, desired_goal)),
                         dtype=bool)
 

@@ -1,7 +1,8 @@
 """What every dataset reader checks of the episodes it gives back, whatever the format: a
 damaged or foreign file is refused by name, saying what is wrong, before anything trains.
 
-An episode of T steps holds the goal observation's keys with T + 1 rows (the reset's
+An episode of T steps holds the observation's keys (at least the two goals; the state
+vector and camera images as its observation mode has them) with T + 1 rows (the reset's
 first) and one row per step of `action`, `reward`, `is_success`, `terminated`,
 `truncated`; it ends on its last step (terminated or truncated there, at no step before).
 """
@@ -10,7 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.rollout import OBSERVATION_KEYS, STEP_KEYS
+from franka_composer.policies.rollout import STEP_KEYS
+
+#: What every observation mode observes.
+GOAL_KEYS = ("achieved_goal", "desired_goal")
 
 
 def check_episodes(path, episodes: list[dict]) -> None:
@@ -18,13 +22,13 @@ def check_episodes(path, episodes: list[dict]) -> None:
     if not episodes:
         raise ValueError(f"{path} holds no episodes (an empty or damaged dataset?)")
     for index, episode in enumerate(episodes):
-        missing = [key for key in OBSERVATION_KEYS + STEP_KEYS if key not in episode]
+        missing = [key for key in GOAL_KEYS + STEP_KEYS if key not in episode]
         if missing:
             raise ValueError(f"{path}: episode {index} has no {', '.join(missing)}")
         steps = len(episode["action"])
         if steps == 0:
             raise ValueError(f"{path}: episode {index} has no steps")
-        for key in OBSERVATION_KEYS:
+        for key in (key for key in episode if key not in STEP_KEYS):
             if len(episode[key]) != steps + 1:
                 raise ValueError(f"{path}: episode {index} has {len(episode[key])} rows of "
                                  f"{key} for {steps} actions, not {steps + 1} (the reset's "

@@ -1,6 +1,7 @@
 """This package's own dataset file: every episode concatenated in one `.npz`.
 
     observation, achieved_goal, desired_goal   one row per step plus the reset's, per episode
+    (<camera>_pixels in the pixel modes)       (the env's observation keys)
     action, reward, is_success, terminated,    one row per step
     truncated
     episode_length                             steps of each episode, in order
@@ -23,8 +24,8 @@ import zlib
 
 import numpy as np
 
-from franka_composer.datasets.episodes import check_episodes
-from franka_composer.policies.rollout import OBSERVATION_KEYS, STEP_KEYS, Trajectories
+from franka_composer.datasets.episodes import GOAL_KEYS, check_episodes
+from franka_composer.policies.rollout import STEP_KEYS, Trajectories
 
 #: The key holding `metadata`, a JSON string.
 METADATA_KEY = "metadata"
@@ -36,7 +37,7 @@ def write(trajectories: Trajectories, path: str | os.PathLike, metadata: dict | 
           ) -> None:
     """Writes every episode, concatenated, with `episode_length` and `metadata` (JSON)."""
     arrays = {key: np.concatenate([e[key] for e in trajectories.episodes])
-              for key in OBSERVATION_KEYS + STEP_KEYS}
+              for key in trajectories.episodes[0]}
     if metadata:
         arrays[METADATA_KEY] = np.array(json.dumps(metadata))
     np.savez_compressed(path, episode_length=trajectories.lengths, **arrays)
@@ -56,13 +57,15 @@ def read(path: str | os.PathLike) -> Trajectories:
     except _DAMAGED as error:
         raise ValueError(f"{path} is not a readable npz file (truncated or damaged?): "
                          f"{type(error).__name__}: {error}") from None
-    missing = [key for key in ("episode_length",) + OBSERVATION_KEYS + STEP_KEYS
+    missing = [key for key in ("episode_length",) + GOAL_KEYS + STEP_KEYS
                if key not in arrays]
     if missing:
         raise ValueError(f"{path} is not a franka_composer npz dataset: it has no "
                          f"{', '.join(missing)}")
     lengths = _episode_lengths(path, arrays["episode_length"])
-    for keys, rows in ((OBSERVATION_KEYS, int((lengths + 1).sum())),
+    observation_keys = [key for key in arrays
+                        if key not in (*STEP_KEYS, "episode_length", METADATA_KEY)]
+    for keys, rows in ((observation_keys, int((lengths + 1).sum())),
                        (STEP_KEYS, int(lengths.sum()))):
         for key in keys:
             if arrays[key].ndim == 0 or len(arrays[key]) != rows:
@@ -70,7 +73,7 @@ def read(path: str | os.PathLike) -> Trajectories:
                                  f"{key}, and it holds {len(np.atleast_1d(arrays[key]))}: "
                                  "its episode boundaries do not match its arrays")
     split = {key: np.split(arrays[key], np.cumsum(lengths + 1)[:-1])
-             for key in OBSERVATION_KEYS}
+             for key in observation_keys}
     split.update({key: np.split(arrays[key], np.cumsum(lengths)[:-1]) for key in STEP_KEYS})
     episodes = [{key: split[key][i] for key in split} for i in range(len(lengths))]
     check_episodes(path, episodes)

@@ -4,8 +4,9 @@ acme-style agents log them; `envlogger.Reader` reads them without TensorFlow.
 Every step holds the dm_env timestep (the Composer observation dict: the state vector's
 observables, the task's `achieved_goal` and `goal`, images in the pixel modes; reward,
 discount, step type) and the action; each episode's metadata holds its reset seed, the
-dataset's metadata the task, its options and who acted. An episode cut by the time limit
-has no LAST step (RLDS's truncation).
+dataset's metadata the task, its options and who acted. Every episode ends with the
+environment's LAST step: discount 0 where the goal was reached (`terminate_on_success`),
+1 at the time limit.
 
 envlogger: 1.3 needs glibc >= 2.38 and protobuf < 7 (dm_control's tested set has 7), so the
 extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unicode_`
@@ -32,12 +33,11 @@ def _envlogger():
 
 def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: dict) -> dict:
     """Records `episodes` episodes of `policy` (acting on goal observations) in the Composer
-    environment under the Gymnasium `env`, episode i reset with seed + i and cut at the
-    env's time limit, into the RLDS directory `root`; returns its size and success rate."""
+    environment under the Gymnasium `env`, episode i reset with seed + i and run to its
+    LAST step, into the RLDS directory `root`; returns its size and success rate."""
     envlogger = _envlogger()
     adapter = env.unwrapped
     composer_env, task = adapter.composer_env, adapter.task
-    limit = env.spec.max_episode_steps
     root.mkdir(parents=True, exist_ok=True)
     episode = {"seed": None}
     steps = successes = 0
@@ -49,11 +49,9 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
                 policy.reset()
             seeding.reseed(composer_env.random_state, seed + index)  # As env.reset(seed=...).
             timestep = logged.reset()
-            for _ in range(limit):
+            while not timestep.last():
                 timestep = logged.step(policy(adapter.goal_observation(timestep.observation)))
                 steps += 1
-                if timestep.last():
-                    break
             successes += bool(task.success)
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from franka_composer.policies.base import Expert
 from franka_composer.policies.flip import FlipExpert
+from franka_composer.policies.observations import ExpertInput
 from franka_composer.policies.pick_and_place import PickAndPlaceExpert
 from franka_composer.policies.push import PushExpert
 from franka_composer.policies.reach import ReachExpert
@@ -28,20 +29,27 @@ EXPERTS: dict[str, type[Expert]] = {
 
 
 def make_expert(env) -> Expert:
-    """A fresh scripted expert for `env`: a Gymnasium env of this package (wrapped or not) or
-    a dm_env from `franka_composer.load`. It reads the env's observation layout and task
-    configuration; a task without an expert is a ValueError naming those with one, and so
-    is an env under joint control (the experts act on dx, dy, dz: mocap and osc)."""
+    """A fresh scripted expert for `env`: a Gymnasium env of this package (wrapped or not),
+    a dm_env from `franka_composer.load`, or Shimmy's wrapper of one. `expert(obs)` takes
+    the observation that env returns, in every observation mode: in the pixel modes the
+    expert reads the state through the env's task, never from the images. It reads the env's
+    observation layout and task configuration; a task without an expert is a ValueError
+    naming those with one, and so is an env under joint control (the experts act on dx,
+    dy, dz: mocap and osc)."""
     if isinstance(env, str):
         raise TypeError("make_expert takes the environment, whose layout and options the "
                         f"expert reads, not a task name: make_expert(gym.make(...)), got {env!r}")
-    task = getattr(env, "unwrapped", env).task
+    unwrapped = getattr(env, "unwrapped", env)
+    task = unwrapped.task
     expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
     if not task.config.control.moves_the_tcp:
         raise ValueError(f"the scripted experts act on dx, dy, dz, which the "
                          f"{task.config.control.kind} controller does not take: use "
                          f"control='mocap' or 'osc'")
-    return expert(task.observation_layout, task.config)
+    composer_env = getattr(unwrapped, "composer_env", unwrapped)
+    expert_input = ExpertInput(task.observation_layout, task.desired_goal_key,
+                               read_state=lambda: task.state_vector(composer_env.physics))
+    return expert(task.observation_layout, task.config, expert_input)
 
 
 __all__ = ["EXPERTS", "Expert", "Trajectories", "make_expert", "rollout"]

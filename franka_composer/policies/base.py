@@ -1,7 +1,9 @@
 """What every scripted expert shares: reading the public observation, steering the hand.
 
 Experts see only what a learner sees, the Gymnasium observation dict, and read its
-`observation` vector by field name through the env's `ObservationLayout`; they know the
+`observation` vector by field name through the env's `ObservationLayout` (a dm_env
+observation is flattened to it, and in the pixel modes the state is read through the task:
+`observations.ExpertInput`); they know the
 task's configuration (object sizes, the action scale) as its author would, and turn
 targets into actions with the controller's own inverse (`ControlSettings.tcp_action`).
 """
@@ -13,6 +15,7 @@ import dataclasses
 
 import numpy as np
 
+from franka_composer.policies.observations import ExpertInput
 from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.layout import ObservationLayout
 
@@ -48,10 +51,14 @@ def unit(vector: np.ndarray) -> np.ndarray:
 
 class Expert(abc.ABC):
     """A scripted policy for one task's env: `reset()` at each episode start, then
-    `expert(obs) -> action`. Built by `make_expert(env)`."""
+    `expert(obs) -> action`, `obs` as the env returned it. Built by `make_expert(env)`;
+    `expert_input` turns observations into the goal dict `act` reads (by default only
+    Gymnasium and dm_env observations with the state)."""
 
-    def __init__(self, layout: ObservationLayout, config: TaskConfig) -> None:
+    def __init__(self, layout: ObservationLayout, config: TaskConfig,
+                 expert_input: ExpertInput | None = None) -> None:
         self.layout, self.config = layout, config
+        self._input = expert_input or ExpertInput(layout)
         #: Length of the action vector: dx, dy, dz (and the gripper where it is actuated).
         self.action_size = config.control.action_size
         self.reset()
@@ -68,9 +75,9 @@ class Expert(abc.ABC):
 
     def __call__(self, obs: dict) -> np.ndarray:
         action = np.zeros(self.action_size)
-        action[:] = self.act(obs)
+        action[:] = self.act(self._input(obs))
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 
     @abc.abstractmethod
     def act(self, obs: dict) -> np.ndarray:
-        """The unclipped action for `obs`."""
+        """The unclipped action for the goal dict `obs` ("observation", "desired_goal")."""

@@ -9,7 +9,8 @@ from typing import Callable
 
 import numpy as np
 
-#: Keys of the Gymnasium goal observation dict, saved side by side.
+#: Keys of the Gymnasium goal observation dict in the state modes (the pixel modes add
+#: "<camera>_pixels" images, and "pixels" alone has no "observation").
 OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
 #: Per-step arrays (one entry per action taken).
 STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
@@ -19,8 +20,8 @@ STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
 class Trajectories:
     """Episodes of one policy in one environment, each a dict of arrays.
 
-    Each episode of T steps has `observation`, `achieved_goal`, `desired_goal` with T + 1
-    rows (the reset observation first), and `action`, `reward`, `is_success` (the step's
+    Each episode of T steps has the env's observation keys (`OBSERVATION_KEYS`, images in
+    the pixel modes) with T + 1 rows (the reset observation first), and `action`, `reward`, `is_success` (the step's
     `info["is_success"]`), `terminated`, `truncated` with T rows.
     `env_seconds` is the wall time spent inside `env.reset` and `env.step` only;
     `metadata`, what a loaded file says they were recorded with ({} if it says nothing).
@@ -98,7 +99,7 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
                                               terminated, truncated)):
                 steps[key].append(value)
             done = terminated or truncated
-        episode = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
+        episode = {key: np.array([o[key] for o in observations]) for key in observations[0]}
         episode.update({key: np.array(values) for key, values in steps.items()})
         episode["action"] = episode["action"].astype(np.float32)
         episode["reward"] = episode["reward"].astype(np.float64)

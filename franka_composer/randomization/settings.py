@@ -136,14 +136,24 @@ def _settings(name: str, mapping: Mapping, label: str) -> RandomizationSettings:
         if not (callable(distribution) or _constant(distribution)):
             raise ValueError(f"{name} {parameter!r} must be a composer.variation distribution "
                              f"or a constant, got {distribution!r}")
+        nominal = spec.nominal() if spec.episode else np.zeros(3)
         for _ in range(PROBE_DRAWS):
+            sample = _probe_draw(name, parameter, distribution, nominal, probe)
             if spec.episode:
-                spec.check(parameter, variation_values.evaluate(
-                    distribution, spec.nominal(), spec.nominal(), probe))
+                spec.check(parameter, sample)
             else:
-                _check_noise(parameter, variation_values.evaluate(
-                    distribution, np.zeros(3), np.zeros(3), probe))
+                _check_noise(parameter, sample)
     return RandomizationSettings(ranges, label)
+
+
+def _probe_draw(name: str, parameter: str, distribution, nominal, probe):
+    """One draw of `distribution`; whatever it raises (numpy's bare "scale < 0", an
+    OverflowError for a NaN or infinite bound) becomes a ValueError naming the parameter."""
+    try:
+        return variation_values.evaluate(distribution, nominal, nominal, probe)
+    except Exception as error:  # pylint: disable=broad-except
+        raise ValueError(f"{name} {parameter!r} cannot draw from {distribution!r}: "
+                         f"{type(error).__name__}: {error}") from error
 
 
 def _constant(value) -> bool:

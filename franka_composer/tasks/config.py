@@ -229,7 +229,8 @@ class TaskConfig:
         control period, a displacement per step as in Fetch). The reference code steps
         0.5 s but multiplies by its stated 0.05 s (`TIMINGS["reference"]`).
       neutral_arm_qpos: arm joint angles (rad) at reset.
-      max_episode_steps: control steps before Gymnasium truncates an episode.
+      max_episode_steps: control steps in an episode, unless it ends on success: the dm_env
+        environment's time limit (`time_limit`) and the Gymnasium ids' max_episode_steps.
       observations: the state vector, camera images or both (`ObservationSettings`).
       randomization: what is randomised each episode (`randomization` package); off by
         default.
@@ -281,6 +282,12 @@ class TaskConfig:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
                              f"timestep ({self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
+
+    @property
+    def time_limit(self) -> float:
+        """Seconds an episode lasts unless it ends on success: `max_episode_steps` control
+        periods (2.5 s at the default timing, 25 s at the reference one)."""
+        return self.max_episode_steps * self.control_timestep
 
     @property
     def velocity_period(self) -> float:

@@ -221,6 +221,14 @@ class GoalTask(composer.Task):
         """The flat observation vector's fields (the adapter and the experts read it)."""
         return self._observation_layout
 
+    def state_vector(self, physics) -> np.ndarray:
+        """The flat state vector (`observation_layout`) of `physics` now, read through the
+        entity observables whether or not they are observed (the pixel modes observe none):
+        what a state mode's `observation` would hold, for the scripted experts."""
+        return self._observation_layout.flatten({
+            key: np.asarray(self._entity_observable(key)(physics))
+            for key in self._observation_layout.keys})
+
     @property
     def achieved_goal_key(self) -> str:
         """The task observable holding the achieved goal (read exactly, never corrupted)."""

@@ -42,6 +42,9 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     check_episodes(path, episodes)
     spaces = env.observation_space.spaces
     for key in OBSERVATION_KEYS:
+        if key not in episodes[0]:
+            raise ValueError(f"{path} holds no {key}: recorded in a pixel observation mode? "
+                             "Demonstrations go into the buffer as state observations")
         shape = episodes[0][key].shape[1:]
         if shape != spaces[key].shape:
             raise ValueError(f"{path} holds {key} of shape {shape}, but this task's is "
