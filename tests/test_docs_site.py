@@ -91,3 +91,15 @@ def test_links_to_the_repositorys_included_files_go_to_their_pages():
     conf._link_root_files_to_their_pages(SimpleNamespace(srcdir=str(REPO / "docs")), doctree)
     assert [xref["reftarget"] for xref in doctree.findall(addnodes.pending_xref)] == [
         "results", "changelog", "guide/quickstart"]
+
+
+def test_the_animation_script_takes_the_shared_tasks_syntax():
+    """Its --tasks is every subcommand's (cli.options): both forms, and a clear refusal."""
+    import subprocess
+    import sys
+
+    script = REPO / "docs" / "_scripts" / "gen_animations.py"
+    done = subprocess.run([sys.executable, str(script), "--tasks", "push,fly"],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 2
+    assert "unknown task(s) fly; valid tasks: push, slide" in done.stderr

@@ -5,7 +5,7 @@ held a second) and `docs/_static/tasks/<task>.png` (the first frame, for the REA
 table). Rendering needs OpenGL (MUJOCO_GL=egl or osmesa headless); the docs build does not,
 so the files are committed: run this again when a task's scene or expert changes.
 
-    MENAGERIE_ROOT=... python docs/_scripts/gen_animations.py [--tasks push,slide]
+    MENAGERIE_ROOT=... python docs/_scripts/gen_animations.py [--tasks push slide]
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from PIL import Image
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.demo import parse_tasks
+from franka_composer.cli.options import add_tasks_argument
 from franka_composer.policies import make_expert, rollout
 
 #: Where the docs pages (and the README) find the files.
@@ -67,7 +67,7 @@ def write_animation(frames: list[np.ndarray], gif: pathlib.Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--tasks", type=parse_tasks, default=franka_composer.ALL_TASKS)
+    add_tasks_argument(parser, franka_composer.ALL_TASKS, "tasks to animate (default: all)")
     args = parser.parse_args(argv)
     for task in args.tasks:
         frames, seed, success = episode_frames(task)
