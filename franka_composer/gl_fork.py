@@ -17,8 +17,10 @@ which `Physics` makes its contexts from); other backends are left as they are.
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import os
+import weakref
 
 #: EGL_PLATFORM_SURFACELESS_MESA: a display of Mesa's without any device or window system.
 _PLATFORM_SURFACELESS = 0x31DD
@@ -43,6 +45,26 @@ def install() -> None:
         _render.Renderer = _process_egl_context(_render.Renderer)
     elif _render.BACKEND == "osmesa":
         _render.Renderer = _process_osmesa_context(_render.Renderer)
+    else:
+        return
+    os.register_at_fork(after_in_child=_forget_inherited_gl)
+
+
+# The process-aware contexts alive in this process (a forked child's are its parent's).
+_CONTEXTS: weakref.WeakSet = weakref.WeakSet()
+
+
+def _forget_inherited_gl() -> None:
+    """In a forked child, before anything else runs: the inherited contexts and displays
+    hold the parent's driver state, so the child must never free them (dm_control would, in
+    garbage collection and at exit, and wait forever for the parent's render threads)."""
+    for context in list(_CONTEXTS):
+        # A terminated executor makes dm_control skip every GL call for the context.
+        context._render_executor.terminate()  # pylint: disable=protected-access
+    _CONTEXTS.clear()
+    if _DISPLAY_USERS:  # An ancestor rendered with EGL: its display's threads are gone.
+        egl, _ = _egl()
+        atexit.unregister(egl.eglTerminate)  # dm_control's, for its display, at exit.
 
 
 def _process_egl_context(egl_context):
@@ -50,6 +72,10 @@ def _process_egl_context(egl_context):
         """dm_control's EGL context, made on an EGL display of this process."""
 
         process_aware = True
+
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            _CONTEXTS.add(self)
 
         def _platform_init(self, max_width, max_height):
             _display_for_this_process()
@@ -79,6 +105,7 @@ def _process_osmesa_context(osmesa_context):
                     f"{_SPAWN_ADVICE}")
             _osmesa_process = os.getpid()
             super().__init__(*args, **kwargs)
+            _CONTEXTS.add(self)
 
     return ProcessOSMesaContext
 

@@ -239,3 +239,89 @@ def test_building_a_pixel_env_renders_nothing_until_its_first_episode():
     assert env.physics._contexts is None  # pylint: disable=protected-access
     assert env.reset().observation["workspace_pixels"].std() > 10
     env.close()
+
+
+# ----- Forked processes ---------------------------------------------------------------------
+
+# Renders an env here, then in a chain of forked descendants, each rendering the env it
+# inherited and a new one; prints what each descendant saw (or the error it met).
+FORK_CHAIN = r"""
+import json, os, sys
+import gymnasium as gym
+import numpy as np
+import franka_composer
+
+generations = int(sys.argv[1])
+options = dict(render_mode="rgb_array", width=48, height=48)
+env = gym.make("FrankaPushSparse-v0", **options)
+env.reset(seed=3)
+reference = env.render()
+
+
+def descend(generation):
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read)
+        try:
+            fresh = gym.make("FrankaPushSparse-v0", **options)
+            fresh.reset(seed=3)
+            report = [{"inherited": bool(np.array_equal(env.render(), reference)),
+                       "fresh": bool(np.array_equal(fresh.render(), reference))}]
+            if generation < generations:
+                report += descend(generation + 1)
+        except Exception as error:
+            report = [f"{type(error).__name__}: {error}"]
+        os.write(write, json.dumps(report).encode())
+        os._exit(0)
+    os.close(write)
+    data = b""
+    while chunk := os.read(read, 65536):
+        data += chunk
+    os.waitpid(pid, 0)
+    return json.loads(data)
+
+
+print(json.dumps(descend(1)))
+"""
+
+
+@pytest.mark.slow
+def test_forked_descendants_render_inherited_and_new_envs_until_displays_run_out():
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("PYOPENGL_PLATFORM", None)
+    try:
+        done = subprocess.run([sys.executable, "-c", FORK_CHAIN, "4"], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"no result within {TIMEOUT_S} s (a hang)")
+    reports = json.loads(done.stdout.strip().splitlines()[-1])
+    # Each generation opens a display of its own; Mesa has four (the first is the parent's).
+    assert reports[:3] == [{"inherited": True, "fresh": True}] * 3
+    assert reports[3].startswith("ForkedGLError: this process (")
+    assert reports[3].endswith("no EGL display of its own is left to open (each forked "
+                               "generation that renders takes one, and Mesa offers four): "
+                               "start the workers with spawn or forkserver (gym.make_vec(..., "
+                               "vectorization_mode='async', vector_kwargs={'context': "
+                               "'spawn'}); SubprocVecEnv(..., start_method='spawn'))")
+
+
+def test_a_child_forked_after_rendering_exits_normally():
+    # Its inherited GL contexts and display are the parent's: freeing them at exit (as
+    # dm_control does) waited forever for the parent's render threads.
+    code = ("import os, sys, gymnasium as gym, franka_composer\n"
+            "env = gym.make('FrankaPushSparse-v0', render_mode='rgb_array', width=32, "
+            "height=32)\n"
+            "env.reset(seed=0); env.render()\n"
+            "pid = os.fork()\n"
+            "if pid == 0:\n"
+            "    sys.exit(3)\n"
+            "print(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    env.pop("PYOPENGL_PLATFORM", None)
+    try:
+        done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=60)
+    except subprocess.TimeoutExpired:
+        pytest.fail("the forked child did not exit within 60 s (a hang)")
+    assert done.stdout.strip() == "3"
