@@ -8,6 +8,7 @@ worker fails its test instead of stopping the suite.
 
 from __future__ import annotations
 
+import ctypes.util
 import json
 import os
 import subprocess
@@ -99,16 +100,21 @@ print(json.dumps({
 VECTORS = ["gym-sync", "gym-fork", "gym-spawn", "gym-forkserver", "sb3-fork", "sb3-spawn"]
 
 
-def run_case(vector: str, case: str, order: str, **environment: str):
-    """The script's result for one case, or its stderr's last lines when it failed; a
-    case that runs past the timeout fails the test."""
+def run_python(code: str, *args: str, timeout: float = TIMEOUT_S,
+               **environment: str) -> subprocess.CompletedProcess:
+    """`code` run by a fresh interpreter on this checkout; past `timeout` the test fails."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), **environment}
     env.pop("PYOPENGL_PLATFORM", None)  # dm_control sets it for this process's backend.
     try:
-        done = subprocess.run([sys.executable, "-c", SCRIPT, vector, case, order], cwd=ROOT,
-                              env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+        return subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, env=env,
+                              capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
-        pytest.fail(f"{vector} {case} {order}: no result within {TIMEOUT_S} s (a hang)")
+        pytest.fail(f"{' '.join(args) or 'the script'}: no result within {timeout} s (a hang)")
+
+
+def run_case(vector: str, case: str, order: str, **environment: str):
+    """The script's result for one case, or its stderr's last lines when it failed."""
+    done = run_python(SCRIPT, vector, case, order, **environment)
     if done.returncode != 0:
         return "\n".join(done.stderr.strip().splitlines()[-6:])
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -130,13 +136,8 @@ def test_rendering_vector_env_works_after_the_parent_rendered(vector):
     assert result == {"shape": [48, 48, 3], "images": True, "equal": True}
 
 
-def _osmesa_available() -> bool:
-    done = subprocess.run([sys.executable, "-c", "import ctypes.util, sys; "
-                           "sys.exit(ctypes.util.find_library('OSMesa') is None)"])
-    return done.returncode == 0
-
-
-osmesa = pytest.mark.skipif(not _osmesa_available(), reason="no libOSMesa on this machine")
+osmesa = pytest.mark.skipif(ctypes.util.find_library("OSMesa") is None,
+                            reason="no libOSMesa on this machine (Debian: libosmesa6)")
 
 
 @pytest.mark.slow
@@ -199,9 +200,7 @@ def test_closing_on_another_thread_leaves_nothing_to_fail_at_exit():
             "thread = threading.Thread(target=env.render); thread.start(); thread.join()\n"
             "env.close(); del env\n"
             "import gc; gc.collect(); print('closed')\n")
-    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                          text=True, timeout=TIMEOUT_S,
-                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    done = run_python(code)
     assert (done.returncode, done.stdout.strip(), done.stderr.strip()) == (0, "closed", "")
 
 
@@ -288,13 +287,7 @@ print(json.dumps(descend(1)))
 
 @pytest.mark.slow
 def test_forked_descendants_render_inherited_and_new_envs_until_displays_run_out():
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    env.pop("PYOPENGL_PLATFORM", None)
-    try:
-        done = subprocess.run([sys.executable, "-c", FORK_CHAIN, "4"], cwd=ROOT, env=env,
-                              capture_output=True, text=True, timeout=TIMEOUT_S)
-    except subprocess.TimeoutExpired:
-        pytest.fail(f"no result within {TIMEOUT_S} s (a hang)")
+    done = run_python(FORK_CHAIN, "4")
     reports = json.loads(done.stdout.strip().splitlines()[-1])
     # Each generation opens a display of its own; Mesa has four (the first is the parent's).
     assert reports[:3] == [{"inherited": True, "fresh": True}] * 3
@@ -317,11 +310,4 @@ def test_a_child_forked_after_rendering_exits_normally():
             "if pid == 0:\n"
             "    sys.exit(3)\n"
             "print(os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1]))\n")
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    env.pop("PYOPENGL_PLATFORM", None)
-    try:
-        done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env,
-                              capture_output=True, text=True, timeout=60)
-    except subprocess.TimeoutExpired:
-        pytest.fail("the forked child did not exit within 60 s (a hang)")
-    assert done.stdout.strip() == "3"
+    assert run_python(code, timeout=60).stdout.strip() == "3"
