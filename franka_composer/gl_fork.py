@@ -11,8 +11,13 @@ and SB3's `SubprocVecEnv` fork by default). Two cases:
 - OSMesa has one state per process and no way to start another: a child of a process that
   made an OSMesa context raises `ForkedGLError` at its first render, saying what to do.
 
+Either way a forked child never frees what it inherited (dm_control would, in garbage
+collection and at exit, and wait for the parent's threads): an at-fork hook disowns the
+inherited contexts, without a GL call.
+
 `install()` puts these contexts in the place of dm_control's (`dm_control._render.Renderer`,
-which `Physics` makes its contexts from); other backends are left as they are.
+which `Physics` makes its contexts from) and registers the hook; other backends (GLFW with
+a display) are left as they are.
 """
 
 from __future__ import annotations
@@ -59,8 +64,10 @@ def _forget_inherited_gl() -> None:
     hold the parent's driver state, so the child must never free them (dm_control would, in
     garbage collection and at exit, and wait forever for the parent's render threads)."""
     for context in list(_CONTEXTS):
-        # A terminated executor makes dm_control skip every GL call for the context.
-        context._render_executor.terminate()  # pylint: disable=protected-access
+        # A terminated executor makes dm_control skip every GL call for the context. The
+        # flag is set, not `terminate()` called: that takes the executor's lock, which a
+        # thread of the parent may have held at the fork.
+        context._render_executor._terminated = True  # pylint: disable=protected-access
     _CONTEXTS.clear()
     if _DISPLAY_USERS:  # An ancestor rendered with EGL: its display's threads are gone.
         egl, _ = _egl()
