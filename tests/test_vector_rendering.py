@@ -103,7 +103,8 @@ VECTORS = ["gym-sync", "gym-fork", "gym-spawn", "gym-forkserver", "sb3-fork", "s
 def run_python(code: str, *args: str, timeout: float = TIMEOUT_S,
                **environment: str) -> subprocess.CompletedProcess:
     """`code` run by a fresh interpreter on this checkout; past `timeout` the test fails."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT), **environment}
+    # EGL unless a test says otherwise: what is tested is the package's default backend.
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MUJOCO_GL": "egl", **environment}
     env.pop("PYOPENGL_PLATFORM", None)  # dm_control sets it for this process's backend.
     try:
         return subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, env=env,
