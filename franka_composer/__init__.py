@@ -19,6 +19,11 @@ _headless_gl.choose_headless_backend()
 with _warnings.catch_warnings():
     from dm_control import composer as _composer  # noqa: E402, F401
 
+from franka_composer import gl_fork as _gl_fork  # noqa: E402
+
+# Forked vector-env workers render with GL state of their own: see `gl_fork`.
+_gl_fork.install()
+
 from franka_composer.adapters import ENV_IDS, FrankaGoalEnv, register_envs  # noqa: E402
 from franka_composer.suite import load  # noqa: E402
 from franka_composer.tasks import ALL_TASKS  # noqa: E402

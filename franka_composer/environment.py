@@ -2,7 +2,7 @@
 surface. `fast_path.FastEnvironment` is the same environment, faster, where the installed
 dm_control has what it needs; this one is the stock path it falls back to.
 
-Three things differ from plain `composer.Environment`:
+Four things differ from plain `composer.Environment`:
 - Its time limit is a whole number of control steps: a time-out is a LAST step with
   discount 1 after exactly that many steps, whatever the float rounding of physics time.
   Composer ends an episode at the first control step whose physics time is >= its time
@@ -15,6 +15,9 @@ Three things differ from plain `composer.Environment`:
 - A step whose physics diverged gets the task's reward for the state it reports (MuJoCo
   has reset it), not Composer's fixed 0.0, which for a sparse task is the reward for
   reaching the goal. Like dm_control, a step diverged when MuJoCo raised a new warning.
+- Threads: a reset or step that renders camera observations from a thread other than the
+  one that renders the environment raises `render_owner.RenderThreadError` before anything
+  moves, and `close()` works from any thread.
 """
 
 from __future__ import annotations
@@ -25,6 +28,8 @@ import numbers
 import dm_env
 import numpy as np
 from dm_control import composer
+
+from franka_composer import render_owner
 
 #: No time limit (Composer's own default).
 NO_LIMIT = float("inf")
@@ -43,6 +48,8 @@ class GoalEnvironment(composer.Environment):
         super().__init__(task, time_limit=composer_time_limit(
             self._episode_steps, task.control_timestep), **kwargs)
         self._closed = False
+        # Its resets and steps render (camera observations), on one thread only.
+        self._renders_observations = bool(getattr(task, "pixel_keys", ()))
 
     @property
     def episode_steps(self) -> int | None:
@@ -64,22 +71,29 @@ class GoalEnvironment(composer.Environment):
         return super().physics
 
     def close(self) -> None:
-        """Frees the physics; closing again is harmless."""
+        """Frees the physics, from any thread; closing again is harmless."""
         if not self._closed:
+            render_owner.release(self, super().physics)
             super().close()
             self._closed = True
 
     def reset(self) -> dm_env.TimeStep:
-        self._check_open()
+        self._check_can_step()
         return super().reset()
 
     def step(self, action) -> dm_env.TimeStep:
-        self._check_open()
+        self._check_can_step()
         warnings = super().physics.data.warning.number.copy()
         timestep = super().step(action)
         if timestep.last() and diverged(super().physics, warnings):
             timestep = timestep._replace(reward=self.task.get_reward(super().physics))
         return timestep
+
+    def _check_can_step(self) -> None:
+        """Open, and on the thread that renders it if its observations are images."""
+        self._check_open()
+        if self._renders_observations:
+            render_owner.claim(self)
 
     def _check_open(self) -> None:
         if self._closed:

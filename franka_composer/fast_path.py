@@ -229,7 +229,7 @@ class FastEnvironment(GoalEnvironment):
     def step(self, action) -> dm_env.TimeStep:
         if self._reset_next_step or not getattr(self, "_batch_substeps", False):
             return super().step(action)
-        self._check_open()
+        self._check_can_step()
         physics = self._physics
         self._hooks.before_step(self._physics_proxy, action, self._random_state)
         direct = self._direct

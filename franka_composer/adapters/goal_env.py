@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 import sys
-import threading
 from typing import Any
 
 import gymnasium as gym
@@ -19,7 +18,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from franka_composer import seeding, suite
+from franka_composer import render_owner, seeding, suite
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_choice
@@ -73,7 +72,6 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self.render_mode = render_mode
         self._width, self._height, self._camera = width, height, camera
         self._renderer = None
-        self._render_thread = None  # The thread whose GL context renders this env.
         self._timestep = None
         self._stream_started = False  # Whether a reset has seeded the episode stream.
         self._randomization = None  # This episode's randomised parameters, if randomised.
@@ -182,13 +180,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         if self.render_mode is None:
             return None
         # A GL context belongs to the thread that made it (dm_control's and the viewer's).
-        thread = threading.get_ident()
-        if self._render_thread is None:
-            self._render_thread = thread
-        elif thread != self._render_thread:
-            raise RuntimeError("this env renders only from the thread that first rendered it "
-                               "(its GL context belongs to that thread): render there, or "
-                               "make one env per thread")
+        render_owner.claim(self._env)
         if self.render_mode == "rgb_array":
             return self._env.physics.render(self._height, self._width, camera_id=self._camera)
         if self.render_mode == "human":
@@ -202,8 +194,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         return None
 
     def close(self) -> None:
-        """Frees the viewer and the physics; closing again is harmless, and `reset`, `step`
-        and `render` afterwards raise Gymnasium's ClosedEnvironmentError."""
+        """Frees the viewer and the physics, from any thread; closing again is harmless, and
+        `reset`, `step` and `render` afterwards raise Gymnasium's ClosedEnvironmentError."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None

@@ -20,6 +20,7 @@ from franka_composer.entities.panda import COLLISION_GROUP, MAX_FINGER_WIDTH, VI
 from franka_composer.randomization import Randomizer
 from franka_composer.randomization.parameters import noise_parameter
 from franka_composer.tasks import rewards
+from franka_composer.tasks.cameras import EpisodeCamera
 from franka_composer.tasks.config import (ObservationSettings, PhysicsSettings, TaskConfig,
                                          Workspace)
 from franka_composer.tasks.goals import GOALS, Goal
@@ -52,6 +53,7 @@ class GoalTask(composer.Task):
         # (`after_step`) for the reward, the discount, termination and the adapter's success.
         self._distance = np.float64(np.inf)
         self._success = False
+        self._episode_started = False  # Cameras render from the first episode on.
 
         arena.attach(panda)
         for prop in self._props:
@@ -143,8 +145,9 @@ class GoalTask(composer.Task):
         scene.geomgroup[COLLISION_GROUP] = settings.camera_meshes == "hulls"
         observables = {}
         for name, element in self._cameras.items():
-            camera = observable.MJCFCamera(element, height=settings.height,
-                                           width=settings.width, scene_option=scene)
+            camera = EpisodeCamera(element, height=settings.height, width=settings.width,
+                                   scene_option=scene,
+                                   episode_started=lambda: self._episode_started)
             camera.enabled = True
             observables[f"{name}_pixels"] = camera
         return observables
@@ -275,6 +278,7 @@ class GoalTask(composer.Task):
             self._randomizer.bind(physics)
 
     def initialize_episode(self, physics, random_state: np.random.RandomState) -> None:
+        self._episode_started = True
         if self._randomizer is not None:  # First: masses and gains before anything moves.
             self._randomizer.start_episode(physics, random_state)
         self._panda.configure_joints(physics, self._neutral_arm_qpos, self._initial_finger_width)
