@@ -1,6 +1,6 @@
 """Env steps/s of this suite beside Fetch and the paper's reference code, all in one run.
 
-    python benchmarks/peers.py --reference-path DIR [--steps 2000] [--rounds 3] [--out peers.md]
+    python benchmarks/peers.py --reference-path DIR [--steps 1000] [--rounds 5] [--out peers.md]
 
 Push, slide and pick-and-place through `gym.make` (default wrappers) under seeded random
 actions, resets included, every suite timed by `franka-composer bench`'s loop
@@ -86,12 +86,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR",
                         help="a checkout of the reference code's repository (the folder "
                              "holding panda_mujoco_gym/); without it the reference is skipped")
-    parser.add_argument("--steps", type=positive_int, default=2000,
+    # Many short turns rather than a few long ones: a burst of load on a shared machine then
+    # spoils one turn of one suite, which the median leaves out.
+    parser.add_argument("--steps", type=positive_int, default=1000,
                         help="env steps per measurement, after 100 warm-up steps "
-                             "(default: 2000)")
-    parser.add_argument("--rounds", type=positive_int, default=3,
+                             "(default: 1000)")
+    parser.add_argument("--rounds", type=positive_int, default=5,
                         help="turns each suite takes at each task; the median counts "
-                             "(default: 3)")
+                             "(default: 5)")
     parser.add_argument("--out", type=output_file,
                         help="also write the report (markdown) to this file")
     return parser
