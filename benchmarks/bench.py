@@ -113,7 +113,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _child_environment(**overrides: str) -> dict:
+def child_environment(**overrides: str) -> dict:
+    """This process's environment with BLAS threads set to 1, for a measuring process."""
     env = dict(os.environ)
     env.update({name: "1" for name in _THREAD_VARIABLES})
     env.update(overrides)
@@ -123,7 +124,7 @@ def _child_environment(**overrides: str) -> dict:
 def _measure_in_fresh_process(arguments: list[str]) -> dict:
     completed = subprocess.run(
         [sys.executable, str(MEASURE), *arguments],
-        capture_output=True, text=True, env=_child_environment(), check=False)
+        capture_output=True, text=True, env=child_environment(), check=False)
     if completed.returncode != 0:
         raise RuntimeError(f"benchmark process {arguments} failed:\n{completed.stderr}")
     return json.loads(completed.stdout.strip().splitlines()[-1])
@@ -134,7 +135,7 @@ def _cold_process(name: str, **environment: str) -> tuple[float, float, float]:
     start = time.perf_counter()
     completed = subprocess.run([sys.executable, "-c", _COLD_START.format(env_id=name)],
                                capture_output=True, text=True,
-                               env=_child_environment(**environment), check=False)
+                               env=child_environment(**environment), check=False)
     whole = time.perf_counter() - start
     if completed.returncode != 0:
         raise RuntimeError(f"cold-start process for {name} failed:\n{completed.stderr}")

@@ -18,6 +18,7 @@ import gymnasium as gym
 from franka_composer.adapters.registration import env_id
 from franka_composer.cli.options import add_tasks_argument, positive_int
 from franka_composer.controllers import CONTROLS
+from franka_composer.cli.speed import WARMUP_STEPS, random_steps_per_second
 from franka_composer.tasks import ALL_TASKS
 
 
@@ -30,8 +31,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--control", choices=CONTROLS, default="mocap",
                         help="controller to time (default: mocap)")
     parser.add_argument("--steps", type=positive_int, default=2000,
-                        help="env steps timed per task, after 100 warm-up steps "
-                             "(default: 2000)")
+                        help=f"env steps timed per task, after {WARMUP_STEPS} warm-up "
+                             "steps (default: 2000)")
     parser.set_defaults(func=run)
 
 
@@ -39,24 +40,14 @@ def measure(task: str, steps: int, control: str = "mocap", **options) -> dict:
     """Steps/s under random actions (resets included) and the median reset (ms), through
     `gym.make` with the task `options`."""
     env = gym.make(env_id(task, "sparse", control), **options)
-    env.action_space.seed(0)
-    env.reset(seed=0)
-    actions = [env.action_space.sample() for _ in range(steps + 100)]
-    elapsed = 0.0
-    for index, action in enumerate(actions):
-        start = time.perf_counter()
-        _, _, terminated, truncated, _ = env.step(action)
-        if terminated or truncated:
-            env.reset()
-        if index >= 100:
-            elapsed += time.perf_counter() - start
+    steps_per_s = random_steps_per_second(env, steps)
     resets = []
     for _ in range(20):
         start = time.perf_counter()
         env.reset()
         resets.append(time.perf_counter() - start)
     env.close()
-    return {"steps_per_s": steps / elapsed, "reset_ms": statistics.median(resets) * 1e3}
+    return {"steps_per_s": steps_per_s, "reset_ms": statistics.median(resets) * 1e3}
 
 
 def best_of_rounds(tasks, settings: dict[str, dict], steps: int, rounds: int) -> dict:
