@@ -2,7 +2,10 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-# PyTorch's CPU wheels (PyPI's torch is a multi-GB CUDA build); empty: pip's own indexes.
+# PyTorch's CPU wheels (PyPI's torch is a multi-GB CUDA build), as an extra index beside
+# pip's own: its 2.13.0+cpu sorts above PyPI's 2.13.0, torch's dependencies still come
+# from pip's indexes, and where it cannot be reached a local +cpu wheel (find-links) is
+# taken. Empty: pip's own indexes alone.
 TORCH_INDEX ?= https://download.pytorch.org/whl/cpu
 export OMP_NUM_THREADS ?= 1
 
@@ -30,7 +33,7 @@ setup-demo: $(BIN)/python
 setup: $(BIN)/python
 	@$(BIN)/python -c "import franka_composer, torch, sb3_contrib, sbx, ray, minari, envlogger, pytest" \
 	  2>/dev/null || { \
-	  $(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--index-url $(TORCH_INDEX)) \
+	  $(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX)) \
 	  && $(BIN)/pip install -c constraints.txt -e ".[test,train]"; }
 
 demo: setup-demo

@@ -60,3 +60,18 @@ def test_a_cached_panda_or_no_local_copy_leaves_it_unset(tmp_path, copy, monkeyp
     published.mkdir(parents=True)
     (published / SENTINEL).touch()
     assert _make_demo(tmp_path, tmp_path / "cache", copy) == "MENAGERIE_ROOT=unset"
+
+
+def test_torch_comes_from_the_cpu_index_beside_pips_own(tmp_path):
+    """`make setup` adds PyTorch's CPU index to pip's, never in their place: torch's own
+    dependencies (filelock, ...) come from pip's indexes, and where PyTorch's index cannot
+    be reached a local +cpu wheel still installs (with --index-url alone it could not)."""
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").write_text("#!/bin/sh\nexit 1\n")
+    (venv / "bin" / "python").chmod(0o755)
+    recipe = subprocess.run(["make", "-n", "-C", str(REPO), "setup", f"VENV={venv}"],
+                            capture_output=True, text=True, check=True, timeout=60).stdout
+    torch_line = next(line for line in recipe.splitlines() if "torch==2.13.0" in line)
+    assert "--extra-index-url https://download.pytorch.org/whl/cpu" in torch_line
+    assert " --index-url" not in torch_line
