@@ -31,7 +31,7 @@ setup-demo: $(BIN)/python
 # Everything the tests use, in the tested versions (constraints.txt) within setup.cfg's
 # ranges; torch first, as the CPU build.
 setup: $(BIN)/python
-	@$(BIN)/python -c "import franka_composer, torch, sb3_contrib, sbx, ray, minari, envlogger, pytest" \
+	@$(BIN)/python -c "import franka_composer, torch, sb3_contrib, sbx, ray, minari, envlogger, pytest, sphinx" \
 	  2>/dev/null || { \
 	  $(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX)) \
 	  && $(BIN)/pip install -c constraints.txt -e ".[test,train]"; }
