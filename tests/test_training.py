@@ -1000,6 +1000,55 @@ def test_demonstrations_fill_the_replay_buffer_before_learning(tmp_path, algo, f
     assert buffer.pos == count + 100  # Then the run's own 100 steps.
 
 
+def test_the_runs_expert_records_its_demonstrations_at_its_start(tmp_path):
+    """--expert-demos N: the run records N expert episodes into its folder, seeded apart
+    from other seeds' runs, and its buffer starts with them, whole, in order."""
+    from stable_baselines3.common.save_util import load_from_pkl
+
+    from franka_composer.datasets import record
+    from franka_composer.training import demos
+    from franka_composer.training.run_config import EXPERT_DEMO_SEED
+
+    out = tmp_path / "run"
+    assert _train(out, "sac", 100, "--expert-demos", "2", "--checkpoint-every", "100") == 0
+    run = RunDir(out)
+    config = run.read_config()
+    assert (config.expert_demos, config.demos) == (2, None)
+    assert config.expert_demo_seed == EXPERT_DEMO_SEED + 100_000  # The run's seed is 1.
+    assert "2 expert demos" in config.variant
+    # The same episodes as the expert recorded by hand from that seed.
+    record("push", 2, tmp_path / "by-hand.npz", seed=config.expert_demo_seed)
+    env = make_env("push")
+    recorded = demos.load_episodes(run.expert_demos, env)
+    by_hand = demos.load_episodes(tmp_path / "by-hand.npz", env)
+    env.close()
+    for ours, theirs in zip(recorded, by_hand, strict=True):
+        for key in ("observation", "action", "reward"):
+            np.testing.assert_array_equal(ours[key], theirs[key])
+    buffer = load_from_pkl(run.checkpoint_buffer)
+    count = sum(len(e["action"]) for e in recorded)
+    np.testing.assert_array_equal(buffer.actions[:count, 0],
+                                  np.concatenate([e["action"] for e in recorded]))
+    assert buffer.pos == count + 100
+
+
+def test_expert_demonstrations_are_refused_beside_a_dataset_or_past_the_buffer(tmp_path):
+    from franka_composer.datasets import record
+
+    record("push", 1, tmp_path / "push.npz", seed=0)
+    with pytest.raises(ValueError, match=re.escape(
+            "a run's demonstrations come from a dataset (demos) or are recorded by its expert "
+            "(expert_demos), not both")):
+        _train(tmp_path / "run", "sac", 100, "--expert-demos", "2", "--demos",
+               str(tmp_path / "push.npz"))
+    # 2000 buffer transitions (TINY): 3 episodes of up to 50 steps and 1900 steps do not fit.
+    with pytest.raises(ValueError, match=re.escape(
+            "the replay buffer holds 2000 transitions: 150 of demonstrations and 1900 steps "
+            "would overwrite demonstrations")):
+        _train(tmp_path / "run", "sac", 1900, "--expert-demos", "3")
+    assert not (tmp_path / "run").exists()
+
+
 def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
     from franka_composer.datasets import record
 

@@ -57,6 +57,14 @@ def _rate(text: str) -> float:
 def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -> None:
     """Checks --demos before the run directory exists: they load as the task's, and the
     buffer keeps them."""
+    if args.expert_demos is not None:  # (Beside --demos, RunConfig has refused them.)
+        from franka_composer.tasks import TASK_CONFIGS
+        from franka_composer.training import demos
+
+        # The most the expert's episodes can hold: each as long as the task's horizon.
+        horizon = TASK_CONFIGS[args.task].max_episode_steps
+        demos.check_capacity([{"action": range(horizon)}] * args.expert_demos, buffer_size,
+                             total_steps)
     if args.demos is None:
         if args.demo_episodes is not None:
             raise ValueError("--demo-episodes takes the first episodes of --demos DATASET, "
@@ -102,6 +110,11 @@ def add_parser(subparsers) -> None:
                              "(franka-composer rollout)")
     parser.add_argument("--demo-episodes", type=positive_int, default=None, metavar="K",
                         help="take the dataset's first K episodes (default: all)")
+    parser.add_argument("--expert-demos", type=positive_int, default=None, metavar="N",
+                        help="instead of --demos: record N episodes of the task's scripted "
+                             "expert at the run's start (RUN_DIR/expert-demos.npz; their "
+                             "recording counts in the run's wall-clock) and fill the replay "
+                             "buffer with them")
     parser.add_argument("--backend", choices=BACKENDS, default=None,
                         help="'sb3' (default, the paper's): Stable-Baselines3 on PyTorch; "
                              "'sbx': sbx-rl, SB3 ported to JAX (pip install sbx-rl), same "
@@ -242,7 +255,7 @@ def run_config(args: argparse.Namespace):
     return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
                      args.backend, args.control, args.precision, args.randomization,
                      str(args.demos.resolve()) if args.demos else None, args.demo_episodes,
-                     **timing_options(args))
+                     args.expert_demos, **timing_options(args))
 
 
 

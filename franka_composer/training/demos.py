@@ -159,6 +159,25 @@ def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
     return episodes
 
 
+def record_expert(path: pathlib.Path, config) -> pathlib.Path:
+    """Records `config.expert_demos` episodes of its task's scripted expert in the run's
+    own environment (controller, timing, termination, randomisation), so that they are
+    transitions the run could have collected, to `path` (an npz, written whole; seeded
+    from `RunConfig.expert_demo_seed`); returns `path`."""
+    from franka_composer.datasets import record
+    from franka_composer.training.run_files import replace_atomically
+
+    options = {name: value for name, value in (
+        ("control_timestep", config.control_timestep),
+        ("velocity_timestep", config.velocity_timestep),
+        ("terminate_on_success", config.terminate_on_success),
+        ("randomization", config.randomization)) if value is not None}
+    replace_atomically(path, lambda temporary: record(
+        config.task, config.expert_demos, temporary, seed=config.expert_demo_seed,
+        control=config.control, **options))
+    return path
+
+
 def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> int:
     """How many transitions `episodes` hold; a ValueError if a buffer of `buffer_size`
     cannot keep them through `total_steps` steps of training."""
@@ -166,7 +185,8 @@ def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> 
     if transitions + total_steps > buffer_size:
         raise ValueError(f"the replay buffer holds {buffer_size} transitions: {transitions} "
                          f"of demonstrations and {total_steps} steps would overwrite "
-                         f"demonstrations; raise --buffer-size or take fewer --demo-episodes")
+                         f"demonstrations; raise --buffer-size or take fewer episodes "
+                         "(--demo-episodes, --expert-demos)")
     return transitions
 
 

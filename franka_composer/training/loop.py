@@ -111,6 +111,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
 
     run.recover_checkpoint()
     state = run.read_state()
+    # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
+    clock = WallClock(state["wall_time_s"], state.get("cpu_time_s")) if resume else WallClock()
     if resume:
         if not state:
             raise ValueError(f"{run.root} has no complete checkpoint to resume from "
@@ -128,11 +130,12 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         if config.demos is not None:
             episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
             demos.prefill(model, episodes, hp.total_steps)
+        if config.expert_demos is not None:
+            dataset = demos.record_expert(run.expert_demos, config)
+            demos.prefill(model, demos.load_episodes(dataset, env), hp.total_steps)
         stream = exact_resume.EpisodeStream(config.seed)  # SB3 seeds the env's first reset.
     if hp.clip_q_targets:
         clip_target_critic(model, hp.gamma)
-    # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
-    clock = WallClock(state["wall_time_s"], state.get("cpu_time_s")) if resume else WallClock()
     if tensorboard:
         model.tensorboard_log = tensorboard
 

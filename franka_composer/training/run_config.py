@@ -13,7 +13,10 @@ from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
                                                   Hyperparameters, hyperparameters)
-from franka_composer.validation import check_choice
+from franka_composer.validation import check_choice, check_number
+
+#: The reset seed of seed 0's first expert demonstration (`RunConfig.expert_demo_seed`).
+EXPERT_DEMO_SEED = 1_000_000
 
 #: Hyperparameters that leave what is learned alone: the budget, evaluation and stopping.
 NOT_LEARNING = ("total_steps", "eval_every", "eval_episodes", "stop_success_rate",
@@ -30,7 +33,10 @@ class RunConfig:
     """What a run trains: enough to rebuild its model and environments on resume.
 
     `demos` is the dataset the replay buffer was filled from before learning (its first
-    `demo_episodes` episodes, or all), or None.
+    `demo_episodes` episodes, or all), or None. `expert_demos` is, instead, how many
+    episodes of the task's scripted expert the run records itself at its start
+    (`expert_demo_seed`) and fills the buffer with; their recording is part of the run's
+    time.
 
     `control_timestep` is the seconds of physics per step (None: the task's, 0.05 s), and
     `velocity_timestep` the seconds the observation's velocities are multiplied by (None:
@@ -54,6 +60,7 @@ class RunConfig:
     randomization: str | None = None
     demos: str | None = None
     demo_episodes: int | None = None
+    expert_demos: int | None = None
     control_timestep: float | None = None
     velocity_timestep: float | None = None
 
@@ -77,6 +84,11 @@ class RunConfig:
             raise ValueError(f"precision {self.precision} runs the networks under "
                              f"torch.autocast: it needs backend sb3, not {self.backend} "
                              "(which trains in JAX)")
+        if self.expert_demos is not None:
+            check_number("expert_demos", self.expert_demos, minimum=1, integer=True)
+            if self.demos is not None:
+                raise ValueError("a run's demonstrations come from a dataset (demos) or are "
+                                 "recorded by its expert (expert_demos), not both")
         if self.hyperparameters.clip_q_targets and self.backend != "sb3":
             raise ValueError(f"clip_q_targets clamps a PyTorch target critic: it needs "
                              f"backend sb3, not {self.backend}")
@@ -89,8 +101,8 @@ class RunConfig:
         last its whole horizon."""
         hp = self.hyperparameters
         horizon = TASK_CONFIGS[self.task].max_episode_steps
-        if hp.update_schedule == "step" and self.demos is None \
-                and hp.learning_starts + 1 < horizon:
+        prefilled = self.demos is not None or self.expert_demos is not None
+        if hp.update_schedule == "step" and not prefilled and hp.learning_starts + 1 < horizon:
             raise ValueError(
                 f"learning_starts must be >= {horizon - 1} for {self.task} with an update "
                 f"every step, got {hp.learning_starts}: the first gradient step would come "
@@ -102,7 +114,8 @@ class RunConfig:
                 "terminate_on_success": self.terminate_on_success, "backend": self.backend,
                 "control": self.control, "precision": self.precision,
                 "randomization": self.randomization, "demos": self.demos,
-                "demo_episodes": self.demo_episodes, "control_timestep": self.control_timestep,
+                "demo_episodes": self.demo_episodes, "expert_demos": self.expert_demos,
+                "control_timestep": self.control_timestep,
                 "velocity_timestep": self.velocity_timestep,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
@@ -120,6 +133,7 @@ class RunConfig:
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
+            (self.expert_demos is not None, f"{self.expert_demos} expert demos"),
             (not self.terminate_on_success, "no termination on success")) if differs]
         return ", ".join(parts)
 
@@ -167,6 +181,12 @@ class RunConfig:
                 for name, (ours, theirs) in self.differing(other).items()]
 
     @property
+    def expert_demo_seed(self) -> int:
+        """The reset seed of the first expert demonstration (episode i: this + i), so that
+        runs of other seeds record other episodes (up to 100,000 each)."""
+        return EXPERT_DEMO_SEED + 100_000 * self.seed
+
+    @property
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""
         return dict(terminate_on_success=self.terminate_on_success, control=self.control,
@@ -185,6 +205,7 @@ class RunConfig:
                    precision=data.get("precision", "fp32"),
                    randomization=data.get("randomization"), demos=data.get("demos"),
                    demo_episodes=data.get("demo_episodes"),
+                   expert_demos=data.get("expert_demos"),
                    control_timestep=data.get("control_timestep"),
                    velocity_timestep=data.get("velocity_timestep"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))

@@ -3,6 +3,7 @@
     RUN_DIR/config.json          task, algorithm, seed, backend, options, hyperparameters
                                  (`run_config.RunConfig`)
     RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
+    RUN_DIR/expert-demos.npz     the demonstrations its expert recorded at its start, if asked
     RUN_DIR/model.zip            the final model (written when training completes)
     RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early (none
                                  while a resume with a raised budget trains)
@@ -70,6 +71,11 @@ class RunDir:
             {"steps": steps, "stopped_early": stopped_early,
              "wall_time_s": round(wall_time_s, 2),
              "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2)}) + "\n"))
+
+    @property
+    def expert_demos(self) -> pathlib.Path:
+        """The episodes its expert recorded at its start (`RunConfig.expert_demos`)."""
+        return self.root / "expert-demos.npz"
 
     @property
     def final_model(self) -> pathlib.Path:
