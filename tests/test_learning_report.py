@@ -10,19 +10,20 @@ from franka_composer import cli
 from franka_composer.training import hyperparameters
 from franka_composer.training import report
 from franka_composer.training.learning_report import (SMOOTHING, markdown_table,
-                                                      read_paper_curves, read_run, smoothed,
-                                                      steps_to)
+                                                      minutes_to, read_paper_curves,
+                                                      read_run, smoothed, steps_to)
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.runs import RunDir
 
 
-def _write_run(root, task, algo, seed, rates, outcome=None, name="", **settings):
-    """A run whose evaluations every 2000 steps had `rates`, 10 s apart; `outcome` is
+def _write_run(root, task, algo, seed, rates, outcome=None, name="", seconds=10,
+               **settings):
+    """A run whose evaluations every 2000 steps had `rates`, `seconds` apart; `outcome` is
     (stopped_early, cpu_time_s) for a finished run; `settings` go to its RunConfig."""
     run = RunDir(root / f"{task}-{algo}-seed{seed}{name}")
     run.write_config(RunConfig(task, algo, seed, hyperparameters(task, algo), **settings))
     run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
-        f"{2000 * i},{10 * i},{rate},-1\n" for i, rate in enumerate(rates)))
+        f"{2000 * i},{seconds * i},{rate},-1\n" for i, rate in enumerate(rates)))
     if outcome is not None:
         run.write_outcome(2000 * (len(rates) - 1), outcome[0], 10 * (len(rates) - 1),
                           outcome[1])
@@ -48,6 +49,27 @@ def test_steps_to_a_threshold_follow_the_median_seed(tmp_path):
     assert steps_to(runs[1:2], 0.8) == 10000
     assert steps_to(runs[2:], 0.1) == 8000  # The first full window.
     assert steps_to(runs[2:], 0.3) is None
+
+
+def test_minutes_to_a_threshold_are_the_median_seeds_own_wall_clock(tmp_path, capsys):
+    # Smoothed, seed 0 reaches 0.8 at its 8th evaluation (70 s) and 0.9 at its 9th (80 s);
+    # seed 1, whose steps take 3x longer, at its 6th (150 s) and 7th (180 s); seed 2
+    # never, so it counts as never: the median is seed 1's, though in steps it is ahead.
+    for seed, rates, seconds in ((0, [0.0] * 4 + [1.0] * 6, 10),
+                                 (1, [0.0] * 2 + [1.0] * 8, 30), (2, [0.2] * 10, 10)):
+        _write_run(tmp_path, "push", "sac", seed, rates, seconds=seconds)
+    runs = [read_run(root) for root in sorted(tmp_path.iterdir())]
+    assert (minutes_to(runs, 0.8), minutes_to(runs, 0.9)) == (2.5, 3.0)
+    assert minutes_to(runs[:1], 0.9) == pytest.approx(80 / 60)
+    assert minutes_to(runs[2:], 0.3) is None
+    assert minutes_to(runs[1:], 0.8) is None  # Seed 1's 150 s and never: the median never.
+    assert cli.main(["report", str(tmp_path), "--wall-clock"]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    assert rows[0] == ("| task | algorithm | seeds | steps reached | stopped early | "
+                       "steps to 80 % | steps to 90 % | minutes to 80 % | minutes to 90 % | "
+                       "wall h | CPU h |")
+    assert rows[2] == ("| push | SAC | 0, 1, 2 | 18,000 (running), 18,000 (running), 18,000 "
+                       "(running) | 0 of 3 | 14,000 | 16,000 | 2.5 | 3.0 | 0.1 | – |")
 
 
 def test_a_seed_that_stopped_early_holds_its_level(tmp_path):

@@ -23,6 +23,10 @@ def add_parser(subparsers) -> None:
                         help="the paper's published curves (results/paper-curves/curves.csv, "
                              "from experiments/paper_curves.py): its steps to 80 %% and 90 %% "
                              "beside each cell's")
+    parser.add_argument("--wall-clock", action="store_true",
+                        help="also the minutes at which the median seed's smoothed curve "
+                             "first reaches 80 %% and 90 %% (each seed's own wall-clock): "
+                             "how recipes whose steps cost differently compare")
     parser.add_argument("--out", type=output_file, default=None,
                         help="also write the Markdown table here")
     parser.set_defaults(func=run)
@@ -36,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
     if args.paper_curves is not None and not args.paper_curves.is_file():
         raise ValueError(f"--paper-curves: {args.paper_curves} is not a file")
     paper = read_paper_curves(args.paper_curves) if args.paper_curves else None
-    table = markdown_table([read_run(root) for root in run_directories(args.runs)], paper)
+    table = markdown_table([read_run(root) for root in run_directories(args.runs)], paper,
+                           wall_clock=args.wall_clock)
     print(table, end="")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)

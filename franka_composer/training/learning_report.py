@@ -42,6 +42,7 @@ class RunRecord:
     wall_s: float
     cpu_s: float | None  # None: not finished, or not recorded throughout
     curve: dict[int, float]  # evaluated step -> success rate
+    wall_times: dict[int, float]  # evaluated step -> the run's wall-clock seconds there
 
 
 def read_run(root: pathlib.Path) -> RunRecord:
@@ -55,7 +56,8 @@ def read_run(root: pathlib.Path) -> RunRecord:
         steps=int(outcome.get("steps", last["steps"])), finished=bool(outcome),
         stopped_early=bool(outcome.get("stopped_early", False)),
         wall_s=float(outcome.get("wall_time_s", last["wall_time_s"])),
-        cpu_s=outcome.get("cpu_time_s"), curve=success_curve(rows))
+        cpu_s=outcome.get("cpu_time_s"), curve=success_curve(rows),
+        wall_times={row["steps"]: row["wall_time_s"] for row in rows})
 
 
 def smoothed(curve: dict[int, float]) -> dict[int, float]:
@@ -77,6 +79,17 @@ def steps_to(runs: list[RunRecord], threshold: float) -> int | None:
     common = sorted(set.intersection(*(set(curve) for curve in curves)))
     return first_reaching({step: float(np.median([curve[step] for curve in curves]))
                            for step in common}, threshold)
+
+
+def minutes_to(runs: list[RunRecord], threshold: float) -> float | None:
+    """The median over seeds of the wall-clock minutes at which each seed's smoothed curve
+    first reaches `threshold` (a seed that never does counts as never); None if the median
+    seed never does. What a recipe costs to learn, where steps to a threshold do not
+    compare recipes whose steps cost differently."""
+    minutes = [np.inf if step is None else run.wall_times[step] / 60 for run, step in (
+        (run, first_reaching(smoothed(run.curve), threshold)) for run in runs)]
+    median = float(np.median(minutes)) if minutes else np.inf
+    return median if np.isfinite(median) else None
 
 
 def held(run: RunRecord, curve: dict[int, float], steps) -> dict[int, float]:
@@ -121,13 +134,17 @@ def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, flo
 
 
 def markdown_table(runs: list[RunRecord],
-                   paper: dict[tuple[str, str], dict[int, float]] | None = None) -> str:
+                   paper: dict[tuple[str, str], dict[int, float]] | None = None,
+                   wall_clock: bool = False) -> str:
     """One row per cell, in the paper's order, and a line with what all of them cost. With
     the paper's curves (`read_paper_curves`), its steps to each threshold beside ours, read
-    the same way off its curve ("–": never reached; blank: no curve for the cell)."""
+    the same way off its curve ("–": never reached; blank: no curve for the cell). With
+    `wall_clock`, the median seed's minutes to each threshold too (`minutes_to`)."""
     cells = group_by_cell(sorted(runs, key=lambda r: r.seed))
     thresholds = [f"{100 * t:.0f} %" for t in THRESHOLDS]
     columns = [f"steps to {t}" for t in thresholds]
+    if wall_clock:
+        columns += [f"minutes to {t}" for t in thresholds]
     if paper is not None:
         columns += [f"paper: steps to {t}" for t in thresholds]
     lines = ["| task | algorithm | seeds | steps reached | stopped early | "
@@ -138,6 +155,8 @@ def markdown_table(runs: list[RunRecord],
         reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
                             for run in cell)
         crossings = [steps_text(steps_to(cell, t)) for t in THRESHOLDS]
+        if wall_clock:
+            crossings += [minutes_text(minutes_to(cell, t)) for t in THRESHOLDS]
         if paper is not None:
             curve = paper.get((task, algo))
             crossings += [steps_text(first_reaching(smoothed(curve), t)) if curve else ""
@@ -154,6 +173,11 @@ def markdown_table(runs: list[RunRecord],
 def steps_text(step: int | None) -> str:
     """A step in a table: "–" for never."""
     return "–" if step is None else f"{step:,}"
+
+
+def minutes_text(minutes: float | None) -> str:
+    """Minutes in a table, to the tenth: "–" for never."""
+    return "–" if minutes is None else f"{minutes:.1f}"
 
 
 def _cpu_hours(runs: list[RunRecord]) -> str:
