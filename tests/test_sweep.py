@@ -311,6 +311,26 @@ def test_bad_train_options_and_budgets_are_refused_by_the_parsers(tmp_path, caps
 
 
 @pytest.mark.slow
+def test_a_sweeps_own_ray_cluster_listens_on_loopback_only(tmp_path, monkeypatch):
+    """Without --address the sweep starts a Ray instance of its own, bound to 127.0.0.1
+    (Ray's default is the machine's network address); with one it joins that cluster."""
+    ray = pytest.importorskip("ray")
+    asked = []
+
+    def init(**kwargs):
+        asked.append(kwargs)
+        raise RuntimeError("not started")
+
+    monkeypatch.setattr(ray, "init", init)
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    sweep = ["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
+             "--seeds", "0", "--steps", "200", "--num-cpus", "1"]
+    with pytest.raises(RuntimeError, match="not started"):
+        cli.main([*sweep, "--", *TINY])
+    assert asked[0]["_node_ip_address"] == "127.0.0.1" and asked[0]["num_cpus"] == 1
+    assert asked[0]["address"] is None
+
+
 def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monkeypatch):
     pytest.importorskip("ray")
     pytest.importorskip("stable_baselines3")

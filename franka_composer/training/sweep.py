@@ -306,8 +306,10 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     if todo:
         started = not ray.is_initialized()
         if started:
-            ray.init(address=address, num_cpus=None if address else num_cpus,
-                     include_dashboard=False, log_to_driver=False)
+            # A cluster of its own listens on loopback only: Ray's ports take no
+            # authentication, and a sweep on a laptop need not open them to its network.
+            local = {} if address else dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1")
+            ray.init(address=address, include_dashboard=False, log_to_driver=False, **local)
         remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
         submitted = time.time()
         pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
