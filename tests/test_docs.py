@@ -14,7 +14,7 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 GUIDE = REPO / "docs" / "guide"
 
 
-@pytest.mark.parametrize("page", ["quickstart.md", "randomization.md"])
+@pytest.mark.parametrize("page", ["quickstart.md", "randomization.md", "training.md"])
 def test_the_guide_tables_are_the_layouts_and_parameters(page):
     tables = load_script(REPO / "tools" / "doc_tables.py")
     text = (GUIDE / page).read_text()

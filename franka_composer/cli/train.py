@@ -15,6 +15,7 @@ from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
+from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
 
 
@@ -91,6 +92,11 @@ def add_parser(subparsers) -> None:
                     "task and algorithm; the options below override them). Writes "
                     "config.json, eval.csv (steps, wall time, success rate, mean reward), "
                     "checkpoints and the final model.zip to the run directory.")
+    parser.add_argument("--preset", choices=tuple(TRAINING_PRESETS), default=None,
+                        help="a named recipe instead of Table I's settings; options given "
+                             "beside it override it. "
+                             + " ".join(f"{name}: {preset.describe()} ({preset.why})"
+                                        for name, preset in TRAINING_PRESETS.items()))
     parser.add_argument("--task", choices=ALL_TASKS, default=None,
                         help="task to learn (default: push)")
     parser.add_argument("--algo", choices=ALGOS, default=None,
@@ -234,18 +240,28 @@ def _allow_every_thread(cores: set[int]) -> None:
 
 
 def with_defaults(args: argparse.Namespace) -> argparse.Namespace:
-    """`args` with `RUN_DEFAULTS` for the run settings not given."""
+    """`args` with the run settings not given taken from its --preset, then `RUN_DEFAULTS`
+    (the preset's hyperparameters come in through `run_config`)."""
+    from franka_composer.training.presets import THREADS, TRAINING_PRESETS
+
+    preset = TRAINING_PRESETS[args.preset] if getattr(args, "preset", None) else None
+    defaults = {**RUN_DEFAULTS, **(preset.run_fields() if preset else {}),
+                **({THREADS: preset.settings[THREADS]}
+                   if preset and THREADS in preset.settings else {})}
     return argparse.Namespace(**{**vars(args), **{
-        name: value for name, value in RUN_DEFAULTS.items() if getattr(args, name) is None}})
+        name: value for name, value in defaults.items() if getattr(args, name) is None}})
 
 
 def run_config(args: argparse.Namespace):
     """The run these `train` arguments start (what its config.json will hold)."""
     from franka_composer.training import hyperparameters
+    from franka_composer.training.presets import TRAINING_PRESETS
     from franka_composer.training.run_config import RunConfig
 
     args = with_defaults(args)
-    hp = hyperparameters(args.task, args.algo).replace(
+    base = (TRAINING_PRESETS[args.preset].hyperparameters(args.task, args.algo)
+            if args.preset else hyperparameters(args.task, args.algo))
+    hp = base.replace(
         update_schedule=args.update_schedule, train_every=args.train_every,
         net_arch=args.net_arch,
         batch_size=args.batch_size, buffer_size=args.buffer_size,
@@ -255,7 +271,7 @@ def run_config(args: argparse.Namespace):
     return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
                      args.backend, args.control, args.precision, args.randomization,
                      str(args.demos.resolve()) if args.demos else None, args.demo_episodes,
-                     args.expert_demos, **timing_options(args))
+                     args.expert_demos, preset=args.preset, **timing_options(args))
 
 
 
@@ -316,7 +332,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir.recover_checkpoint()
     else:
         run_dir = loop.start(out, check_new_run(args))
-    threads = args.threads
+    threads = settings.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
     try:

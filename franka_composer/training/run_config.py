@@ -13,6 +13,7 @@ from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
                                                   Hyperparameters, hyperparameters)
+from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.validation import check_choice, check_number
 
 #: The reset seed of seed 0's first expert demonstration (`RunConfig.expert_demo_seed`).
@@ -61,6 +62,7 @@ class RunConfig:
     demos: str | None = None
     demo_episodes: int | None = None
     expert_demos: int | None = None
+    preset: str | None = None
     control_timestep: float | None = None
     velocity_timestep: float | None = None
 
@@ -78,6 +80,8 @@ class RunConfig:
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
         check_choice("precision", self.precision, PRECISIONS)
+        if self.preset is not None:
+            check_choice("preset", self.preset, tuple(TRAINING_PRESETS), also="None")
         if self.randomization is not None:
             check_choice("randomization", self.randomization, tuple(PRESETS), also="None")
         if self.precision != "fp32" and self.backend != "sb3":
@@ -115,26 +119,44 @@ class RunConfig:
                 "control": self.control, "precision": self.precision,
                 "randomization": self.randomization, "demos": self.demos,
                 "demo_episodes": self.demo_episodes, "expert_demos": self.expert_demos,
+                "preset": self.preset,
                 "control_timestep": self.control_timestep,
                 "velocity_timestep": self.velocity_timestep,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
+    def _baseline(self) -> dict:
+        """What its setup is measured against: the paper's (Table I for its task and
+        algorithm, SB3 in fp32, terminating on success, nothing added), or its preset's."""
+        baseline = dict(hyperparameters=hyperparameters(self.task, self.algo), backend="sb3",
+                        precision="fp32", terminate_on_success=True, expert_demos=None)
+        if self.preset is None:
+            return baseline
+        preset = TRAINING_PRESETS[self.preset]
+        return {**baseline, **preset.run_fields(),
+                "hyperparameters": preset.hyperparameters(self.task, self.algo)}
+
+    @property
     def setup(self) -> str:
-        """What this run learns that the paper's setup does not (Table I for its task and
-        algorithm, mocap, terminating on success, nothing added), as a label; "" for none."""
-        table_i = hyperparameters(self.task, self.algo).to_dict()
-        parts = [f"{name} {','.join(map(str, value)) if isinstance(value, tuple) else value}"
-                 for name, value in self.hyperparameters.to_dict().items()
-                 if name not in NOT_LEARNING and value != table_i[name]]
+        """What this run learns that its baseline does not (`_baseline`: the paper's setup,
+        or its preset's, named first), as a label; "" for none."""
+        baseline = self._baseline
+        base = baseline["hyperparameters"].to_dict()
+        parts = [f"{self.preset} preset"] if self.preset else []
+        parts += [f"{name} {','.join(map(str, value)) if isinstance(value, tuple) else value}"
+                  for name, value in self.hyperparameters.to_dict().items()
+                  if name not in NOT_LEARNING and value != base[name]]
         parts += [label for differs, label in (
             (self.control != "mocap", f"{self.control} control"),
             (self.timing_label != "", self.timing_label),
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
-            (self.expert_demos is not None, f"{self.expert_demos} expert demos"),
-            (not self.terminate_on_success, "no termination on success")) if differs]
+            (self.expert_demos != baseline["expert_demos"],
+             f"{self.expert_demos or 'no'} expert demos"),
+            (self.terminate_on_success != baseline["terminate_on_success"],
+             "termination on success" if self.terminate_on_success
+             else "no termination on success")) if differs]
         return ", ".join(parts)
 
     @property
@@ -153,11 +175,12 @@ class RunConfig:
 
     @property
     def computation(self) -> str:
-        """How its networks were computed, where not as the paper's (SB3, fp32): "bf16",
-        "sbx" or ""."""
+        """How its networks were computed, where not as its baseline's (the paper's SB3 in
+        fp32, or its preset's): "bf16", "sbx" or ""."""
+        baseline = self._baseline
         return ", ".join(label for differs, label in (
-            (self.precision != "fp32", self.precision),
-            (self.backend != "sb3", self.backend)) if differs)
+            (self.precision != baseline["precision"], self.precision),
+            (self.backend != baseline["backend"], self.backend)) if differs)
 
     @property
     def variant(self) -> str:
@@ -205,7 +228,7 @@ class RunConfig:
                    precision=data.get("precision", "fp32"),
                    randomization=data.get("randomization"), demos=data.get("demos"),
                    demo_episodes=data.get("demo_episodes"),
-                   expert_demos=data.get("expert_demos"),
+                   expert_demos=data.get("expert_demos"), preset=data.get("preset"),
                    control_timestep=data.get("control_timestep"),
                    velocity_timestep=data.get("velocity_timestep"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
