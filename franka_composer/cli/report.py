@@ -1,5 +1,5 @@
 """`franka-composer report`: per cell, the steps to success thresholds and what the runs cost
-(issue 15's report beside Table II), read from the run directories without running them."""
+(beside Table II), read from the run directories without running them."""
 
 from __future__ import annotations
 
