@@ -63,7 +63,7 @@ def _repeated(values) -> list[str]:
     return sorted({str(v) for v in values if values.count(v) > 1})
 
 
-#: The Table II campaign's budgets for the paper's Table II (Table I settings otherwise). Slide uses
+#: The campaign's budgets for the paper's Table II (Table I settings otherwise). Slide uses
 #: [256]^3 and batch 512 instead of Table I's [512]^3 and 2048 (~6x the cost per step on a
 #: CPU): the one deviation of the networks, stated with the results. How each algorithm's
 #: networks are computed is the fastest way that learned as SB3 in fp32 (the paper's) does,
