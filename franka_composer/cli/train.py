@@ -63,9 +63,8 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
         from franka_composer.training import demos
 
         # The most the expert's episodes can hold: each as long as the task's horizon.
-        horizon = TASK_CONFIGS[args.task].max_episode_steps
-        demos.check_capacity([{"action": range(horizon)}] * args.expert_demos, buffer_size,
-                             total_steps)
+        demos.check_room(args.expert_demos * TASK_CONFIGS[args.task].max_episode_steps,
+                         buffer_size, total_steps)
     if args.demos is None:
         if args.demo_episodes is not None:
             raise ValueError("--demo-episodes takes the first episodes of --demos DATASET, "
@@ -242,12 +241,10 @@ def _allow_every_thread(cores: set[int]) -> None:
 def with_defaults(args: argparse.Namespace) -> argparse.Namespace:
     """`args` with the run settings not given taken from its --preset, then `RUN_DEFAULTS`
     (the preset's hyperparameters come in through `run_config`)."""
-    from franka_composer.training.presets import THREADS, TRAINING_PRESETS
+    from franka_composer.training.presets import TRAINING_PRESETS
 
-    preset = TRAINING_PRESETS[args.preset] if getattr(args, "preset", None) else None
-    defaults = {**RUN_DEFAULTS, **(preset.run_fields() if preset else {}),
-                **({THREADS: preset.settings[THREADS]}
-                   if preset and THREADS in preset.settings else {})}
+    defaults = {**RUN_DEFAULTS,
+                **(TRAINING_PRESETS[args.preset].run_fields() if args.preset else {})}
     return argparse.Namespace(**{**vars(args), **{
         name: value for name, value in defaults.items() if getattr(args, name) is None}})
 
@@ -332,7 +329,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir.recover_checkpoint()
     else:
         run_dir = loop.start(out, check_new_run(args))
-    threads = settings.threads
+    threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
     try:

@@ -182,12 +182,19 @@ def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> 
     """How many transitions `episodes` hold; a ValueError if a buffer of `buffer_size`
     cannot keep them through `total_steps` steps of training."""
     transitions = int(sum(len(e["action"]) for e in episodes))
+    check_room(transitions, buffer_size, total_steps)
+    return transitions
+
+
+def check_room(transitions: int, buffer_size: int, total_steps: int) -> None:
+    """A ValueError if a buffer of `buffer_size` cannot keep `transitions` of
+    demonstrations through `total_steps` steps of training (SB3's buffer would overwrite
+    them first)."""
     if transitions + total_steps > buffer_size:
         raise ValueError(f"the replay buffer holds {buffer_size} transitions: {transitions} "
                          f"of demonstrations and {total_steps} steps would overwrite "
                          f"demonstrations; raise --buffer-size or take fewer episodes "
                          "(--demo-episodes, --expert-demos)")
-    return transitions
 
 
 def prefill(model, episodes: list[dict], total_steps: int) -> int:

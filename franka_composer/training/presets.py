@@ -13,47 +13,43 @@ import types
 
 from franka_composer.training.hyperparams import Hyperparameters, hyperparameters
 
-#: The `RunConfig` fields a preset may set, beside hyperparameters (and `threads`).
+#: The `RunConfig` fields a preset may set, beside hyperparameters.
 RUN_FIELDS = ("algo", "backend", "precision", "terminate_on_success", "expert_demos")
-#: The CPU threads a preset trains with: a run setting (`train --threads`), not a
-#: hyperparameter, so a resume keeps the run's own.
-THREADS = "threads"
+_HYPERPARAMETERS = frozenset(field.name for field in dataclasses.fields(Hyperparameters))
 
 
 @dataclasses.dataclass(frozen=True)
 class TrainingPreset:
-    """A recipe: `settings` maps `RUN_FIELDS`, `THREADS` and `Hyperparameters` field names
-    to values (each also a `train` option of the same name); `why` says what it is for and
-    where its measurements are."""
+    """A recipe: `settings` maps `RUN_FIELDS` and `Hyperparameters` field names to values
+    (each also a `train` option of the same name); `why` says what it is for."""
 
     why: str
     settings: types.MappingProxyType
 
     def __post_init__(self) -> None:
-        hyper = {field.name for field in dataclasses.fields(Hyperparameters)}
-        unknown = sorted(set(self.settings) - hyper - set(RUN_FIELDS) - {THREADS})
+        unknown = sorted(set(self.settings) - _HYPERPARAMETERS - set(RUN_FIELDS))
         if unknown:
             raise ValueError(f"a preset cannot set {', '.join(unknown)}")
 
     def hyperparameters(self, task: str, algo: str) -> Hyperparameters:
         """Table I's record for `task` and `algo` with this preset's hyperparameters."""
-        hyper = {field.name for field in dataclasses.fields(Hyperparameters)}
-        return hyperparameters(task, algo).replace(
-            **{name: value for name, value in self.settings.items() if name in hyper})
+        return hyperparameters(task, algo).replace(**{
+            name: value for name, value in self.settings.items() if name in _HYPERPARAMETERS})
 
     def run_fields(self) -> dict:
+        """Its settings that are `RunConfig` fields rather than hyperparameters."""
         return {name: value for name, value in self.settings.items() if name in RUN_FIELDS}
 
     def describe(self) -> str:
-        """Its settings as `train` options, for --help."""
+        """Its settings as the `train` options that give them, for --help and the docs."""
         parts = []
         for name, value in self.settings.items():
-            if isinstance(value, bool):
-                flag = "--" + name.replace("_", "-")
-                parts.append(flag if value else f"--no-{name.replace('_', '-')}")
+            option = "--" + name.replace("_", "-")
+            if isinstance(value, bool):  # The flags: --clip-q-targets, --no-terminate-...
+                parts.append(option if value else f"--no-{option[2:]}")
             else:
                 text = ",".join(map(str, value)) if isinstance(value, tuple) else value
-                parts.append(f"--{name.replace('_', '-')} {text}")
+                parts.append(f"{option} {text}")
         return " ".join(parts)
 
 
