@@ -72,6 +72,33 @@ def test_minutes_to_a_threshold_are_the_median_seeds_own_wall_clock(tmp_path, ca
                        "(running) | 0 of 3 | 14,000 | 16,000 | 2.5 | 3.0 | 0.1 | – |")
 
 
+def test_curves_over_wall_clock_read_each_seed_at_its_latest_evaluation(tmp_path):
+    """Seeds evaluated at other moments: the median is taken at every moment any seed was
+    evaluated, each seed at its latest evaluation by then, up to the earliest last one."""
+    from franka_composer.training.curves import seed_curves, summarise
+
+    fast = _write_run(tmp_path, "push", "sac", 0, [0.0, 0.5, 1.0, 1.0], seconds=60)
+    slow = _write_run(tmp_path, "push", "sac", 1, [0.0, 0.2, 0.4, 0.6], seconds=90)
+    seeds = seed_curves([fast, slow], wall_clock=True)[("push", "sac", "")]
+    assert seeds == [{0.0: 0.0, 1.0: 0.5, 2.0: 1.0, 3.0: 1.0},
+                     {0.0: 0.0, 1.5: 0.2, 3.0: 0.4, 4.5: 0.6}]
+    minutes, median, _ = summarise(seeds)
+    assert minutes.tolist() == [0.0, 1.0, 1.5, 2.0, 3.0]  # Up to the fast seed's last.
+    assert median.tolist() == pytest.approx([0.0, 0.25, 0.35, 0.6, 0.7])
+    # Over steps, both were evaluated at the same steps: nothing is held across.
+    steps, median, _ = summarise(seed_curves([fast, slow])[("push", "sac", "")])
+    assert steps.tolist() == [0, 2000, 4000, 6000]
+    assert median.tolist() == pytest.approx([0.0, 0.35, 0.7, 0.8])
+
+
+def test_plot_over_wall_clock_writes_the_figure(tmp_path, capsys):
+    runs = [_write_run(tmp_path / "runs", "push", "sac", seed, [0.0, 0.5, 1.0], seconds=60)
+            for seed in (0, 1)]
+    out = tmp_path / "curves.png"
+    assert cli.main(["plot", *map(str, runs), "--wall-clock", "--out", str(out)]) == 0
+    assert capsys.readouterr().out == f"1 curve(s) -> {out}\n" and out.stat().st_size > 0
+
+
 def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     stopped = read_run(_write_run(tmp_path, "push", "tqc", 0, [1.0] * 5, (True, 50.0)))
     going = read_run(_write_run(tmp_path, "push", "tqc", 1, [0.0] * 5 + [1.0] * 5))

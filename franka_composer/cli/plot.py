@@ -18,6 +18,9 @@ def add_parser(subparsers) -> None:
                     "at the mean of its last 5 evaluations over the steps its cell's other "
                     "seeds go on to.")
     add_run_dirs(parser)
+    parser.add_argument("--wall-clock", action="store_true",
+                        help="each run's wall-clock minutes on the x axis, not environment "
+                             "steps: how recipes whose steps cost differently compare")
     parser.add_argument("--out", type=figure_file, default=pathlib.Path("curves.png"),
                         help="image file to write (PNG, PDF or SVG by extension)")
     parser.set_defaults(func=run)
@@ -27,6 +30,6 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.curves import plot_curves
     from franka_composer.training.sweep import run_directories
 
-    drawn = plot_curves(run_directories(args.runs), args.out)
+    drawn = plot_curves(run_directories(args.runs), args.out, wall_clock=args.wall_clock)
     print(f"{len(drawn)} curve(s) -> {args.out}")
     return 0

@@ -5,6 +5,7 @@ rule held at its level."""
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 
 import numpy as np
@@ -20,13 +21,17 @@ LINESTYLES = ("-", "--", ":", "-.")
 Curves = dict[tuple[str, str, str], list[dict[int, float]]]
 
 
-def seed_curves(run_dirs: list[pathlib.Path]) -> Curves:
-    """{(task, algo, variant): [per-seed {steps: success rate}]} from the runs' files; a seed
-    that stopped early by the rule holds its level over the steps its cell's other seeds go
+def seed_curves(run_dirs: list[pathlib.Path], wall_clock: bool = False) -> Curves:
+    """{(task, algo, variant): [per-seed {steps: success rate}]} from the runs' files (with
+    `wall_clock`, keyed by each seed's own wall-clock minutes instead); a seed that stopped
+    early by the rule holds its level over the steps (or minutes) its cell's other seeds go
     on to (`learning_report.held`), so the cell's line does not end where it stopped."""
     cells: dict[tuple[str, str, str], list[RunRecord]] = {}
     for root in run_dirs:
         run = read_run(pathlib.Path(root))
+        if wall_clock:
+            run = dataclasses.replace(run, curve={
+                run.wall_times[step] / 60: rate for step, rate in run.curve.items()})
         cells.setdefault((run.task, run.algo, run.variant), []).append(run)
     curves: Curves = {}
     for cell, runs in cells.items():
@@ -35,11 +40,22 @@ def seed_curves(run_dirs: list[pathlib.Path]) -> Curves:
     return curves
 
 
-def summarise(seeds: list[dict[int, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Steps evaluated in every seed, and the median and std of success there."""
+def summarise(seeds: list[dict[float, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps evaluated in every seed, and the median and std of success there. Seeds keyed
+    by wall-clock minutes, evaluated at other moments each, are read at every moment any
+    of them was evaluated, from its first evaluation to the earliest last one, each at its
+    latest evaluation by then."""
     steps = sorted(set.intersection(*(set(s) for s in seeds)))
-    values = np.array([[s[step] for step in steps] for s in seeds])
+    if len(steps) < len(set.union(*(set(s) for s in seeds))):
+        start, end = max(min(s) for s in seeds), min(max(s) for s in seeds)
+        steps = sorted(t for t in set.union(*(set(s) for s in seeds)) if start <= t <= end)
+    values = np.array([[_latest(s, step) for step in steps] for s in seeds])
     return np.array(steps), np.median(values, axis=0), np.std(values, axis=0)
+
+
+def _latest(curve: dict[float, float], moment: float) -> float:
+    """The curve's value at its latest point at or before `moment`."""
+    return curve[max(t for t in curve if t <= moment)]
 
 
 def split_setups(variants: list[str]) -> tuple[str, dict[str, str]]:
@@ -54,15 +70,16 @@ def split_setups(variants: list[str]) -> tuple[str, dict[str, str]]:
                                for variant, own in parts.items()}
 
 
-def plot_curves(run_dirs: list[pathlib.Path],
-                out: pathlib.Path) -> list[tuple[str, str, str]]:
-    """Writes the figure to `out`; returns the (task, algo, variant) lines drawn."""
+def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path,
+                wall_clock: bool = False) -> list[tuple[str, str, str]]:
+    """Writes the figure to `out`, over environment steps or, with `wall_clock`, over each
+    run's wall-clock minutes; returns the (task, algo, variant) lines drawn."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    curves = seed_curves(run_dirs)
+    curves = seed_curves(run_dirs, wall_clock)
     tasks = [t for t in TASK_ORDER if any(t == task for task, _, _ in curves)]
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
     drawn = []
@@ -84,9 +101,12 @@ def plot_curves(run_dirs: list[pathlib.Path],
                 drawn.append((task, algo, variant))
         title = f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}"
         ax.set_title(f"{title}\n({shared})" if shared else title)
-        ax.set_xlabel("environment steps")
-        # "20k" rather than "20000": full numbers run into each other on a narrow panel.
-        ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k" if x else "0")
+        if wall_clock:
+            ax.set_xlabel("wall-clock minutes")
+        else:
+            ax.set_xlabel("environment steps")
+            # "20k" rather than "20000": full numbers run into each other on a narrow panel.
+            ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k" if x else "0")
         ax.set_ylim(-0.02, 1.02)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left")
