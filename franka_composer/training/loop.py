@@ -111,12 +111,12 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
 
     run.recover_checkpoint()
     state = run.read_state()
-    # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
-    clock = WallClock(state["wall_time_s"], state.get("cpu_time_s")) if resume else WallClock()
     if resume:
         if not state:
             raise ValueError(f"{run.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
+        # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
+        clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
         model, stream = _resume(run, config, state, env, device)
         rows = run.kept_evaluations()
         write_eval_rows(run.eval_csv, rows)
@@ -124,6 +124,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         _skip_evaluated_episodes(eval_env, sum(r["steps"] % hp.eval_every == 0 for r in rows),
                                  hp.eval_episodes)
     else:
+        clock = WallClock()  # Before the expert's demonstrations: they are the run's time.
         model = build_model(config.task, config.algo, hp, env, seed=config.seed,
                             device=device, tensorboard_log=tensorboard,
                             backend=config.backend)
