@@ -45,10 +45,8 @@ def summarise(seeds: list[dict[float, float]]) -> tuple[np.ndarray, np.ndarray, 
     by wall-clock minutes, evaluated at other moments each, are read at every moment any
     of them was evaluated, from its first evaluation to the earliest last one, each at its
     latest evaluation by then."""
-    steps = sorted(set.intersection(*(set(s) for s in seeds)))
-    if len(steps) < len(set.union(*(set(s) for s in seeds))):
-        start, end = max(min(s) for s in seeds), min(max(s) for s in seeds)
-        steps = sorted(t for t in set.union(*(set(s) for s in seeds)) if start <= t <= end)
+    start, end = max(min(s) for s in seeds), min(max(s) for s in seeds)
+    steps = sorted(t for t in set().union(*seeds) if start <= t <= end)
     values = np.array([[_latest(s, step) for step in steps] for s in seeds])
     return np.array(steps), np.median(values, axis=0), np.std(values, axis=0)
 
