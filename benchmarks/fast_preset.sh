@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The fast preset against its targets (docs/experiments/fast-preset.md): `train --preset
+# fast` on TASK for each seed in turn, one process on one core, stopped at a smoothed 95 %
+# (or the step cap), runs outside the work tree; a run already there resumes.
+#
+#   benchmarks/fast_preset.sh TASK [SEED ...]   default seeds 0 1 2
+#   benchmarks/fast_preset.sh sync              the runs' config.json, eval.csv and
+#                                               policy.pt into results/fast-preset/
+#
+# RUNS (default ~/franka_runs/fast-preset); FROZEN=COMMIT trains that commit's code (a
+# worktree beside $RUNS). Read the runs with
+#   franka-composer report results/fast-preset/push-seed* --wall-clock
+set -uo pipefail
+cd "$(dirname "$0")/.."
+source benchmarks/background_sweep.sh
+sweep_settings "$HOME/franka_runs/fast-preset"
+task=${1:-}
+case "$task" in
+  push|pick_and_place) ;;
+  sync)
+    for run in "$RUNS"/*-seed*/; do
+      kept=results/fast-preset/$(basename "$run")
+      mkdir -p "$kept"
+      for name in config.json eval.csv policy.pt; do
+        if [ -f "$run/$name" ]; then cp "$run/$name" "$kept/"; fi
+      done
+    done
+    exit 0 ;;
+  *) sed -n '2,12p' "$0"; exit 2 ;;
+esac
+shift
+seeds=("${@:-0 1 2}")
+read -ra seeds <<< "${seeds[*]}"
+if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
+mkdir -p "$RUNS"
+for seed in "${seeds[@]}"; do
+  out=$RUNS/$task-seed$seed
+  resume=()
+  if [ -f "$out/config.json" ]; then resume=(--resume); fi
+  "$BIN/franka-composer" train --preset fast --task "$task" --seed "$seed" --out "$out" \
+    ${resume[@]+"${resume[@]}"} --total-steps 100000 --stop-at-success 0.95 --stop-after 5 \
+    --checkpoint-every 10000 --threads 1 --device cpu --no-progress || exit 1
+done
