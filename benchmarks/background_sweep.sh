@@ -50,3 +50,24 @@ stop_sweep() {
     return 1
   fi
 }
+
+# background_sweep ACTION KEPT: run, stop, status or sync (into KEPT) the cells of the
+# array `sweep` (`franka-composer sweep --out "$RUNS" ...`'s arguments), each trained with
+# the array `train_options`; run starts on FROZEN's tree if set, at low priority.
+background_sweep() {
+  case "$1" in
+    run)
+      if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || return 1; fi
+      lower_session_priority
+      nice -n 10 "$BIN/franka-composer" "${sweep[@]}" --num-cpus "$WORKERS" --refresh 600 -- \
+        "${train_options[@]}"
+      ;;
+    stop)
+      stop_sweep "franka-composer sweep --out $RUNS " "$RUNS" || return 1
+      "$BIN/franka-composer" "${sweep[@]}" --status
+      ;;
+    status) "$BIN/franka-composer" "${sweep[@]}" --status ;;
+    sync) "$BIN/franka-composer" "${sweep[@]}" --sync "$2" ;;
+    *) return 2 ;;
+  esac
+}

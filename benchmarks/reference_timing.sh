@@ -15,6 +15,7 @@
 # ~/franka_runs/reference-timing).
 set -uo pipefail
 cd "$(dirname "$0")/.."
+case "${1:-}" in run|stop|status|sync) ;; *) sed -n '2,16p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/reference-timing"
 read -ra seeds <<< "${SEEDS:-0 1 2}"
@@ -28,21 +29,7 @@ case "$ALGO" in
 esac
 sweep=(sweep --out "$RUNS" --tasks pick_and_place --algos "$ALGO" --seeds "${seeds[@]}"
        --steps 500000)
-
-case "${1:-}" in
-  run)
-    if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
-    lower_session_priority
-    nice -n 10 "$BIN/franka-composer" "${sweep[@]}" --num-cpus "$WORKERS" --refresh 600 -- \
-      ${computation[@]+"${computation[@]}"} --timing reference --stop-at-success 0.95 \
-      --stop-after 5 \
-      --checkpoint-every 10000 --threads 1 --device cpu
-    ;;
-  stop)
-    stop_sweep "franka-composer sweep --out $RUNS " "$RUNS" || exit 1
-    "$BIN/franka-composer" "${sweep[@]}" --status
-    ;;
-  status) "$BIN/franka-composer" "${sweep[@]}" --status ;;
-  sync) "$BIN/franka-composer" "${sweep[@]}" --sync results/reference-timing ;;
-  *) sed -n '2,16p' "$0"; exit 2 ;;
-esac
+train_options=(${computation[@]+"${computation[@]}"} --timing reference
+               --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1
+               --device cpu)
+background_sweep "$1" results/reference-timing

@@ -430,8 +430,8 @@ def test_bad_seeds_and_refresh_periods_are_refused_by_the_parser(tmp_path, capsy
     assert not (tmp_path / "s").exists()
 
 
-def _table2_sh(tmp_path, command, **env):
-    """benchmarks/table2.sh COMMAND, its franka-composer one that prints its arguments."""
+def _benchmark_sh(tmp_path, script, command, **env):
+    """benchmarks/SCRIPT COMMAND, its franka-composer one that prints its arguments."""
     bin_dir = tmp_path / "bin"
     if not bin_dir.exists():
         bin_dir.mkdir()
@@ -440,7 +440,7 @@ def _table2_sh(tmp_path, command, **env):
             (bin_dir / name).write_text(f"#!/bin/sh\n{body}\n")
             (bin_dir / name).chmod(0o755)
     return subprocess.run(
-        [str(REPO / "benchmarks" / "table2.sh"), command], capture_output=True, text=True,
+        [str(REPO / "benchmarks" / script), command], capture_output=True, text=True,
         env={**os.environ, "BIN": str(bin_dir), "RUNS": str(tmp_path / "runs"),
              "KEPT": str(tmp_path / "kept"), **env})
 
@@ -456,22 +456,53 @@ def test_table2_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path)
     names = [cell.name for cell in GRIDS["table2"]]
     _write_run(tmp_path / "kept", "push-tqc-seed1", [(0, 1, 0.0)], (250000, False, 2))
     _write_run(tmp_path / "kept", "push-sac-seed0", [(0, 1, 0.0), (2000, 2, 0.6)])
-    ran = _table2_sh(tmp_path, "run")
+    ran = _benchmark_sh(tmp_path, "table2.sh", "run")
     assert ran.returncode == 0, ran.stderr
     assert _sweep_cells(ran.stdout) == [name for name in names if name != "push-tqc-seed1"]
     # Cells named are trained as named.
-    named = _table2_sh(tmp_path, "run", CELLS="push-tqc-* slide-ddpg-seed0")
+    named = _benchmark_sh(tmp_path, "table2.sh", "run", CELLS="push-tqc-* slide-ddpg-seed0")
     assert _sweep_cells(named.stdout) == ["push-tqc-*", "slide-ddpg-seed0"]
-    reported = _table2_sh(tmp_path, "report")
+    reported = _benchmark_sh(tmp_path, "table2.sh", "report")
     assert reported.returncode == 1 and reported.stdout == ""
     assert reported.stderr == ("not finished (PARTIAL=1 reports the rest): "
                                f"{', '.join(n for n in names if n != 'push-tqc-seed1')}\n")
-    partial = _table2_sh(tmp_path, "report", PARTIAL="1")
+    partial = _benchmark_sh(tmp_path, "table2.sh", "report", PARTIAL="1")
     assert partial.returncode == 0, partial.stderr
     assert partial.stdout.splitlines()[0] == (
         f"franka-composer evaluate {tmp_path}/kept/push-tqc-seed1 --episodes 20 --device cpu "
         f"--out {tmp_path}/kept/table2.md")
     for cell in GRIDS["table2"]:
         _write_run(tmp_path / "kept", cell.name, [(0, 1, 0.0)], (cell.steps, False, 2))
-    done = _table2_sh(tmp_path, "run")
+    done = _benchmark_sh(tmp_path, "table2.sh", "run")
     assert (done.returncode, done.stdout) == (0, f"every cell has finished ({tmp_path}/kept)\n")
+
+
+@pytest.mark.parametrize("script, env, cells, options", [
+    ("reference_timing.sh", {}, "--tasks pick_and_place --algos tqc --seeds 0 1 2",
+     "--backend sbx --timing reference"),
+    ("reference_timing.sh", {"ALGO": "sac", "SEEDS": "2"},
+     "--tasks pick_and_place --algos sac --seeds 2", "--precision bf16 --timing reference"),
+    ("reference_timing.sh", {"ALGO": "ddpg"}, "--tasks pick_and_place --algos ddpg --seeds 0 1 2",
+     "--timing reference"),
+    ("learnability.sh", {}, "--tasks stack flip --algos tqc --seeds 0", "--backend sbx"),
+])
+def test_background_campaigns_train_their_cells_with_their_options(
+        tmp_path, script, env, cells, options):
+    """Each campaign script's `run` is one sweep of its cells at 5e5 steps, every cell with
+    the campaign's stopping rule and checkpoints; an unknown command prints its usage."""
+    ran = _benchmark_sh(tmp_path, script, "run", **env)
+    assert ran.returncode == 0, ran.stderr
+    assert ran.stdout == (
+        f"franka-composer sweep --out {tmp_path}/runs {cells} --steps 500000 --num-cpus 1 "
+        f"--refresh 600 -- {options} --stop-at-success 0.95 --stop-after 5 "
+        "--checkpoint-every 10000 --threads 1 --device cpu\n")
+    synced = _benchmark_sh(tmp_path, script, "sync", **env)
+    assert synced.stdout.endswith(f"--sync results/{script[:-3].replace('_', '-')}\n")
+    usage = _benchmark_sh(tmp_path, script, "train", **env)
+    assert usage.returncode == 2 and usage.stdout.startswith("# ")
+
+
+def test_reference_timing_sh_refuses_an_unknown_algorithm(tmp_path):
+    refused = _benchmark_sh(tmp_path, "reference_timing.sh", "run", ALGO="td3")
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == "ALGO must be tqc, sac or ddpg, not td3\n"

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Are stack and flip learnable as defined? One TQC+HER run each (sbx, Table I's push
+# settings, which those tasks take), 5e5 steps or the campaign's stopping rule, at low
+# priority, runs outside the work tree.
+#
+#   benchmarks/learnability.sh run      train (or resume) the runs, WORKERS at a time
+#                                       (default 1); FROZEN=COMMIT runs that commit's code
+#   benchmarks/learnability.sh stop     checkpoint the running runs and stop
+#   benchmarks/learnability.sh status   the table of runs
+#   benchmarks/learnability.sh sync     what they kept, into results/learnability/
+#
+# TASKS (default "stack flip"), SEEDS (default 0); RUNS (default ~/franka_runs/learnability).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+case "${1:-}" in run|stop|status|sync) ;; *) sed -n '2,12p' "$0"; exit 2 ;; esac
+source benchmarks/background_sweep.sh
+sweep_settings "$HOME/franka_runs/learnability"
+read -ra tasks <<< "${TASKS:-stack flip}"
+read -ra seeds <<< "${SEEDS:-0}"
+sweep=(sweep --out "$RUNS" --tasks "${tasks[@]}" --algos tqc --seeds "${seeds[@]}"
+       --steps 500000)
+train_options=(--backend sbx --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000
+               --threads 1 --device cpu)
+background_sweep "$1" results/learnability
