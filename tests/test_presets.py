@@ -22,7 +22,7 @@ def _config(*options):
 def test_the_fast_preset_gives_a_run_its_settings_over_table_i():
     config = _config("--preset", "fast", "--task", "pick_and_place", "--seed", "2")
     assert (config.algo, config.backend, config.precision) == ("sac", "sb3", "bf16")
-    assert (config.expert_demos, config.preset, config.seed) == (500, "fast", 2)
+    assert (config.expert_demos, config.preset, config.seed) == (1000, "fast", 2)
     assert config.terminate_on_success  # The paper's episodes: the preset leaves them.
     assert config.hyperparameters == hyperparameters("pick_and_place", "sac").replace(
         clip_q_targets=True)
@@ -38,9 +38,9 @@ def test_options_beside_a_preset_override_it_and_the_label_says_what_changed():
                               "no termination on success")
     assert _config("--preset", "fast", "--precision", "fp32").variant == "fast preset, fp32"
     # Without a preset, the same settings are labelled against the paper's.
-    plain = _config("--algo", "sac", "--precision", "bf16", "--expert-demos", "500",
+    plain = _config("--algo", "sac", "--precision", "bf16", "--expert-demos", "1000",
                     "--clip-q-targets")
-    assert plain.variant == "clip_q_targets True, 500 expert demos, bf16"
+    assert plain.variant == "clip_q_targets True, 1000 expert demos, bf16"
     assert dataclasses.replace(plain, preset="fast") == _config("--preset", "fast")
 
 
@@ -64,5 +64,5 @@ def test_train_help_lists_each_presets_options(capsys):
     with pytest.raises(SystemExit):
         cli.main(["train", "--help"])
     help_text = " ".join(capsys.readouterr().out.split())
-    assert ("fast: --algo sac --backend sb3 --precision bf16 --expert-demos 500 "
+    assert ("fast: --algo sac --backend sb3 --precision bf16 --expert-demos 1000 "
             "--clip-q-targets") in help_text
