@@ -6,8 +6,9 @@
 # there resumes, STEPS=N raising its budget.
 #
 #   benchmarks/fast_preset.sh TASK [SEED ...]   default seeds 0 1 2
-#   benchmarks/fast_preset.sh sync              the runs' config.json, eval.csv and
-#                                               policy.pt into results/fast-preset/
+#   benchmarks/fast_preset.sh sync              the runs' config.json, eval.csv and, once
+#                                               finished, outcome.json and policy.pt into
+#                                               results/fast-preset/
 #
 # RUNS (default ~/franka_runs/fast-preset); FROZEN=COMMIT trains that commit's code (a
 # worktree beside $RUNS). Read the runs with
@@ -24,12 +25,12 @@ case "$task" in
     for run in "$RUNS"/*-seed*/; do
       kept=results/fast-preset/$(basename "$run")
       mkdir -p "$kept"
-      for name in config.json eval.csv policy.pt; do
+      for name in config.json eval.csv outcome.json policy.pt; do
         if [ -f "$run/$name" ]; then cp "$run/$name" "$kept/"; fi
       done
     done
     exit 0 ;;
-  *) sed -n '2,14p' "$0"; exit 2 ;;
+  *) sed -n '2,15p' "$0"; exit 2 ;;
 esac
 shift
 seeds=("${@:-0 1 2}")
