@@ -33,8 +33,7 @@ case "$task" in
   *) sed -n '2,15p' "$0"; exit 2 ;;
 esac
 shift
-seeds=("${@:-0 1 2}")
-read -ra seeds <<< "${seeds[*]}"
+read -ra seeds <<< "${*:-0 1 2}"
 if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
 mkdir -p "$RUNS"
 for seed in "${seeds[@]}"; do

@@ -506,3 +506,19 @@ def test_reference_timing_sh_refuses_an_unknown_algorithm(tmp_path):
     refused = _benchmark_sh(tmp_path, "reference_timing.sh", "run", ALGO="td3")
     assert (refused.returncode, refused.stdout) == (2, "")
     assert refused.stderr == "ALGO must be tqc, sac or ddpg, not td3\n"
+
+
+def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_path):
+    """benchmarks/fast_preset.sh: the preset's measured runs, one `train` per seed with the
+    task's step budget; a run directory already there is resumed, not started again."""
+    (tmp_path / "runs" / "push-seed1").mkdir(parents=True)
+    (tmp_path / "runs" / "push-seed1" / "config.json").write_text("{}")
+    ran = _benchmark_sh(tmp_path, "fast_preset.sh", "push")
+    assert ran.returncode == 0, ran.stderr
+    assert ran.stdout.splitlines() == [
+        f"franka-composer train --preset fast --task push --seed {seed} --out "
+        f"{tmp_path}/runs/push-seed{seed}{resume} --total-steps 62000 --stop-at-success 0.95 "
+        "--stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu --no-progress"
+        for seed, resume in ((0, ""), (1, " --resume"), (2, ""))]
+    usage = _benchmark_sh(tmp_path, "fast_preset.sh", "slide")
+    assert usage.returncode == 2 and usage.stdout.startswith("# The fast preset")
