@@ -89,8 +89,10 @@ class PropObservables(primitive.PrimitiveObservables):
 
 
 def quat_to_euler(quat: np.ndarray) -> np.ndarray:
-    """(w, x, y, z) unit quaternion to (roll, pitch, yaw) in radians, x-y-z extrinsic
-    (the convention of Gymnasium-Robotics' `rotations.quat2euler`).
+    """(w, x, y, z) unit quaternion to (roll, pitch, yaw) in radians, x-y-z extrinsic:
+    yaw is the heading on the floor whatever the tilt. Not Gymnasium-Robotics'
+    `rotations.quat2euler` (x-y-z intrinsic, the reference code's): the two agree for a turn
+    about one axis (docs/guide/physics.md).
 
     Scalar `math` on Python floats: 5x faster than NumPy on one quaternion, same libm
     functions and IEEE arithmetic, so the same bits (checked on 200k random quaternions)."""
