@@ -207,3 +207,24 @@ def test_compare_arms_names_what_was_wrong(args, message):
     assert completed.returncode != 0
     assert message in completed.stderr
 
+
+
+def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_goal():
+    """Every suite plays episode i's same actions from reset(seed=SEED + i); the rows are
+    the same on a second play, the block starts still, and the closed-hand variant starts
+    with the fingers at width 0 where this suite's open to 0.08 m."""
+    module = load_script(EXPERIMENTS / "random_exploration.py")
+    np.testing.assert_array_equal(module.episode_actions(0, 3, 4), module.episode_actions(0, 3, 4))
+    assert not np.array_equal(module.episode_actions(0, 3, 4), module.episode_actions(0, 4, 4))
+    ours = module.make_env("ours", "pick_and_place")
+    closed = module.make_env("ours_reference_timing_closed", "pick_and_place")
+    assert ours.reset(seed=0)[0]["observation"][6] == pytest.approx(0.08)
+    assert closed.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-12)
+    rows = [module.play(ours, seed=0, episode=episode) for episode in range(3)]
+    assert rows == [module.play(ours, seed=0, episode=episode) for episode in range(3)]
+    assert all(1 <= row["steps"] <= 50 and row["away"] >= row["highest"] for row in rows)
+    summary = module.summary([{"away": 0.06, "highest": 0.0, "far_steps": 5, "steps": 50},
+                              {"away": 0.0, "highest": 0.0, "far_steps": 0, "steps": 30}])
+    assert summary["moved 5 cm"] == 0.5 and summary["steps 5 cm away"] == 5 / 80
+    ours.close()
+    closed.close()
