@@ -8,8 +8,9 @@ block more gives it more to learn from.
     python experiments/random_exploration.py --reference-path DIR [--task pick_and_place]
         [--episodes 200] [--seed 0]
 
-A fourth row plays this suite at the reference timing with the fingers closed at reset, as
-the reference code's are (this suite's start open). DIR is a checkout of the reference code's repository (`panda_mujoco_gym`, not on PyPI;
+Further rows play this suite at 0.5 s per step with the default's stiff weld (the reference
+timing before it took the reference code's weld), and at the reference timing with the
+fingers closed at reset, as the reference code's are (`SUITES`). DIR is a checkout of the reference code's repository (`panda_mujoco_gym`, not on PyPI;
 without it the reference is left out, saying so). Each suite runs in a process of its own
 (`benchmarks/peer_worker.py` imports it: the reference registers the same ids as this
 suite), through Gymnasium only: the block's position is the observation's achieved goal in
@@ -32,7 +33,20 @@ BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
 sys.path.insert(0, str(BENCHMARKS))
 import peer_worker  # noqa: E402  (benchmarks/, not a package)
 
-SUITES = ("ours", "ours_reference_timing", "ours_reference_timing_closed", "reference")
+#: The suites compared, by name: this suite's task options (None: the reference code), and
+#: the title of its row. "stiff_weld" is the reference timing as it was before 2026-11-26
+#: (0.5 s per step, velocities per 0.05 s, the default's 0.01 s weld); "closed" starts with
+#: the fingers closed, as the reference code's do (this suite's start open).
+SUITES = {
+    "ours": ({}, "this suite"),
+    "stiff_weld": ({"control_timestep": 0.5, "velocity_timestep": 0.05,
+                    "weld_time_constant": 0.01},
+                   "this suite, 0.5 s per step with the default's stiff weld (0.01 s)"),
+    "ours_reference_timing": ({"timing": "reference"}, 'this suite, timing="reference"'),
+    "closed": ({"timing": "reference"},
+               'this suite, timing="reference", fingers closed at reset'),
+    "reference": (None, "reference code"),
+}
 RESULT_PREFIX = peer_worker.RESULT_PREFIX
 #: The sparse reward's success distance (m), the same in both suites.
 THRESHOLD = 0.05
@@ -61,14 +75,18 @@ def play(env, seed: int, episode: int) -> dict:
     return {"away": away, "highest": highest, "far_steps": far_steps, "steps": steps}
 
 
-def make_env(suite: str, task: str, reference_path: pathlib.Path | None = None):
-    """`task`'s sparse env in `suite` (imported here: one suite per process)."""
+def make_env(suite: str, task: str, reference_path: pathlib.Path | None = None,
+             **options):
+    """`task`'s sparse env in `suite` (imported here: one suite per process), with `options`
+    beside the suite's own where it is this suite."""
     import gymnasium as gym
 
-    ids, _ = peer_worker.prepare(suite.removesuffix("_closed"), reference_path)
-    options = {"timing": "reference"} if suite.startswith("ours_reference_timing") else {}
-    env = gym.make(ids[task], **options)
-    if suite.endswith("_closed"):  # The reference code's reset: the fingers closed.
+    suite_options = SUITES[suite][0]
+    ids, _ = peer_worker.prepare("reference" if suite_options is None else "ours",
+                                 reference_path)
+    env = gym.make(ids[task], **({} if suite_options is None
+                                 else {**suite_options, **options}))
+    if suite == "closed":  # The reference code's reset: the fingers closed.
         env.unwrapped.task._initial_finger_width = 0.0
     return env
 
@@ -94,9 +112,6 @@ def summary(rows: list[dict]) -> dict:
 
 
 def table(results: dict[str, list[dict]]) -> str:
-    titles = {"ours": "this suite", "ours_reference_timing": 'this suite, timing="reference"',
-              "ours_reference_timing_closed": 'this suite, timing="reference", fingers '
-                                              "closed at reset", "reference": "reference code"}
     columns = list(summary(next(iter(results.values()))))
     lines = ["| suite | episodes | " + " | ".join(
                  f"episodes: block {c}" if c[0] in "ml" else
@@ -107,8 +122,37 @@ def table(results: dict[str, list[dict]]) -> str:
         values = summary(rows)
         cells = [f"{values[c]:.1f}" if c == "steps" else f"{100 * values[c]:.1f} %"
                  for c in columns]
-        lines.append(f"| {titles[suite]} | {len(rows)} | " + " | ".join(cells) + " |")
+        lines.append(f"| {SUITES[suite][1]} | {len(rows)} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """--episodes at least 1, --reference-path a checkout of the reference code."""
+    if args.episodes < 1:
+        parser.error(f"--episodes {args.episodes}: give at least 1")
+    path = args.reference_path
+    if path and not (path / "panda_mujoco_gym" / "__init__.py").is_file():
+        parser.error(f"--reference-path {path}: no panda_mujoco_gym/__init__.py there; give "
+                     "the folder of a checkout of the reference code's repository")
+
+
+def run_suites(script: str, suites, arguments: list[str],
+               reference_path: pathlib.Path | None) -> dict:
+    """Runs `script --suite S ARGUMENTS` for each of `suites` (the reference code's only with
+    `reference_path`), each in a process of its own; {suite: its RESULT}."""
+    if reference_path:
+        arguments = [*arguments, "--reference-path", str(reference_path)]
+    else:
+        print("reference code left out: no --reference-path given", file=sys.stderr)
+    results = {}
+    for suite in suites:
+        if suite == "reference" and not reference_path:
+            continue
+        command = [sys.executable, script, "--suite", suite, *arguments]
+        out = subprocess.run(command, stdout=subprocess.PIPE, text=True, check=True).stdout
+        line = next(line for line in out.splitlines() if line.startswith(RESULT_PREFIX))
+        results[suite] = json.loads(line[len(RESULT_PREFIX):])
+    return results
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -117,27 +161,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")
-    parser.add_argument("--suite", choices=SUITES, help=argparse.SUPPRESS)  # A worker's.
+    parser.add_argument("--suite", choices=tuple(SUITES), help=argparse.SUPPRESS)  # A worker's.
     args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error(f"--episodes {args.episodes}: give at least 1")
-    if args.reference_path and not (args.reference_path / "panda_mujoco_gym" / "__init__.py").is_file():
-        parser.error(f"--reference-path {args.reference_path}: no panda_mujoco_gym/__init__.py "
-                     "there; give the folder of a checkout of the reference code's repository")
+    check_arguments(parser, args)
     if args.suite:
         return worker(args.suite, args.task, args.episodes, args.seed, args.reference_path)
-    suites = SUITES if args.reference_path else SUITES[:-1]
-    if not args.reference_path:
-        print("reference code left out: no --reference-path given", file=sys.stderr)
-    results = {}
-    for suite in suites:
-        command = [sys.executable, __file__, "--suite", suite, "--task", args.task,
-                   "--episodes", str(args.episodes), "--seed", str(args.seed)]
-        if args.reference_path:
-            command += ["--reference-path", str(args.reference_path)]
-        out = subprocess.run(command, stdout=subprocess.PIPE, text=True, check=True).stdout
-        line = next(line for line in out.splitlines() if line.startswith(RESULT_PREFIX))
-        results[suite] = json.loads(line[len(RESULT_PREFIX):])
+    results = run_suites(__file__, SUITES, ["--task", args.task, "--episodes",
+                                            str(args.episodes), "--seed", str(args.seed)],
+                         args.reference_path)
     print(f"{args.task}, {args.episodes} episodes of uniform random actions, seed {args.seed}\n")
     print(table(results))
     return 0

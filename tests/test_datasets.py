@@ -157,7 +157,7 @@ def test_rollout_records_at_the_reference_timing(tmp_path):
     assert main(["rollout", "--task", "push", "--episodes", "1", "--timing", "reference",
                  "--format", "rlds", "--out", str(tmp_path / "reference")]) == 0
     assert rlds_format.read(tmp_path / "reference")["metadata"]["options"] == {
-        "control_timestep": 0.5, "velocity_timestep": 0.05}
+        "control_timestep": 0.5, "velocity_timestep": 0.05, "weld_time_constant": 0.02}
     with pytest.raises(ValueError, match="give --timing or --control-timestep, not both"):
         main(["rollout", "--task", "push", "--timing", "reference", "--control-timestep",
               "0.5", "--out", str(tmp_path / "x.npz")])

@@ -217,7 +217,7 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     np.testing.assert_array_equal(module.episode_actions(0, 3, 4), module.episode_actions(0, 3, 4))
     assert not np.array_equal(module.episode_actions(0, 3, 4), module.episode_actions(0, 4, 4))
     ours = module.make_env("ours", "pick_and_place")
-    closed = module.make_env("ours_reference_timing_closed", "pick_and_place")
+    closed = module.make_env("closed", "pick_and_place")
     assert ours.reset(seed=0)[0]["observation"][6] == pytest.approx(0.08)
     assert closed.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-12)
     rows = [module.play(ours, seed=0, episode=episode) for episode in range(3)]
@@ -228,3 +228,21 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     assert summary["moved 5 cm"] == 0.5 and summary["steps 5 cm away"] == 5 / 80
     ours.close()
     closed.close()
+
+
+def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_elsewhere():
+    """The scripted grasp holds the block at -1 in every suite of this package, drops it at
+    -0.1 with 0.5 s steps and the stiff weld, and the hand's motion within a step is read
+    back as the weld sets it (0.05 s into a 5 cm move: 94-95 % with 0.01 s, 70-71 % with
+    0.02 s)."""
+    module = load_script(EXPERIMENTS / "grasp_margin.py")
+    for suite, weak_held, share in (("ours_reference_timing", True, (0.68, 0.73)),
+                                    ("stiff_weld", False, (0.93, 0.96))):
+        env = module.make_env(suite, None)
+        script = module.Script(env)
+        assert module.attempt(script, seed=2, squeeze=-1.0)["held"]
+        assert module.attempt(script, seed=2, squeeze=-0.1)["held"] == weak_held
+        motion = module.hand_motion(env, suite, seed=2, axis=2)
+        assert share[0] < motion["at_0.05"] < share[1]
+        assert motion["at_0.5"] == pytest.approx(1.0, abs=1e-3)
+        env.close()

@@ -927,27 +927,40 @@ def test_a_run_trains_and_is_evaluated_at_its_own_control_timestep(tmp_path, cap
 
 
 def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, capsys):
-    """--timing reference: config.json holds 0.5 s per step and velocities per 0.05 s, the
-    variant says "reference timing", evaluation's env is made so, a resume that says another
-    timing is refused naming --timing, and a policy will not act at another timing."""
+    """--timing reference: config.json holds 0.5 s per step, velocities per 0.05 s and the
+    weld's 0.02 s, the variant says "reference timing", evaluation's env is made so, a
+    resume that says another timing is refused naming --timing, and a policy will not act
+    at another timing or on another weld. A run recorded before the weld was a setting (no
+    "weld_time_constant") had the default one, and says so."""
     from franka_composer.datasets.sources import TrainedPolicy
     from franka_composer.training.policy_file import trained_on_its_task
+    from franka_composer.training.run_config import RunConfig
 
     out = tmp_path / "reference"
     assert _train(out, "sac", 100, "--timing", "reference") == 0
     config = RunDir(out).read_config()
     assert config.variant.endswith(", reference timing")
     saved = json.loads(RunDir(out).config_path.read_text())
-    assert (saved["control_timestep"], saved["velocity_timestep"]) == (0.5, 0.05)
+    assert (saved["control_timestep"], saved["velocity_timestep"],
+            saved["weld_time_constant"]) == (0.5, 0.05, 0.02)
     with trained_on_its_task(out, device="cpu") as (_, env, _policy):
         assert env.unwrapped.task.config.control_timestep == 0.5
         assert env.unwrapped.task.config.velocity_timestep == 0.05
+        assert env.unwrapped.task.config.control.weld_time_constant == 0.02
     with pytest.raises(ValueError, match="--resume goes on with the run's own settings, and "
                                          ".* has control_timestep 0.5, not --timing's 0.05; "
-                                         "velocity_timestep 0.05, not --timing's None"):
+                                         "velocity_timestep 0.05, not --timing's None; "
+                                         "weld_time_constant 0.02, not --timing's 0.01"):
         _train(out, "sac", 200, "--resume", "--timing", "default")
     with pytest.raises(ValueError, match="observes velocities per 0.05 s, not per 0.5 s"):
         TrainedPolicy(out, make_env("push", control_timestep=0.5))
+    with pytest.raises(ValueError, match="moved a hand welded with a time constant of 0.02 "
+                                         "s, not 0.01 s"):
+        TrainedPolicy(out, make_env("push", control_timestep=0.5, velocity_timestep=0.05))
+    del saved["weld_time_constant"]
+    older = RunConfig.from_dict(saved)  # As the reference timing's first campaign cells.
+    assert older.weld_time_constant == 0.01
+    assert older.variant.endswith(", 0.5 s per step, velocities per 0.05 s")
     with pytest.raises(ValueError, match="--timing sets the control timestep: give --timing "
                                          "or --control-timestep, not both"):
         _train(tmp_path / "both", "sac", 100, "--timing", "reference",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import textwrap
 
-from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.config import TIMINGS, TaskConfig
 from franka_composer.tasks.layout import layout_for
 
 #: Line width of the page.
@@ -37,6 +37,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     goals, start, unit = _goal_words(config)
     options = [f"{name} = {value!r}" for name, value in config.options.items()
                if name != "reward_type"]  # The id fixes it.
+    default, reference = TIMINGS["default"], TIMINGS["reference"]
     sections = [
         ("Action space", [
             "Box(-1, 1, (n,), float32), by controller (the control option; the ids with Osc "
@@ -79,13 +80,18 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             f"{config.physics.timestep * 1000:g} ms); velocities as displacements per "
             f"{config.velocity_period:g} s. The paper's reference code (panda_mujoco_gym) "
             "runs 0.5 s of physics per step (ten mj_step calls of 25 steps) while its dt "
-            "says 0.05 s, so each action lands with the arm at rest on its target: "
-            'timing="reference" reproduces it (0.5 s per step, velocities multiplied by 0.05 '
-            's); timing="default" is 0.05 s with velocities per step. The action law and '
-            "the observation layout are those above at either timing; what differs from "
-            "the reference code at both is Menagerie's Panda, a stiffer mocap weld, the "
-            "guard that keeps the hand's target out of the floor, and the contact "
-            "parameters."]),
+            "says 0.05 s, so each action lands with the arm at rest: timing=\"reference\" "
+            f"reproduces it ({reference['control_timestep']:g} s per step, velocities "
+            f"multiplied by {reference['velocity_timestep']:g} s, and the reference code's "
+            f"weld, time constant {reference['weld_time_constant']:g} s, which moves the "
+            "hand about as fast as the reference's); timing=\"default\" is "
+            f"{default['control_timestep']:g} s with velocities per step and a stiffer weld "
+            f"({default['weld_time_constant']:g} s) that tracks within the step. The action "
+            "law and the "
+            "observation layout are those above at either timing; what differs from the "
+            "reference code at both is Menagerie's Panda (no arm servos holding the neutral "
+            "pose, other finger pads), the guard that keeps the hand's target out of the "
+            "floor, and the contact parameters."]),
         ("Arguments", [
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',

@@ -164,16 +164,17 @@ def add_timing(parser: argparse.ArgumentParser, control_timestep_help: str) -> N
                         help="a named timing instead of --control-timestep: 'default' "
                              "(0.05 s of physics per step, velocities per step) or "
                              "'reference' (what the paper's code runs: 0.5 s of physics per "
-                             "step, velocities multiplied by 0.05 s)")
+                             "step, velocities multiplied by 0.05 s, its softer weld)")
 
 
 def timing_options(args: argparse.Namespace) -> dict:
-    """`control_timestep` and `velocity_timestep` from --timing or --control-timestep
-    (None: the task's); both given is refused."""
+    """`control_timestep`, `velocity_timestep` and `weld_time_constant` from --timing or
+    --control-timestep (None: the task's); both given is refused."""
     from franka_composer.tasks.config import TIMINGS
 
     if args.timing is None:
-        return {"control_timestep": args.control_timestep, "velocity_timestep": None}
+        return {"control_timestep": args.control_timestep, "velocity_timestep": None,
+                "weld_time_constant": None}
     if args.control_timestep is not None:
         raise ValueError("--timing sets the control timestep: give --timing or "
                          "--control-timestep, not both")

@@ -28,7 +28,7 @@ RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progr
 #: Options named otherwise than the setting they give (`run_config`).
 _OPTION_OF_SETTING = {"stop_success_rate": "stop_at_success",
                       "stop_after_evaluations": "stop_after",
-                      "velocity_timestep": "timing"}
+                      "velocity_timestep": "timing", "weld_time_constant": "timing"}
 _FLAGS = {"terminate_on_success": "--no-terminate-on-success"}
 
 

@@ -13,16 +13,10 @@ import numpy as np
 
 from franka_composer.controllers.base import TcpTargetController, TcpTargetLaw
 
-# Weld stiffness (critically damped, time constant in s). MuJoCo's default 0.02 s lets the
-# hand lag a full command by ~40 % over a 0.05 s control step. A stiff 0.006 s tracks 99 %
-# but covers each step's 5 cm in ~15 ms, a 3 m/s jab that flings and flips a pushed block
-# (measured: 20 cm and a 180 deg tumble for an 8 cm push). 0.01 s tracks 95 % of a full
-# command within the step, with a peak speed of ~1.8 m/s, and pushes the block flat.
-WELD_TIMECONST = 0.01
-_WELD_SOLREF = (WELD_TIMECONST, 1.0)
-# Weld impedance d. Held still by a surface, MuJoCo makes a weld 1 / (1 - d) times stiffer
-# than the spring of time constant WELD_TIMECONST it is in free space. At d = 0.99 (before)
-# a hand pressing an object onto the floor was 100x stiffer than MuJoCo's default contacts
+# The weld's stiffness is the settings' (`ControlSettings.weld_time_constant`, the reasons
+# beside it). Weld impedance d: held still by a surface, MuJoCo makes a weld 1 / (1 - d) times
+# stiffer than the spring of its time constant it is in free space. At d = 0.99 (before) a
+# hand pressing an object onto the floor was 100x stiffer than MuJoCo's default contacts
 # and crushed them (objects 3-5 cm into the floor, then launched). In free space, though, a
 # fraction 1 - d of the arm's own passive acceleration leaks past the weld: measured tilt of
 # the hand after one full step 5.2 deg at d = 0.1, 3.3 at 0.5, 0.6 at 0.9, 0.14 at 0.99.
@@ -48,7 +42,8 @@ class MocapController(TcpTargetController):
         target_site = self._target.add("site", name="tcp_target", size=(0.005,),
                                        rgba=(0, 1, 0, 0.5), group=4)
         self._weld = root.equality.add("weld", name="tcp_weld", site1=target_site,
-                                       site2=panda.tcp_site, solref=_WELD_SOLREF,
+                                       site2=panda.tcp_site,
+                                       solref=(settings.weld_time_constant, 1.0),
                                        solimp=_WELD_SOLIMP)
 
     @property
@@ -71,7 +66,8 @@ class MocapController(TcpTargetController):
     def scale_gains(self, physics, factor: float) -> None:
         """The weld's stiffness times `factor`: its time constant over sqrt(factor), still
         critically damped."""
-        physics.bind(self._weld).solref = (WELD_TIMECONST / np.sqrt(factor), 1.0)
+        physics.bind(self._weld).solref = (self.settings.weld_time_constant / np.sqrt(factor),
+                                           1.0)
 
     def _bind_law(self, physics) -> "MocapLaw":
         model = physics.model.ptr

@@ -18,6 +18,19 @@ ARM_ACTIONS = {
 #: The `control` option's values: the paper's mocap first (the default).
 CONTROLS = tuple(ARM_ACTIONS)
 
+# The mocap weld's stiffness (critically damped, time constant in s). MuJoCo's default 0.02 s
+# lets the hand lag a full command by ~40 % over a 0.05 s control step. A stiff 0.006 s
+# tracks 99 % but covers each step's 5 cm in ~15 ms, a 3 m/s jab that flings and flips a
+# pushed block (measured: 20 cm and a 180 deg tumble for an 8 cm push). 0.01 s tracks 95 % of
+# a full command within the step, with a peak speed of ~1.9 m/s, and pushes the block flat.
+WELD_TIME_CONSTANT = 0.01
+# The reference code's weld (MuJoCo's default), which its 0.5 s step leaves time to settle
+# (`TIMINGS["reference"]`): a full action's peak hand speed 0.93 m/s against the reference
+# code's 0.86-0.90 and this default's 1.91, and a lifted block kept by gripper actions down
+# to -0.05 (the reference code's -0.08) where 0.01 s drops it from -0.12 on
+# (experiments/grasp_margin.py, docs/experiments/grasp-margin.md).
+REFERENCE_WELD_TIME_CONSTANT = 0.02
+
 
 @dataclasses.dataclass(frozen=True)
 class ControlSettings:
@@ -34,6 +47,9 @@ class ControlSettings:
         action of 1 (0.2 > 0.08: one full command opens or closes the hand).
       actuated_gripper: whether the action has a last, gripper, component; if not, the
         fingers are held closed.
+      weld_time_constant: seconds, the time constant of the weld that drags the hand to its
+        target (mocap): how fast a full action moves the hand, hence how hard it jerks a
+        held block (`WELD_TIME_CONSTANT`, `REFERENCE_WELD_TIME_CONSTANT`).
     """
 
     kind: str = "mocap"
@@ -41,6 +57,7 @@ class ControlSettings:
     max_joint_step: float = 0.05
     max_finger_step: float = 0.2
     actuated_gripper: bool = False
+    weld_time_constant: float = WELD_TIME_CONSTANT
 
     @property
     def arm_action_size(self) -> int:

@@ -58,6 +58,10 @@ class TrainedPolicy:
             raise ValueError(f"{run_dir} observes velocities per "
                              f"{config.velocity_timestep or config.control_timestep} s, not "
                              f"per {env_config.velocity_period} s")
+        if config.weld_time_constant != env_config.control.weld_time_constant:  # Same hand.
+            raise ValueError(f"{run_dir} moved a hand welded with a time constant of "
+                             f"{config.weld_time_constant} s, not "
+                             f"{env_config.control.weld_time_constant} s")
         self._model = load_trained(run, env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:

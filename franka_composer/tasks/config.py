@@ -20,6 +20,8 @@ import numpy as np
 
 from franka_composer.arenas.floor import MAX_RENDER_SIZE
 from franka_composer.controllers import CONTROLS, ControlSettings
+from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
+                                                  WELD_TIME_CONSTANT)
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
@@ -358,12 +360,15 @@ def _replace_path(record, path: tuple[str, ...], value):
 
 #: Named timings (task option `timing`), as the options they set. "default": 0.05 s of
 #: physics per step (Fetch's and panda-gym's convention, the paper's stated dt), velocities
-#: per step. "reference": what the paper's code (`panda_mujoco_gym`) runs: ten
-#: `mj_step(nstep=25)` calls per step, 0.5 s in which the arm settles on its target and the
-#: fingers on theirs, with velocities multiplied by its stated 0.05 s.
+#: per step, a stiff weld that tracks within it. "reference": what the paper's code
+#: (`panda_mujoco_gym`) runs: ten `mj_step(nstep=25)` calls per step, 0.5 s in which the arm
+#: settles on its target and the fingers on theirs, with velocities multiplied by its stated
+#: 0.05 s, and its weld's time constant, which sets how fast the hand gets there.
 TIMINGS: dict[str, dict[str, Any]] = {
-    "default": {"control_timestep": 0.05, "velocity_timestep": None},
-    "reference": {"control_timestep": 0.5, "velocity_timestep": 0.05},
+    "default": {"control_timestep": 0.05, "velocity_timestep": None,
+                "weld_time_constant": WELD_TIME_CONSTANT},
+    "reference": {"control_timestep": 0.5, "velocity_timestep": 0.05,
+                  "weld_time_constant": REFERENCE_WELD_TIME_CONSTANT},
 }
 
 
@@ -376,7 +381,7 @@ def _expand_timing(options: dict) -> dict:
     timing = TIMINGS[check_choice("timing", options.pop("timing"), tuple(TIMINGS))]
     both = sorted(set(timing) & set(options))
     if both:
-        raise ValueError(f"timing sets {' and '.join(timing)}: give it or "
+        raise ValueError(f"timing sets {', '.join(timing)}: give it or "
                          f"{', '.join(both)}, not both")
     return {**timing, **options}
 
@@ -440,6 +445,7 @@ OPTIONS: dict[str, Option] = {
     "max_tcp_step": Option(("control", "max_tcp_step"), _positive),
     "max_joint_step": Option(("control", "max_joint_step"), _positive),
     "max_finger_step": Option(("control", "max_finger_step"), _positive),
+    "weld_time_constant": Option(("control", "weld_time_constant"), _positive),
     "physics": Option(("physics",), _physics),
     "reward_type": Option(("reward_type",),
                           lambda name, value: check_choice(name, value, REWARD_TYPES)),

@@ -168,8 +168,7 @@ def record_expert(path: pathlib.Path, config) -> pathlib.Path:
     from franka_composer.training.run_files import replace_atomically
 
     options = {name: value for name, value in (
-        ("control_timestep", config.control_timestep),
-        ("velocity_timestep", config.velocity_timestep),
+        *config.timing_options.items(),
         ("terminate_on_success", config.terminate_on_success),
         ("randomization", config.randomization)) if value is not None}
     replace_atomically(path, lambda temporary: record(

@@ -43,19 +43,21 @@ def algorithm_class(algo: str, backend: str = "sb3"):
 def make_env(task: str, *, terminate_on_success: bool = True,
              control: str = "mocap", randomization: str | None = None,
              control_timestep: float | None = None, velocity_timestep: float | None = None,
-             **render_options) -> gym.Env:
+             weld_time_constant: float | None = None, **render_options) -> gym.Env:
     """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...).
 
     `terminate_on_success=True` is the paper's ids; False gives Fetch semantics (episodes
     always last 50 steps), for which HER's relabelled rewards and `done` flags are exact.
     `randomization`: a preset's name (`randomization.PRESETS`), or None.
     `control_timestep`: seconds per step, or None for the task's; `velocity_timestep`: the
-    seconds velocities are multiplied by, or None for the control period. `render_options`
+    seconds velocities are multiplied by, or None for the control period;
+    `weld_time_constant`: the mocap weld's, or None for the task's. `render_options`
     (`render_mode`, `width`, `height`) go to `gym.make` as they are.
     """
     options = {name: value for name, value in (("randomization", randomization),
                                                ("control_timestep", control_timestep),
-                                               ("velocity_timestep", velocity_timestep))
+                                               ("velocity_timestep", velocity_timestep),
+                                               ("weld_time_constant", weld_time_constant))
                if value is not None}
     return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success,
                     **options, **render_options)

@@ -41,7 +41,8 @@ class RunConfig:
 
     `control_timestep` is the seconds of physics per step (None: the task's, 0.05 s), and
     `velocity_timestep` the seconds the observation's velocities are multiplied by (None:
-    the control period). The paper's code runs 0.5 s per step and multiplies by 0.05 s
+    the control period), and `weld_time_constant` the mocap weld's (None: the task's, 0.01
+    s). The paper's code runs 0.5 s per step, multiplies by 0.05 s and welds with 0.02 s
     (`tasks.config.TIMINGS["reference"]`, `train --timing reference`).
 
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
@@ -65,6 +66,7 @@ class RunConfig:
     preset: str | None = None
     control_timestep: float | None = None
     velocity_timestep: float | None = None
+    weld_time_constant: float | None = None
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, tuple(TASK_CONFIGS))
@@ -73,9 +75,12 @@ class RunConfig:
         task = TASK_CONFIGS[self.task]
         timing = task.replace(
             control_timestep=task.control_timestep if self.control_timestep is None
-            else self.control_timestep, velocity_timestep=self.velocity_timestep)
+            else self.control_timestep, velocity_timestep=self.velocity_timestep,
+            weld_time_constant=task.control.weld_time_constant
+            if self.weld_time_constant is None else self.weld_time_constant)
         object.__setattr__(self, "control_timestep", timing.control_timestep)
         object.__setattr__(self, "velocity_timestep", timing.velocity_timestep)
+        object.__setattr__(self, "weld_time_constant", timing.control.weld_time_constant)
         check_choice("algorithm", self.algo, ALGOS)
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
@@ -122,6 +127,7 @@ class RunConfig:
                 "preset": self.preset,
                 "control_timestep": self.control_timestep,
                 "velocity_timestep": self.velocity_timestep,
+                "weld_time_constant": self.weld_time_constant,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
@@ -161,17 +167,25 @@ class RunConfig:
 
     @property
     def timing_label(self) -> str:
-        """"reference timing", "0.5 s per step" (velocities per step), "0.5 s per step,
-        velocities per 0.1 s", or "" for the task's own timing."""
-        timing = {"control_timestep": self.control_timestep,
-                  "velocity_timestep": self.velocity_timestep}
+        """"reference timing", "0.5 s per step" (velocities per step, the default weld),
+        "0.5 s per step, velocities per 0.05 s, weld 0.02 s", or "" for the task's own
+        timing."""
         for name, named in TIMINGS.items():
-            if timing == named:
+            if self.timing_options == named:
                 return "" if name == "default" else f"{name} timing"
         label = f"{self.control_timestep} s per step"
         if self.velocity_timestep is not None:
             label += f", velocities per {self.velocity_timestep} s"
+        if self.weld_time_constant != TIMINGS["default"]["weld_time_constant"]:
+            label += f", weld {self.weld_time_constant} s"
         return label
+
+    @property
+    def timing_options(self) -> dict:
+        """The task options of its timing (`tasks.config.TIMINGS` names some)."""
+        return {"control_timestep": self.control_timestep,
+                "velocity_timestep": self.velocity_timestep,
+                "weld_time_constant": self.weld_time_constant}
 
     @property
     def computation(self) -> str:
@@ -213,15 +227,15 @@ class RunConfig:
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""
         return dict(terminate_on_success=self.terminate_on_success, control=self.control,
-                    randomization=self.randomization, control_timestep=self.control_timestep,
-                    velocity_timestep=self.velocity_timestep)
+                    randomization=self.randomization, **self.timing_options)
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
         # Runs written before the JAX backend, the controllers, bf16 or randomisation existed
         # have no "backend", "control", "precision" or "randomization": they are SB3's,
         # mocap, fp32, not randomised; those before the control timestep option, the task's;
-        # those before the velocity timestep, velocities per control period.
+        # those before the velocity timestep, velocities per control period; those before the
+        # weld's time constant, the default weld (the reference timing's runs included).
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
@@ -231,4 +245,5 @@ class RunConfig:
                    expert_demos=data.get("expert_demos"), preset=data.get("preset"),
                    control_timestep=data.get("control_timestep"),
                    velocity_timestep=data.get("velocity_timestep"),
+                   weld_time_constant=data.get("weld_time_constant"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
