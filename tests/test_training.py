@@ -1071,6 +1071,8 @@ def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
     record("push", 1, tmp_path / "osc", format="rlds", seed=0, control="osc")
     record("slide", 1, tmp_path / "slide", format="minari", seed=0)
     record("push", 1, tmp_path / "dense-rlds", format="rlds", seed=0, reward_type="dense")
+    record("push", 1, tmp_path / "reference.npz", seed=0, timing="reference")
+    record("push", 1, tmp_path / "slow", format="minari", seed=0, control_timestep=0.5)
     for extra, message in (
             (["--demos", str(tmp_path / "dense.npz")], "was recorded with dense rewards, not "
                                                        "the sparse [-1.0, 0.0] that "
@@ -1087,10 +1089,19 @@ def test_demonstrations_are_refused_when_they_do_not_fit(tmp_path, capsys):
             (["--demos", str(tmp_path / "push.npz"), "--demo-episodes", "3"],
              "--demo-episodes 3, but"),
             (["--demo-episodes", "2"], "--demo-episodes takes the first episodes of --demos"),
-            (["--demos", str(tmp_path)], "is not a dataset")):
+            (["--demos", str(tmp_path)], "is not a dataset"),
+            (["--demos", str(tmp_path / "reference.npz")],
+             "was recorded at 0.5 s per step, velocities per 0.05 s, weld 0.02 s, and this run "
+             "trains at 0.05 s per step, velocities per 0.05 s, weld 0.01 s"),
+            (["--demos", str(tmp_path / "slow" / "franka_composer" / "push" / "expert-v0"),
+              "--timing", "reference"],
+             "was recorded at 0.5 s per step, velocities per 0.5 s, weld 0.01 s, and this run "
+             "trains at 0.5 s per step, velocities per 0.05 s, weld 0.02 s")):
         with pytest.raises(ValueError, match=re.escape(message)):
             _train(tmp_path / "run", "sac", 100, *extra)
         assert not (tmp_path / "run").exists()
     with pytest.raises(ValueError, match="would overwrite demonstrations"):
         _train(tmp_path / "small", "sac", 2000, "--demos", str(tmp_path / "push.npz"))
     assert not (tmp_path / "small").exists()
+    assert _train(tmp_path / "at-its-timing", "sac", 100, "--timing", "reference",
+                  "--demos", str(tmp_path / "reference.npz")) == 0

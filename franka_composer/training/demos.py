@@ -20,6 +20,7 @@ import numpy as np
 from franka_composer.adapters.registration import ENV_IDS
 from franka_composer.datasets.episodes import check_episodes
 from franka_composer.policies.rollout import OBSERVATION_KEYS, Trajectories
+from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.rewards import reward_from_distance
 
 
@@ -77,6 +78,32 @@ def _check_recorded_as_trained(path, recorded: dict, env) -> None:
     if recorded["reward_type"] != "sparse":
         raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
                          f"the sparse {_SPARSE.tolist()} that training uses")
+    recorded_timing = _timing(_recorded_config(path, recorded))
+    if recorded_timing != _timing(config):
+        raise ValueError(f"{path} was recorded at {recorded_timing}, and this run trains at "
+                         f"{_timing(config)}: its transitions are of other dynamics")
+
+
+#: The task options that say how long a step is and what it does (`tasks.config.TIMINGS`).
+_TIMING_OPTIONS = ("timing", "control_timestep", "velocity_timestep", "weld_time_constant")
+
+
+def _recorded_config(path, recorded: dict):
+    """The task's config with the timing options the dataset was recorded with (under
+    "options" in npz and RLDS metadata, beside the id in a Minari env spec); none given is
+    the task's own timing, as every dataset recorded before they existed had."""
+    given = (recorded["options"] if "options" in recorded else recorded) or {}
+    timing = {name: given[name] for name in _TIMING_OPTIONS if given.get(name) is not None}
+    try:
+        return TASK_CONFIGS[recorded["task"]].replace(**timing)
+    except ValueError as error:
+        raise ValueError(f"{path} says it was recorded with timing options {timing}, which "
+                         f"are not valid: {error}") from None
+
+
+def _timing(config) -> str:
+    return (f"{config.control_timestep:g} s per step, velocities per "
+            f"{config.velocity_period:g} s, weld {config.control.weld_time_constant:g} s")
 
 
 #: The rewards training uses: -1 until the goal is reached, 0 there.
