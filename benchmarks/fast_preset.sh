@@ -8,7 +8,7 @@
 #   benchmarks/fast_preset.sh TASK [SEED ...]   default seeds 0 1 2
 #   benchmarks/fast_preset.sh sync              the runs' config.json, eval.csv and, once
 #                                               finished, outcome.json and policy.pt into
-#                                               results/fast-preset/
+#                                               results/fast-preset/ (`franka-composer keep`)
 #
 # RUNS (default ~/franka_runs/fast-preset); FROZEN=COMMIT trains that commit's code (a
 # worktree beside $RUNS). Read the runs with
@@ -21,15 +21,7 @@ task=${1:-}
 case "$task" in
   push) steps=${STEPS:-62000} ;;
   pick_and_place) steps=${STEPS:-60000} ;;
-  sync)
-    for run in "$RUNS"/*-seed*/; do
-      kept=results/fast-preset/$(basename "$run")
-      mkdir -p "$kept"
-      for name in config.json eval.csv outcome.json policy.pt; do
-        if [ -f "$run/$name" ]; then cp "$run/$name" "$kept/"; fi
-      done
-    done
-    exit 0 ;;
+  sync) exec "$BIN/franka-composer" keep "$RUNS"/*-seed*/ --into results/fast-preset ;;
   *) sed -n '2,15p' "$0"; exit 2 ;;
 esac
 shift

@@ -17,7 +17,7 @@ import pytest
 from franka_composer import cli
 from franka_composer.training import hyperparameters
 from franka_composer.training.run_config import RunConfig
-from franka_composer.training.runs import RunDir, read_eval_rows
+from franka_composer.training.runs import EVAL_COLUMNS, RunDir, read_eval_rows, write_eval_rows
 from franka_composer.training.sweep import (GRIDS, Cell, cell_log, cell_status, grid,
                                             run_directories, run_sweep, status_table,
                                             train_command)
@@ -171,6 +171,45 @@ def test_sync_keeps_what_each_cell_has_kept_and_its_policy_once_finished(tmp_pat
     assert cli.main([*sweep[:-3], "4000", "--sync", str(kept)]) == 0
     assert not copy.outcome_path.exists() and not copy.policy_file.exists()
     assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
+
+
+def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_path, capsys):
+    """`keep`, for runs outside a sweep (as `sync` for its cells): config and the evaluations
+    a resume keeps always; outcome and policy once the run has reached its own budget.
+    Runs whose copies would overwrite each other, or the runs themselves, are refused before
+    anything is copied."""
+    def write(root, name, seed, rows, outcome=None):
+        run = RunDir(root / name)
+        run.write_config(RunConfig("push", "sac", seed,
+                                   hyperparameters("push", "sac").replace(total_steps=2000)))
+        write_eval_rows(run.eval_csv, [dict(zip(EVAL_COLUMNS, (*row, -1.0))) for row in rows])
+        if outcome:
+            run.write_outcome(*outcome)
+        return run
+
+    runs, kept = tmp_path / "runs", tmp_path / "kept"
+    done = write(runs, "push-seed0", 0, [(0, 1, 0.0), (2000, 2, 0.6)], (2000, False, 2))
+    done.policy_file.write_bytes(b"actor")
+    going = write(runs, "push-seed1", 1, [(0, 1, 0.0), (1000, 2, 0.2), (1500, 3, 0.4)])
+    going.checkpoint.mkdir()
+    going.checkpoint_state.write_text(json.dumps({"steps": 1000}))
+    going.policy_file.write_bytes(b"an older budget's")
+    assert cli.main(["keep", str(runs), "--into", str(kept)]) == 0
+    assert capsys.readouterr().out == f"{kept}: push-seed0, push-seed1\n"
+    copy, unfinished = RunDir(kept / "push-seed0"), RunDir(kept / "push-seed1")
+    assert copy.read_config() == done.read_config() and copy.read_outcome()["steps"] == 2000
+    assert copy.policy_file.read_bytes() == b"actor"
+    assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
+    assert [row["steps"] for row in read_eval_rows(unfinished.eval_csv)] == [0, 1000]
+    assert not unfinished.outcome_path.exists() and not unfinished.policy_file.exists()
+
+    other = write(tmp_path / "elsewhere", "push-seed0", 2, [(0, 1, 0.0)])
+    for argv, message in (([str(runs), str(other.root)], "two runs named push-seed0"),
+                          ([str(runs / "push-seed1")], "is the run itself")):
+        into = runs if "itself" in message else tmp_path / "new"
+        with pytest.raises(ValueError, match=message):
+            cli.main(["keep", *argv, "--into", str(into)])
+        assert not (tmp_path / "new").exists()
 
 
 def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
@@ -522,3 +561,6 @@ def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_
         for seed, resume in ((0, ""), (1, " --resume"), (2, ""))]
     usage = _benchmark_sh(tmp_path, "fast_preset.sh", "slide")
     assert usage.returncode == 2 and usage.stdout.startswith("# The fast preset")
+    synced = _benchmark_sh(tmp_path, "fast_preset.sh", "sync")
+    assert synced.stdout == (f"franka-composer keep {tmp_path}/runs/push-seed1/ --into "
+                             "results/fast-preset\n")

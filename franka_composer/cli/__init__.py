@@ -16,7 +16,7 @@ from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
 
 #: Subcommand modules, in the order `--help` lists them.
-SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "evaluate", "plot",
+SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "keep", "evaluate", "plot",
                "report")
 
 

@@ -277,6 +277,34 @@ class RunDir:
 LOCK_WAIT_S = 1.0
 
 
+def run_finished(run: RunDir, budget: int | None = None) -> bool:
+    """Whether `run` has ended at `budget` steps (None: its own, config.json's total_steps),
+    or before it by the stopping rule."""
+    outcome = run.read_outcome()
+    if not outcome:
+        return False
+    if budget is None:
+        budget = run.read_config().hyperparameters.total_steps
+    return bool(outcome["stopped_early"] or outcome["steps"] >= budget)
+
+
+def keep_run(run: RunDir, kept: RunDir, budget: int | None = None) -> None:
+    """Copies into `kept` what `run` has kept, small enough to commit as it grows:
+    config.json, the evaluations a resume keeps, and once it has finished (`run_finished`
+    at `budget`) outcome.json and policy.pt. A run taken on to a larger budget than it
+    finished at loses its outcome and policy here until it finishes again."""
+    kept.root.mkdir(parents=True, exist_ok=True)
+    shutil.copy(run.config_path, kept.config_path)
+    write_eval_rows(kept.eval_csv, run.kept_evaluations())
+    finished = run_finished(run, budget)
+    for path, copy in ((run.outcome_path, kept.outcome_path),
+                       (run.policy_file, kept.policy_file)):
+        if finished and path.is_file():
+            shutil.copy(path, copy)
+        elif copy.is_file():
+            copy.unlink()
+
+
 def _take_lock(handle) -> None:
     """An exclusive flock, tried again for up to `LOCK_WAIT_S` while another holds it; then
     BlockingIOError."""

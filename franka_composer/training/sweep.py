@@ -24,7 +24,7 @@ import sys
 import time
 
 from franka_composer.training.report import with_variant
-from franka_composer.training.runs import RunDir, read_eval_rows, write_eval_rows
+from franka_composer.training.runs import RunDir, keep_run, read_eval_rows, run_finished
 from franka_composer.training.signals import interrupt_on
 
 
@@ -186,29 +186,16 @@ def _started_since(cell: Cell, root: pathlib.Path, since: float) -> bool:
 
 def cell_finished(run: RunDir, cell: Cell) -> bool:
     """Whether `run` has ended at `cell`'s budget, or before it by the stopping rule."""
-    outcome = run.read_outcome()
-    return bool(outcome) and (outcome["stopped_early"] or outcome["steps"] >= cell.steps)
+    return run_finished(run, cell.steps)
 
 
 def sync_cell(cell: Cell, root: pathlib.Path, kept: pathlib.Path) -> bool:
-    """Copies into `kept`/<cell> what the cell's run under `root` has kept, small enough to
-    commit as it grows: config.json, the evaluations a resume keeps, and once it has
-    finished (`cell_finished`) outcome.json and policy.pt. False where the cell has no run.
-    A cell taken on to a larger budget than it finished at loses its outcome and policy
-    here until it finishes again."""
+    """Copies into `kept`/<cell> what the cell's run under `root` has kept (`keep_run`, at
+    the cell's budget). False where the cell has no run."""
     run = RunDir(root / cell.name)
     if not run.config_path.is_file():
         return False
-    copy = RunDir(kept / cell.name)
-    copy.root.mkdir(parents=True, exist_ok=True)
-    shutil.copy(run.config_path, copy.config_path)
-    write_eval_rows(copy.eval_csv, run.kept_evaluations())
-    for path, committed in ((run.outcome_path, copy.outcome_path),
-                            (run.policy_file, copy.policy_file)):
-        if cell_finished(run, cell) and path.is_file():
-            shutil.copy(path, committed)
-        elif committed.is_file():
-            committed.unlink()
+    keep_run(run, RunDir(kept / cell.name), cell.steps)
     return True
 
 

@@ -1,0 +1,44 @@
+"""`franka-composer keep`: the small files of runs still training or finished, copied where
+they can be committed (`training.runs.keep_run`; `sweep --sync` does the same for a sweep's
+cells)."""
+
+from __future__ import annotations
+
+import argparse
+
+from franka_composer.cli.options import add_run_dirs, output_folder
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "keep", help="copy runs' config, evaluations and finished policy into a folder to commit",
+        description="Copy into DIR/<run> what each run has kept, small enough to commit while "
+                    "it goes on: config.json, eval.csv up to its checkpoint (the evaluations "
+                    "a resume keeps), and once it has finished outcome.json and policy.pt "
+                    "(the actor alone). Run it again as the runs go on; a run taken on to a "
+                    "larger budget loses its outcome and policy in DIR until it finishes "
+                    "again. `sweep --sync DIR` does this for a sweep's cells.")
+    add_run_dirs(parser)
+    parser.add_argument("--into", type=output_folder, required=True, metavar="DIR",
+                        help="the folder to copy into (made if missing)")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from franka_composer.training.runs import RunDir, keep_run
+    from franka_composer.training.sweep import run_directories
+
+    runs = run_directories(args.runs)
+    names = [root.name for root in runs]
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise ValueError(f"two runs named {', '.join(repeated)}: each is kept as --into "
+                         "DIR/<its name>, so one would overwrite the other")
+    inside = [root for root in runs if (args.into / root.name).resolve() == root.resolve()]
+    if inside:
+        raise ValueError(f"{inside[0]} is the run itself: give --into a folder other than "
+                         "the one holding the runs")
+    for root in runs:
+        keep_run(RunDir(root), RunDir(args.into / root.name))
+    print(f"{args.into}: {', '.join(names)}")
+    return 0
