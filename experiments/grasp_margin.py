@@ -100,14 +100,15 @@ def attempt(script: Script, seed: int, squeeze: float) -> dict:
 def hand_motion(env, suite: str, seed: int, axis: int) -> dict:
     """The TCP over a full action's 5 cm along `axis` from rest, physics step by physics
     step (2 ms), the target set as each suite's action sets it (MuJoCo directly: within a
-    step Gymnasium shows nothing): peak speed (m/s), and the share of the 5 cm covered after
-    0.05 s and after 0.5 s."""
+    step Gymnasium shows nothing): peak speed (m/s), the share of the 5 cm covered after
+    0.05 s and after 0.5 s, and how far the hand has tilted from its start by then (deg)."""
     import mujoco
 
     env.reset(seed=seed)
     if suite == "reference":
         model, data = env.model, env.data
         tcp = lambda: data.site("ee_center_site").xpos.copy()  # noqa: E731
+        axis_of_hand = lambda: data.site("ee_center_site").xmat.reshape(3, 3)[:, 2].copy()  # noqa: E731
         env.set_mocap_pose(tcp(), env.grasp_site_pose)
         mujoco.mj_step(model, data, nstep=250)  # At rest: its reset keeps setup's velocities.
         data.qvel[:] = 0.0
@@ -119,12 +120,13 @@ def hand_motion(env, suite: str, seed: int, axis: int) -> dict:
     else:
         physics, task = env.composer_env.physics, env.task
         tcp = lambda: physics.bind(task.panda.tcp_site).xpos.copy()  # noqa: E731
+        axis_of_hand = lambda: physics.bind(task.panda.tcp_site).xmat.reshape(3, 3)[:, 2].copy()  # noqa: E731
 
         def set_target(target):
             physics.bind(task.controller.target).mocap_pos = target
 
         step = physics.step
-    start = tcp()
+    start, start_axis = tcp(), axis_of_hand()
     set_target(start + 0.05 * np.eye(3)[axis])
     path = [start]
     for _ in range(250):
@@ -133,8 +135,9 @@ def hand_motion(env, suite: str, seed: int, axis: int) -> dict:
     path = np.array(path)
     moved = (path[:, axis] - start[axis]) / 0.05
     speed = np.linalg.norm(np.diff(path, axis=0), axis=1) / 0.002
+    tilt = np.degrees(np.arccos(np.clip(axis_of_hand() @ start_axis, -1.0, 1.0)))
     return {"peak_speed": float(speed.max()), "at_0.05": float(moved[25]),
-            "at_0.5": float(moved[250])}
+            "at_0.5": float(moved[250]), "tilt_deg": float(tilt)}
 
 
 def worker(suite: str, episodes: int, seed: int, reference_path: pathlib.Path | None) -> int:
@@ -164,7 +167,7 @@ def table(results: dict[str, dict[str, list[dict]]], episodes: int) -> str:
               + " |", "|---|" + "---|" * len(results)]
     for index, axis in enumerate("xz"):
         cells = [f"peak {m['peak_speed']:.2f} m/s; {100 * m['at_0.05']:.0f} % of 5 cm at "
-                 f"0.05 s, {100 * m['at_0.5']:.1f} % at 0.5 s"
+                 f"0.05 s, {100 * m['at_0.5']:.1f} % at 0.5 s, tilted {m['tilt_deg']:.1f} deg"
                  for m in (rows["motion"][index] for rows in results.values())]
         lines.append(f"| {axis} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
