@@ -153,6 +153,17 @@ def test_rollout_records_at_the_control_timestep_it_is_given(tmp_path):
     assert not (tmp_path / "x.npz").exists()
 
 
+def test_a_named_timing_is_recorded_as_the_values_it_sets(tmp_path):
+    """`record(..., timing="reference")` keeps what the name stands for today, so that a
+    later change to the name's meaning cannot make old data read as new."""
+    from franka_composer.datasets import record
+    from franka_composer.policies.rollout import Trajectories
+
+    record("push", 1, tmp_path / "named.npz", timing="reference")
+    assert Trajectories.load(tmp_path / "named.npz").metadata["options"] == {
+        "control_timestep": 0.5, "velocity_timestep": 0.05, "weld_time_constant": 0.02}
+
+
 def test_rollout_records_at_the_reference_timing(tmp_path):
     assert main(["rollout", "--task", "push", "--episodes", "1", "--timing", "reference",
                  "--format", "rlds", "--out", str(tmp_path / "reference")]) == 0

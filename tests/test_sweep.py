@@ -173,7 +173,8 @@ def test_sync_keeps_what_each_cell_has_kept_and_its_policy_once_finished(tmp_pat
     assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
 
 
-def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_path, capsys):
+def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_path, capsys,
+                                                                      monkeypatch):
     """`keep`, for runs outside a sweep (as `sync` for its cells): config and the evaluations
     a resume keeps always; outcome and policy once the run has reached its own budget.
     Runs whose copies would overwrite each other, or the runs themselves, are refused before
@@ -204,12 +205,17 @@ def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_pat
     assert not unfinished.outcome_path.exists() and not unfinished.policy_file.exists()
 
     other = write(tmp_path / "elsewhere", "push-seed0", 2, [(0, 1, 0.0)])
-    for argv, message in (([str(runs), str(other.root)], "two runs named push-seed0"),
-                          ([str(runs / "push-seed1")], "is the run itself")):
-        into = runs if "itself" in message else tmp_path / "new"
-        with pytest.raises(ValueError, match=message):
-            cli.main(["keep", *argv, "--into", str(into)])
-        assert not (tmp_path / "new").exists()
+    with pytest.raises(ValueError, match="two runs named push-seed0"):
+        cli.main(["keep", str(runs), str(other.root), "--into", str(tmp_path / "new")])
+    assert not (tmp_path / "new").exists()
+    before = going.eval_csv.read_bytes()
+    with pytest.raises(ValueError, match="is the run itself"):
+        cli.main(["keep", str(runs / "push-seed1"), "--into", str(runs)])
+    assert going.eval_csv.read_bytes() == before  # Not cut back to its checkpoint.
+    # Given as `.`, a run is kept under its own name, not into DIR itself.
+    monkeypatch.chdir(going.root)
+    assert cli.main(["keep", ".", "--into", str(tmp_path / "dot")]) == 0
+    assert sorted(path.name for path in (tmp_path / "dot").iterdir()) == ["push-seed1"]
 
 
 def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):

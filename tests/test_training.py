@@ -968,6 +968,26 @@ def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, ca
     assert not (tmp_path / "both").exists()
 
 
+def test_the_weld_counts_only_under_mocap_control():
+    """The weld's time constant is part of a mocap run's timing (its label, a resume's
+    comparison); the osc and joints controllers have no weld, so a run of theirs recorded
+    before the weld was a setting (read as the default's) is the same run at the reference
+    timing as one recorded with it."""
+    from franka_composer.training.run_config import RunConfig
+
+    def config(control, weld):
+        return RunConfig("push", "sac", 0, hyperparameters("push", "sac"), control=control,
+                         control_timestep=0.5, velocity_timestep=0.05,
+                         weld_time_constant=weld)
+
+    assert config("osc", None).differing(config("osc", 0.02)) == {}
+    assert config("osc", None).timing_label == "reference timing"
+    assert config("mocap", None).differing(config("mocap", 0.02)) == {
+        "weld_time_constant": (0.01, 0.02)}
+    assert config("mocap", None).timing_label == "0.5 s per step, velocities per 0.05 s"
+    assert config("mocap", 0.02).timing_label == "reference timing"
+
+
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])
 def test_a_seed_sb3_cannot_take_is_refused_before_the_run_exists(tmp_path, capsys, seed):
     """SB3 seeds NumPy with the seed plus the evaluation offset (and plus the steps on a

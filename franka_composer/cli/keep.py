@@ -28,13 +28,13 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.runs import RunDir, keep_run
     from franka_composer.training.sweep import run_directories
 
-    runs = run_directories(args.runs)
+    runs = [root.resolve() for root in run_directories(args.runs)]  # `.` has no name.
     names = [root.name for root in runs]
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise ValueError(f"two runs named {', '.join(repeated)}: each is kept as --into "
                          "DIR/<its name>, so one would overwrite the other")
-    inside = [root for root in runs if (args.into / root.name).resolve() == root.resolve()]
+    inside = [root for root in runs if (args.into / root.name).resolve() == root]
     if inside:
         raise ValueError(f"{inside[0]} is the run itself: give --into a folder other than "
                          "the one holding the runs")

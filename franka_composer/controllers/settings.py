@@ -19,7 +19,7 @@ ARM_ACTIONS = {
 CONTROLS = tuple(ARM_ACTIONS)
 
 # The mocap weld's stiffness (critically damped, time constant in s). MuJoCo's default 0.02 s
-# lets the hand lag a full command by ~40 % over a 0.05 s control step. A stiff 0.006 s
+# leaves 30 % of a full command from rest undone after a 0.05 s control step. A stiff 0.006 s
 # tracks 99 % but covers each step's 5 cm in ~15 ms, a 3 m/s jab that flings and flips a
 # pushed block (measured: 20 cm and a 180 deg tumble for an 8 cm push). 0.01 s tracks 95 % of
 # a full command within the step, with a peak speed of ~1.9 m/s, and pushes the block flat.
@@ -48,8 +48,9 @@ class ControlSettings:
       actuated_gripper: whether the action has a last, gripper, component; if not, the
         fingers are held closed.
       weld_time_constant: seconds, the time constant of the weld that drags the hand to its
-        target (mocap): how fast a full action moves the hand, hence how hard it jerks a
-        held block (`WELD_TIME_CONSTANT`, `REFERENCE_WELD_TIME_CONSTANT`).
+        target: how fast a full action moves the hand, hence how hard it jerks a held block
+        (`WELD_TIME_CONSTANT`, `REFERENCE_WELD_TIME_CONSTANT`). Mocap only: the other
+        controllers have no weld and ignore it, and nothing compares it for them.
     """
 
     kind: str = "mocap"

@@ -18,6 +18,7 @@ import gymnasium as gym
 from franka_composer.adapters.registration import env_id
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
+from franka_composer.tasks.config import expand_timing
 from franka_composer.validation import check_choice, check_number
 
 #: The formats `record` writes.
@@ -47,6 +48,8 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     if format == "minari":
         dataset_id = dataset_id or default_dataset_id(task, control, source)
     _check_destination(out, format, dataset_id)
+    # A named timing is kept as the values it sets: what the name stands for may change.
+    options = expand_timing(options)
     if format == "minari":
         _check_json_options(options)
     metadata = {"task": task, "control": control, "reward_type": reward_type,

@@ -58,7 +58,8 @@ class TrainedPolicy:
             raise ValueError(f"{run_dir} observes velocities per "
                              f"{config.velocity_timestep or config.control_timestep} s, not "
                              f"per {env_config.velocity_period} s")
-        if config.weld_time_constant != env_config.control.weld_time_constant:  # Same hand.
+        if (control == "mocap"  # The same hand (the other controllers have no weld).
+                and config.weld_time_constant != env_config.control.weld_time_constant):
             raise ValueError(f"{run_dir} moved a hand welded with a time constant of "
                              f"{config.weld_time_constant} s, not "
                              f"{env_config.control.weld_time_constant} s")

@@ -268,7 +268,7 @@ class TaskConfig:
     def replace(self, **options) -> "TaskConfig":
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
         listing the valid ones, a bad value one naming the option and what it accepts."""
-        options = _expand_timing(options)
+        options = expand_timing(options)
         check_names("task option", options, OPTIONS)
         config = self
         for name, value in options.items():
@@ -372,7 +372,7 @@ TIMINGS: dict[str, dict[str, Any]] = {
 }
 
 
-def _expand_timing(options: dict) -> dict:
+def expand_timing(options: dict) -> dict:
     """`options` with a named `timing` replaced by the options it sets; refused beside one of
     those (one or the other, not both)."""
     if "timing" not in options:

@@ -95,15 +95,19 @@ def _recorded_config(path, recorded: dict):
     given = (recorded["options"] if "options" in recorded else recorded) or {}
     timing = {name: given[name] for name in _TIMING_OPTIONS if given.get(name) is not None}
     try:
-        return TASK_CONFIGS[recorded["task"]].replace(**timing)
+        return TASK_CONFIGS[recorded["task"]].replace(control=recorded["control"], **timing)
     except ValueError as error:
         raise ValueError(f"{path} says it was recorded with timing options {timing}, which "
                          f"are not valid: {error}") from None
 
 
 def _timing(config) -> str:
-    return (f"{config.control_timestep:g} s per step, velocities per "
-            f"{config.velocity_period:g} s, weld {config.control.weld_time_constant:g} s")
+    """The timing in words; the weld only under mocap (the other controllers have none)."""
+    words = (f"{config.control_timestep:g} s per step, velocities per "
+             f"{config.velocity_period:g} s")
+    if config.control.kind == "mocap":
+        words += f", weld {config.control.weld_time_constant:g} s"
+    return words
 
 
 #: The rewards training uses: -1 until the goal is reached, 0 there.

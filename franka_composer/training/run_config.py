@@ -8,6 +8,7 @@ import dataclasses
 import pathlib
 
 from franka_composer.controllers import CONTROLS
+from franka_composer.controllers.settings import WELD_TIME_CONSTANT
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import TIMINGS
@@ -168,17 +169,26 @@ class RunConfig:
     @property
     def timing_label(self) -> str:
         """"reference timing", "0.5 s per step" (velocities per step, the default weld),
-        "0.5 s per step, velocities per 0.05 s, weld 0.02 s", or "" for the task's own
-        timing."""
+        "0.5 s per step, velocities per 0.05 s" (the default weld), "0.05 s per step, weld
+        0.02 s", or "" for the task's own timing."""
         for name, named in TIMINGS.items():
-            if self.timing_options == named:
+            if self._timing_that_acts == {key: named[key] for key in self._timing_that_acts}:
                 return "" if name == "default" else f"{name} timing"
         label = f"{self.control_timestep} s per step"
         if self.velocity_timestep is not None:
             label += f", velocities per {self.velocity_timestep} s"
-        if self.weld_time_constant != TIMINGS["default"]["weld_time_constant"]:
+        if self._timing_that_acts.get("weld_time_constant",
+                                      WELD_TIME_CONSTANT) != WELD_TIME_CONSTANT:
             label += f", weld {self.weld_time_constant} s"
         return label
+
+    @property
+    def _timing_that_acts(self) -> dict:
+        """`timing_options` less the weld where the controller has none (osc, joints)."""
+        options = self.timing_options
+        if self.control != "mocap":
+            del options["weld_time_constant"]
+        return options
 
     @property
     def timing_options(self) -> dict:
@@ -208,6 +218,8 @@ class RunConfig:
         def settings(config: RunConfig) -> dict:
             flat = {**config.to_dict(), **config.hyperparameters.to_dict()}
             del flat["hyperparameters"], flat["total_steps"]
+            if "weld_time_constant" not in config._timing_that_acts:
+                del flat["weld_time_constant"]
             return flat
         ours, theirs = settings(self), settings(other)
         return {name: (ours[name], theirs[name]) for name in ours if ours[name] != theirs[name]}
