@@ -934,6 +934,7 @@ def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, ca
     "weld_time_constant") had the default one, and says so."""
     from franka_composer.datasets.sources import TrainedPolicy
     from franka_composer.training.policy_file import trained_on_its_task
+    from franka_composer.policies.rollout import Trajectories
     from franka_composer.training.run_config import RunConfig
 
     out = tmp_path / "reference"
@@ -957,6 +958,14 @@ def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, ca
     with pytest.raises(ValueError, match="moved a hand welded with a time constant of 0.02 "
                                          "s, not 0.01 s"):
         TrainedPolicy(out, make_env("push", control_timestep=0.5, velocity_timestep=0.05))
+    # `rollout --policy` records at the run's own timing unless told otherwise (and refuses).
+    assert cli.main(["rollout", "--task", "push", "--policy", str(out), "--episodes", "1",
+                     "--out", str(tmp_path / "played.npz")]) == 0
+    assert Trajectories.load(tmp_path / "played.npz").metadata["options"] == {
+        "control_timestep": 0.5, "velocity_timestep": 0.05, "weld_time_constant": 0.02}
+    with pytest.raises(ValueError, match="acts every 0.5 s, not every 0.05 s"):
+        cli.main(["rollout", "--task", "push", "--policy", str(out), "--timing", "default",
+                  "--out", str(tmp_path / "refused.npz")])
     del saved["weld_time_constant"]
     older = RunConfig.from_dict(saved)  # As the reference timing's first campaign cells.
     assert older.weld_time_constant == 0.01

@@ -39,9 +39,8 @@ def add_parser(subparsers) -> None:
                         help="npz (default), minari or rlds")
     parser.add_argument("--control", choices=CONTROLS, default="mocap",
                         help="the controller (default: mocap; the experts take mocap and osc)")
-    add_timing(parser, "physics seconds per step (default: the task's, 0.05); a --policy "
-                       "acts at the timing it trained at (train --control-timestep or "
-                       "--timing), and another is refused")
+    add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "
+                       "the timing the run trained at, and another is refused)")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="act with the policy trained in this run directory instead of "
                              "the scripted expert")
@@ -59,8 +58,12 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
-    task_options = {name: value for name, value in timing_options(args).items()
-                    if value is not None}
+    given = timing_options(args)
+    if args.policy is not None and args.timing is None and args.control_timestep is None:
+        from franka_composer.training.runs import RunDir
+
+        given = RunDir(args.policy).read_config().timing_options  # It acts as it learned.
+    task_options = {name: value for name, value in given.items() if value is not None}
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,
