@@ -61,6 +61,11 @@ class GoalEnvironment(composer.Environment):
         """Seconds of physics before an episode times out (whole control steps; inf: none)."""
         return self._episode_steps * self.control_timestep()
 
+    def set_episode_steps(self, steps: int) -> None:
+        """Makes episodes time out after `steps` control steps, from the next step on."""
+        self._episode_steps = steps
+        self._time_limit = composer_time_limit(steps, self.control_timestep())
+
     @property
     def closed(self) -> bool:
         return self._closed

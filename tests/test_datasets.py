@@ -130,6 +130,23 @@ def test_record_works_in_the_pixel_modes(tmp_path, format):
             16, 16, 3)
 
 
+@pytest.mark.parametrize("format", ["npz", "minari", "rlds"])
+def test_every_format_records_episodes_of_the_length_max_episode_steps_asks(tmp_path, format):
+    # gym.make takes max_episode_steps for its TimeLimit; RLDS logs the dm_env beneath it.
+    out = tmp_path / ("short.npz" if format == "npz" else "short")
+    summary = record("push", 2, out, format=format, seed=0, max_episode_steps=7,
+                     terminate_on_success=False)
+    assert summary["steps"] == 14
+    if format == "rlds":
+        assert [len(e["actions"]) for e in rlds_format.read(out)["episodes"]] == [7, 7]
+    # Episodes that end only on success could run forever: refused before anything is made.
+    endless = tmp_path / ("endless.npz" if format == "npz" else "endless")
+    with pytest.raises(ValueError, match=r"episodes of this env end only on success \(no "
+                                         r"max_episode_steps and time_limit=None\)"):
+        record("push", 1, endless, format=format, max_episode_steps=-1, time_limit=None)
+    assert not endless.exists()
+
+
 def test_action_noise_is_a_function_of_the_seed_and_the_command_line_records(tmp_path, capsys):
     for name in ("a", "b"):
         assert main(["rollout", "--task", "push", "--episodes", "2", "--seed", "3",

@@ -4,6 +4,8 @@ adapter and Shimmy truncate there."""
 
 from __future__ import annotations
 
+import pickle
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -100,22 +102,41 @@ def test_the_gymnasium_adapter_truncates_at_the_time_limit_on_its_own():
         env.step(np.zeros(3, np.float32))
 
 
-def test_every_ids_max_episode_steps_is_its_environments_episode_length(task_name):
-    env = gym.make(env_id(task_name, "sparse"))
-    steps = env.unwrapped.composer_env.episode_steps
-    assert steps == SPEC[task_name]["steps"]
+def test_every_ids_max_episode_steps_is_its_tasks_episode_length(task_name):
+    steps = SPEC[task_name]["steps"]
+    assert franka_composer.load(task_name).episode_steps == steps
     for id_, registered in ENV_IDS.items():
         if registered.task == task_name:
             assert gym.spec(id_).max_episode_steps == steps
+    # Through gym.make the length is TimeLimit's alone, as in Gymnasium-Robotics.
+    assert gym.make(env_id(task_name, "sparse")).unwrapped.composer_env.episode_steps is None
 
 
-def test_gym_make_changes_the_episode_length_with_max_episode_steps_and_time_limit():
-    for options in ({"time_limit": None}, {"time_limit": 5.0}):
-        env = gym.make("FrankaPushSparse-v0", max_episode_steps=100, terminate_on_success=False,
-                       **options)
-        env.reset(seed=0)
-        ends = [any(env.step(np.zeros(3, np.float32))[2:4]) for _ in range(100)]
-        assert ends == [False] * 99 + [True]
+def _episode_length(env) -> int:
+    env.reset(seed=0)
+    for steps in range(1, 1001):
+        if any(env.step(np.zeros(env.action_space.shape, np.float32))[2:4]):
+            return steps
+    raise AssertionError("no end in 1000 steps")
+
+
+@pytest.mark.parametrize("max_episode_steps, options, steps", [
+    (None, {}, 50), (100, {}, 100), (10, {}, 10), (100, {"time_limit": None}, 100),
+    # A time limit of the env's own stands beside TimeLimit: the shorter ends the episode.
+    (100, {"time_limit": 1.0}, 20), (10, {"time_limit": 5.0}, 10)])
+def test_gym_make_sets_the_episode_length_with_max_episode_steps(max_episode_steps, options,
+                                                                 steps):
+    env = gym.make("FrankaPushSparse-v0", max_episode_steps=max_episode_steps,
+                   terminate_on_success=False, **options)
+    assert _episode_length(env) == steps
+    assert _episode_length(pickle.loads(pickle.dumps(env))) == steps
+    vector = gym.make_vec("FrankaPushSparse-v0", 2, vectorization_mode="sync",
+                          max_episode_steps=max_episode_steps, terminate_on_success=False,
+                          **options)
+    vector.reset(seed=0)
+    for _ in range(steps - 1):
+        assert not np.any(vector.step(np.zeros((2, 3), np.float32))[3])
+    assert np.all(vector.step(np.zeros((2, 3), np.float32))[3])
 
 
 def test_shimmy_sees_the_time_out_as_a_truncation():

@@ -40,11 +40,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
 
     Episodes end with `terminated=True` on success when the task's `terminate_on_success`
     is set (the paper's default) or if the physics diverges, and with `truncated=True` at
-    the dm_env environment's time limit: the task's `max_episode_steps`, which the ids
-    register too, so Gymnasium's `TimeLimit` agrees. `TimeLimit` cannot tell the env
-    another length: for one, give both, `gym.make(id, max_episode_steps=100,
-    time_limit=5.0)` (seconds: 100 steps of 0.05 s), or `time_limit=None` to leave the
-    length to `TimeLimit` alone.
+    the dm_env environment's time limit: the task's `max_episode_steps` unless `time_limit`
+    (seconds; None: none) says otherwise. Through `gym.make` the length is Gymnasium's
+    `TimeLimit`'s alone, `max_episode_steps` (the task's by default), as in
+    Gymnasium-Robotics (`registration.make_registered`).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}

@@ -69,8 +69,9 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             f"The arm at its neutral pose {tuple(config.neutral_arm_qpos)}; {start} "
             "reset(seed=s) takes any non-negative int."]),
         ("Episode end", [
-            f"Truncated after {max_episode_steps} steps, the dm_env environment's time "
-            "limit (a LAST step with discount 1 there). Terminated on success when "
+            f"Truncated after {max_episode_steps} steps: Gymnasium's TimeLimit "
+            "(gym.make(id, max_episode_steps=N) sets another length), the dm_env "
+            "environment's time limit under load (a LAST step with discount 1). Terminated on success when "
             "terminate_on_success is True (the paper's default; False gives Fetch "
             "semantics, for which HER relabelling is exact), or if the physics diverges "
             "(with a warning)."]),

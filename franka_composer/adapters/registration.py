@@ -77,7 +77,10 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
     """What `gym.make(id, **options)` builds. The id fixes the task and the reward type
     (its spec's kwargs), and the controller where its name gives one (`...Osc...`,
     `...Joints...`); the plain ids take any `control` option. A fixed value passed to
-    `gym.make` that differs is an error naming the id to use instead."""
+    `gym.make` that differs is an error naming the id to use instead. The episode length is
+    `TimeLimit`'s (`gym.make(id, max_episode_steps=N)`, the task's by default), which the
+    env cannot see: it is built without a time limit of its own unless `time_limit` is
+    given (then the shorter ends an episode)."""
     fixed = ENV_IDS[registered_id]
     asked = RegisteredEnv(task, reward_type, control)
     if (asked.task, asked.reward_type) != (fixed.task, fixed.reward_type) or (
@@ -90,6 +93,7 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
             + ("task, reward_type and control" if controlled else "task and reward_type")
             + " cannot be changed"
             + (f"; use {wanted!r}" if wanted else ""))
+    options.setdefault("time_limit", None)
     return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
 

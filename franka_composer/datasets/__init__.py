@@ -18,6 +18,7 @@ import gymnasium as gym
 from franka_composer.adapters.registration import env_id
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
+from franka_composer.policies.rollout import check_episodes_end
 from franka_composer.tasks.config import expand_timing
 from franka_composer.validation import check_choice, check_number
 
@@ -57,6 +58,7 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
                 "options": readable_options(options)}
     env = gym.make(env_id(task, reward_type, control), **options)
     try:
+        check_episodes_end(env)  # Before anything is written.
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)
         if format == "npz":
             trajectories = rollout(env, policy, episodes, seed=seed)

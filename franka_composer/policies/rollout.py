@@ -64,6 +64,19 @@ class Trajectories:
         return npz_format.read(path)
 
 
+def check_episodes_end(env) -> None:
+    """A ValueError if episodes of the Gymnasium `env` end only on success (no `TimeLimit`:
+    gym.make(id, max_episode_steps=-1), and no time limit of its own: time_limit=None):
+    running one to its end could then never return."""
+    spec = getattr(env, "spec", None)
+    composer_env = getattr(getattr(env, "unwrapped", env), "composer_env", None)
+    if ((spec is None or spec.max_episode_steps is None)
+            and (composer_env is None or composer_env.episode_steps is None)):
+        raise ValueError("episodes of this env end only on success (no max_episode_steps and "
+                         "time_limit=None): give gym.make a max_episode_steps to run whole "
+                         "episodes")
+
+
 def rollout(env, policy, episodes: int, seed: int | None = None,
             on_step: Callable[[object, int], None] | None = None,
             on_episode_end: Callable[[int], None] | None = None) -> Trajectories:
@@ -76,6 +89,7 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    check_episodes_end(env)
     collected, env_seconds = [], 0.0
     for index in range(episodes):
         if hasattr(policy, "reset"):
