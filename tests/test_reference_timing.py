@@ -72,6 +72,17 @@ def test_timing_is_one_of_the_named_ones_and_not_given_beside_what_it_sets():
         task_config("push", velocity_timestep=-0.05)
 
 
+@pytest.mark.parametrize("control, options, name", [
+    ("mocap", {"timing": "reference"}, "reference"), ("mocap", {}, "default"),
+    ("osc", {"timing": "reference"}, "reference"),
+    # 0.5 s with the default's stiff weld is no named timing under mocap; osc has no weld.
+    ("mocap", {"control_timestep": 0.5, "velocity_timestep": 0.05}, None),
+    ("osc", {"control_timestep": 0.5, "velocity_timestep": 0.05}, "reference"),
+    ("mocap", {"control_timestep": 0.1}, None)])
+def test_a_configuration_names_its_timing(control, options, name):
+    assert task_config("slide", control=control, **options).timing_name == name
+
+
 @pytest.mark.parametrize("timing", ["default", "reference"])
 def test_a_full_action_lands_at_rest_only_at_the_reference_timing(timing):
     """One full +x step with the gripper closing, from the open hand at reset: the paper's

@@ -54,7 +54,11 @@ class StrikeCalibration:
     Attributes:
       glide_gain, dead_kick: kick size to glide distance, distance = glide_gain^2 *
         f(angle) * (kick - dead_kick)^2 with the kick a fraction of a full step, fitted to
-        strikes straight along +x (f: `GLIDE_FACTORS`).
+        strikes straight along +x.
+      glide_factors: f, as (strike angles, factors) between which it is interpolated.
+      overshoot: metres past the goal the strike aims for. Passing through the goal
+        succeeds where the puck is seen every few centimetres (0.05 s steps); at 0.5 s per
+        step it moves up to half a metre between observations and must stop there.
       path_turn_pieces: strike angle (deg) -> degrees the puck's path turns from the strike
         direction, in pieces (strike angles, turns) measured with 3 to 4 seeds each. The
         finger corner that meets the puck changes between pieces, and the turn with it:
@@ -66,6 +70,8 @@ class StrikeCalibration:
     glide_gain: float
     dead_kick: float
     path_turn_pieces: tuple
+    glide_factors: tuple = (GLIDE_ANGLES, GLIDE_FACTORS)
+    overshoot: float = OVERSHOOT
 
     def __post_init__(self) -> None:
         strikes, paths = [], []
@@ -82,27 +88,32 @@ class StrikeCalibration:
 
     def kick(self, distance: float, strike_angle: float) -> float:
         """The kick (a fraction of a full step) that glides the puck `distance` metres."""
-        glide = self.glide_gain * np.sqrt(np.interp(strike_angle, GLIDE_ANGLES, GLIDE_FACTORS))
+        glide = self.glide_gain * np.sqrt(np.interp(strike_angle, *self.glide_factors))
         return self.dead_kick + np.sqrt(distance) / glide
 
 
-#: Per controller (`control` option). Under mocap the hand jerks to each target within a few
-#: milliseconds and the puck leaves at the jerk's peak speed; no strike sends it along paths
-#: between -32 and -23 degrees, or -3.6 and -0.6. Under osc the torque-limited hand
-#: accelerates for the whole step and kicks softer (glide 0.17 / 0.31 / 0.48 / 0.84 m for
-#: kicks of 0.3 / 0.4 / 0.5 / 0.7, against mocap's 0.22 / 0.45 / 0.68 / 1.29); no strike
-#: sends it along paths between -38 and -23.4 degrees, and strikes between -15 and -2.5
-#: degrees turn the path by +0.5 or -5.5 degrees depending on where the puck lies (the
-#: table holds their mean).
+#: Per controller (`control` option) and named timing (`TIMINGS`; another timing gets its
+#: controller's default). At the default timing, under mocap the hand jerks to each target
+#: within a few milliseconds and the puck leaves at the jerk's peak speed; no strike sends
+#: it along paths between -32 and -23 degrees, or -3.6 and -0.6. Under osc the
+#: torque-limited hand accelerates for the whole step and kicks softer (glide 0.17 / 0.31 /
+#: 0.48 / 0.84 m for kicks of 0.3 / 0.4 / 0.5 / 0.7, against mocap's 0.22 / 0.45 / 0.68 /
+#: 1.29); no strike sends it along paths between -38 and -23.4 degrees, and strikes between
+#: -15 and -2.5 degrees turn the path by +0.5 or -5.5 degrees depending on where the puck
+#: lies (the table holds their mean). The reference timing's (0.5 s steps; mocap with the
+#: slower weld) are `tools/slide_calibration.py --timing reference --seeds 5 --sweep-kick
+#: 0.8`'s output (results/slide-calibration/): a full kick glides the puck 1.3 m under mocap,
+#: 1.7 m under osc, and the puck must stop at the goal (`overshoot`). The default timing's
+#: were measured before that tool.
 CALIBRATIONS = {
-    "mocap": StrikeCalibration(1.69, 0.061, (
+    ("mocap", "default"): StrikeCalibration(1.69, 0.061, (
         ((-75.0, -55.0, -40.0, -28.5), (-3.5, -2.5, -3.2, -3.4)),
         ((-26.5, -22.5, -20.0, -15.0, -10.0, -7.5, -5.0, -0.5),
          (3.5, 3.0, 2.0, 0.9, 0.4, -0.6, -3.0, -3.1)),
         ((0.0,), (-0.6,)),
         ((0.5, 5.0, 20.0, 40.0, 55.0, 75.0), (0.8, 0.9, 0.7, 0.6, 0.9, 1.6)),
     )),
-    "osc": StrikeCalibration(1.25, 0.0, (
+    ("osc", "default"): StrikeCalibration(1.25, 0.0, (
         ((-75.0, -65.0, -55.0, -45.0, -40.0, -35.0, -30.0),
          (-2.2, -3.1, -3.7, -5.2, -6.1, -7.1, -7.9)),
         ((-25.0, -20.0, -17.5, -15.0, -12.5, -10.0, -7.5, -5.0, -2.5),
@@ -110,6 +121,23 @@ CALIBRATIONS = {
         ((0.0,), (-0.1,)),
         ((2.5, 10.0, 25.0, 40.0, 55.0, 75.0), (0.3, 0.5, 0.7, 0.9, 0.9, 1.4)),
     )),
+    ("mocap", "reference"): StrikeCalibration(1.12, -0.031, (
+        ((-75.0, -50.0, -32.5, -30.0), (-2.8, -5.9, -7.0, -7.9)),
+        ((-22.5, -17.5, -15.0, -12.5, -10.0, -7.5, -5.0, -2.5),
+         (-3.8, -8.1, -8.1, -7.4, -7.8, -9.7, -8.4, -9.2)),
+        ((0.0, 5.0, 7.5, 10.0, 15.0, 20.0, 32.5, 45.0, 52.5, 55.0, 57.5, 75.0),
+         (0.2, 1.7, 1.5, 2.2, 2.5, 1.6, 1.6, 0.7, 1.6, 1.1, 2.0, 1.7)),
+    ), ((-75.0, -30.0, -27.5, -25.0, -17.5, -7.5, -2.5, 0.0, 2.5, 12.5, 25.0, 30.0, 37.5, 47.5,
+         67.5, 72.5, 75.0),
+        (0.84, 0.68, 0.74, 0.75, 0.66, 0.61, 0.62, 1.0, 0.86, 0.82, 0.85, 0.8, 0.86, 0.79, 0.83,
+         0.76, 0.83)), overshoot=0.0),
+    ("osc", "reference"): StrikeCalibration(1.33, -0.018, (
+        ((-75.0, -47.5, -45.0, -35.0, -27.5), (-2.4, -4.7, -4.4, -6.4, -6.9)),
+        ((-25.0, -7.5, -5.0, -2.5, 0.0, 2.5, 35.0, 42.5, 47.5, 55.0, 60.0, 65.0, 70.0, 72.5,
+          75.0),
+         (0.4, 0.1, -0.2, -1.4, -0.3, 0.1, 1.4, 0.8, 1.4, 0.9, 1.9, 1.8, 0.7, 1.8, 2.1)),
+    ), ((-75.0, -27.5, -25.0, -2.5, 0.0, 2.5, 22.5, 42.5, 52.5, 75.0),
+        (0.73, 0.7, 0.83, 0.84, 1.0, 0.84, 0.82, 0.86, 0.77, 0.72)), overshoot=0.0),
 }
 
 
@@ -119,7 +147,9 @@ class SlideExpert(Expert):
 
     def reset(self) -> None:
         self._waiting = False
-        self._calibration = CALIBRATIONS[self.config.control.kind]
+        control = self.config.control.kind
+        self._calibration = CALIBRATIONS.get((control, self.config.timing_name),
+                                             CALIBRATIONS[control, "default"])
 
     def act(self, obs: dict) -> np.ndarray:
         scene = self.scene(obs)
@@ -136,7 +166,8 @@ class SlideExpert(Expert):
         start = np.array([*(puck[:2] - direction * (radius + GAP) - corner), STRIKE_HEIGHT])
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._waiting = True
-            kick = calibration.kick(np.linalg.norm(to_goal) + OVERSHOOT, strike_angle)
+            kick = calibration.kick(np.linalg.norm(to_goal) + calibration.overshoot,
+                                    strike_angle)
             return np.array([*direction * kick, 0.0])
         if np.linalg.norm(tcp[:2] - start[:2]) < POSITION_TOLERANCE:
             return self.move_towards(tcp, start, DESCENT_SPEED)

@@ -292,6 +292,14 @@ class TaskConfig:
         return self.max_episode_steps * self.control_timestep
 
     @property
+    def timing_name(self) -> str | None:
+        """The name in `TIMINGS` of this configuration's timing, or None for another."""
+        return timing_name(self.control.kind, {
+            "control_timestep": self.control_timestep,
+            "velocity_timestep": self.velocity_timestep,
+            "weld_time_constant": self.control.weld_time_constant})
+
+    @property
     def velocity_period(self) -> float:
         """Seconds the observation's velocities are multiplied by."""
         return (self.control_timestep if self.velocity_timestep is None
@@ -370,6 +378,17 @@ TIMINGS: dict[str, dict[str, Any]] = {
     "reference": {"control_timestep": 0.5, "velocity_timestep": 0.05,
                   "weld_time_constant": REFERENCE_WELD_TIME_CONSTANT},
 }
+
+
+def timing_name(control: str, timing: dict) -> str | None:
+    """The name in `TIMINGS` of `timing` (the options a name sets, with their values) under
+    the controller `control`, or None for another; the weld counts under mocap only, the
+    other controllers having none."""
+    for name, named in TIMINGS.items():
+        if all(timing[key] == value for key, value in named.items()
+               if key != "weld_time_constant" or control == "mocap"):
+            return name
+    return None
 
 
 def expand_timing(options: dict) -> dict:

@@ -11,7 +11,7 @@ from franka_composer.controllers import CONTROLS
 from franka_composer.controllers.settings import WELD_TIME_CONSTANT
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.tasks.config import TIMINGS
+from franka_composer.tasks.config import timing_name
 from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
                                                   Hyperparameters, hyperparameters)
 from franka_composer.training.presets import TRAINING_PRESETS
@@ -171,9 +171,9 @@ class RunConfig:
         """"reference timing", "0.5 s per step" (velocities per step, the default weld),
         "0.5 s per step, velocities per 0.05 s" (the default weld), "0.05 s per step, weld
         0.02 s", or "" for the task's own timing."""
-        for name, named in TIMINGS.items():
-            if self._timing_that_acts == {key: named[key] for key in self._timing_that_acts}:
-                return "" if name == "default" else f"{name} timing"
+        name = timing_name(self.control, self.timing_options)
+        if name is not None:
+            return "" if name == "default" else f"{name} timing"
         label = f"{self.control_timestep} s per step"
         if self.velocity_timestep is not None:
             label += f", velocities per {self.velocity_timestep} s"
