@@ -75,6 +75,14 @@ def latest_version(base: str) -> str:
     return f"{base}-v{max(versions)}"
 
 
+def reference_path_error(path: pathlib.Path | None) -> str | None:
+    """Why `path` (--reference-path) is not a checkout of the reference code, or None."""
+    if path is not None and not (path / "panda_mujoco_gym" / "__init__.py").is_file():
+        return (f"--reference-path {path}: no panda_mujoco_gym/__init__.py there; give the "
+                "folder of a checkout of the reference code's repository")
+    return None
+
+
 def import_reference(path: pathlib.Path) -> None:
     """Import `panda_mujoco_gym` from the checkout at `path`, and no other copy of it."""
     sys.path.insert(0, str(path))

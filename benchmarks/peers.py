@@ -31,7 +31,7 @@ from importlib import metadata
 import franka_composer
 from bench import child_environment, machine, versions
 from franka_composer.cli.options import add_tasks_argument, output_file, positive_int
-from peer_worker import RESULT_PREFIX, SUITES, TASK_NAMES
+from peer_worker import RESULT_PREFIX, SUITES, TASK_NAMES, reference_path_error
 
 WORKER = pathlib.Path(__file__).with_name("peer_worker.py")
 #: Column titles, in the order the suites take turns.
@@ -107,10 +107,9 @@ def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -
                      f"choose from {', '.join(TASK_NAMES)}")
     if "ours" not in args.suites:
         parser.error("--suites: the ratios are to this suite, so 'ours' must be among them")
-    path = args.reference_path
-    if path is not None and not (path / "panda_mujoco_gym" / "__init__.py").is_file():
-        parser.error(f"--reference-path {path}: no panda_mujoco_gym/__init__.py there; give "
-                     "the folder of a checkout of the reference code's repository")
+    error = reference_path_error(args.reference_path)
+    if error:
+        parser.error(error)
 
 
 def skipped_suites(args: argparse.Namespace) -> dict[str, str]:

@@ -130,10 +130,9 @@ def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -
     """--episodes at least 1, --reference-path a checkout of the reference code."""
     if args.episodes < 1:
         parser.error(f"--episodes {args.episodes}: give at least 1")
-    path = args.reference_path
-    if path and not (path / "panda_mujoco_gym" / "__init__.py").is_file():
-        parser.error(f"--reference-path {path}: no panda_mujoco_gym/__init__.py there; give "
-                     "the folder of a checkout of the reference code's repository")
+    error = peer_worker.reference_path_error(args.reference_path)
+    if error:
+        parser.error(error)
 
 
 def run_suites(script: str, suites, arguments: list[str],

@@ -230,6 +230,19 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     closed.close()
 
 
+@pytest.mark.parametrize("script", ["random_exploration.py", "grasp_margin.py"])
+@pytest.mark.parametrize("args, message", [
+    (["--episodes", "0"], "--episodes 0: give at least 1"),
+    (["--reference-path", "{tmp}"], "{tmp}: no panda_mujoco_gym/__init__.py there; give the "
+                                    "folder of a checkout")])
+def test_the_reference_experiments_name_a_bad_argument(script, args, message, tmp_path):
+    args = [arg.format(tmp=tmp_path) for arg in args]
+    completed = subprocess.run([sys.executable, str(EXPERIMENTS / script), *args],
+                               capture_output=True, text=True, check=False)
+    assert completed.returncode == 2
+    assert message.format(tmp=tmp_path) in completed.stderr
+
+
 def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_elsewhere():
     """The scripted grasp holds the block at -1 in every suite of this package, drops it at
     -0.1 with 0.5 s steps and the stiff weld, and the hand's motion within a step is read
