@@ -33,6 +33,19 @@ def test_demo_without_video_writes_nothing(tmp_path, capsys):
     assert "push " in capsys.readouterr().out
 
 
+def test_demo_runs_the_experts_at_the_timing_it_is_given(capsys):
+    assert main(["demo", "--tasks", "slide", "--episodes", "2", "--no-video", "--timing",
+                 "reference"]) == 0
+    row = next(line for line in capsys.readouterr().out.splitlines()
+               if line.startswith("slide "))
+    # 0.5 s steps: the expert's strike glides the puck to the goal in ~10 steps, not ~30.
+    assert row.split()[2] == "100%" and float(row.split()[3]) < 15
+    with pytest.raises(ValueError, match="--timing sets the control timestep: give --timing "
+                                         "or --control-timestep, not both"):
+        main(["demo", "--tasks", "slide", "--no-video", "--timing", "reference",
+              "--control-timestep", "0.5"])
+
+
 def test_rollout_command_saves_loadable_demonstrations(tmp_path, capsys):
     path = tmp_path / "sub" / "push.npz"
     assert main(["rollout", "--task", "push", "--episodes", "3", "--seed", "4",

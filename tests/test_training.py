@@ -966,6 +966,12 @@ def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, ca
     with pytest.raises(ValueError, match="acts every 0.5 s, not every 0.05 s"):
         cli.main(["rollout", "--task", "push", "--policy", str(out), "--timing", "default",
                   "--out", str(tmp_path / "refused.npz")])
+    # `demo --policy` plays it at its own timing too, and refuses another.
+    capsys.readouterr()
+    assert cli.main(["demo", "--policy", str(out), "--episodes", "1", "--no-video"]) == 0
+    assert capsys.readouterr().out.splitlines()[2].split()[:2] == ["push", "1"]
+    with pytest.raises(ValueError, match="acts every 0.5 s, not every 0.05 s"):
+        cli.main(["demo", "--policy", str(out), "--timing", "default", "--no-video"])
     del saved["weld_time_constant"]
     older = RunConfig.from_dict(saved)  # As the reference timing's first campaign cells.
     assert older.weld_time_constant == 0.01

@@ -14,8 +14,9 @@ import gymnasium as gym
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import (add_tasks_argument, episode_seed, frame_size,
-                                         output_folder, positive_int)
+from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
+                                         frame_size, output_folder, positive_int,
+                                         timing_options)
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -39,6 +40,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--control", choices=("mocap", "osc"), default=None,
                         help="controller the experts act through (they act on dx, dy, dz, "
                              "so not joints; default: mocap, or the --policy run's)")
+    add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "
+                       "the timing the run trained at, and another is refused)")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="play the policy trained in RUN_DIR (a `train` run, or one as "
                              "committed with config.json and policy.pt) instead of the experts")
@@ -94,14 +97,16 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     run's environment) on `task`; writes its video and first frame; returns a table row."""
     render = dict(render_mode=None if args.no_video else "rgb_array", width=args.width,
                   height=args.height)
+    timing = {name: value for name, value in timing_options(args).items() if value is not None}
     if trained is None:
-        env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render)
+        env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render, **timing)
         policy = make_expert(env)
     else:
         from franka_composer.datasets.sources import TrainedPolicy
         from franka_composer.training.models import make_env
 
-        env = make_env(task, **trained.env_options, **render)
+        # A timing given that is not the run's is refused by TrainedPolicy, naming both.
+        env = make_env(task, **{**trained.env_options, **timing}, **render)
         policy = TrainedPolicy(args.policy, env)
     frames: list = []
 
