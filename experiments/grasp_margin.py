@@ -21,7 +21,6 @@ how the hand moves within a step (`hand_motion`), which sets how hard a lift jer
 
 from __future__ import annotations
 
-import argparse
 import json
 import pathlib
 import sys
@@ -174,11 +173,7 @@ def table(results: dict[str, dict[str, list[dict]]], episodes: int) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=20)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")
-    parser.add_argument("--suite", choices=SUITES, help=argparse.SUPPRESS)  # A worker's.
+    parser = random_exploration.comparison_parser(__doc__, SUITES, episodes=20)
     args = parser.parse_args(argv)
     random_exploration.check_arguments(parser, args)
     if args.suite:

@@ -126,6 +126,17 @@ def table(results: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
+def comparison_parser(doc: str, suites, episodes: int) -> argparse.ArgumentParser:
+    """The arguments of every comparison with the reference code: --episodes (default
+    `episodes`), --seed, --reference-path, and a worker's hidden --suite (one of `suites`)."""
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--episodes", type=int, default=episodes)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")
+    parser.add_argument("--suite", choices=tuple(suites), help=argparse.SUPPRESS)  # A worker's.
+    return parser
+
+
 def check_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
     """--episodes at least 1, --reference-path a checkout of the reference code."""
     if args.episodes < 1:
@@ -155,12 +166,8 @@ def run_suites(script: str, suites, arguments: list[str],
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = comparison_parser(__doc__, SUITES, episodes=200)
     parser.add_argument("--task", choices=tuple(peer_worker.TASK_NAMES), default="pick_and_place")
-    parser.add_argument("--episodes", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")
-    parser.add_argument("--suite", choices=tuple(SUITES), help=argparse.SUPPRESS)  # A worker's.
     args = parser.parse_args(argv)
     check_arguments(parser, args)
     if args.suite:

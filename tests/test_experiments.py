@@ -230,7 +230,29 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     closed.close()
 
 
-@pytest.mark.parametrize("script", ["random_exploration.py", "grasp_margin.py"])
+def test_goal_sampling_draws_each_reset_from_its_seed_and_compares_alike_draws():
+    module = load_script(EXPERIMENTS / "goal_sampling.py")
+    env = load_script(EXPERIMENTS / "random_exploration.py").make_env("ours", "pick_and_place")
+    blocks, goals = module.draw(env, seed=3, episodes=40)
+    again = module.draw(env, seed=4, episodes=2)
+    env.close()
+    np.testing.assert_array_equal(again[0], blocks[1:3])  # Reset i is reset(seed=SEED + i).
+    np.testing.assert_array_equal(again[1], goals[1:3])
+    described = module.describe(blocks, goals)
+    floor = np.mean(np.abs(goals[:, 2] - blocks[:, 2]) < module.FLOOR)
+    assert described["goals on the floor"] == f"{100 * floor:.1f} %" and 0 < floor < 1
+    # The statistic is the largest gap between the two distribution functions.
+    assert module.ks_statistic(np.array([0.0, 1.0]), np.array([0.0, 1.0])) == 0.0
+    assert module.ks_statistic(np.array([0.0, 1.0]), np.array([2.0, 3.0])) == 1.0
+    assert module.ks_statistic(np.array([0.0, 2.0]), np.array([1.0, 3.0])) == 0.5
+    assert module.ks_critical(10000, 10000) == pytest.approx(0.0230, abs=1e-4)
+    table = module.tables({"ours": {"blocks": blocks.tolist(), "goals": goals.tolist()},
+                           "reference": {"blocks": blocks.tolist(), "goals": goals.tolist()}})
+    assert "| block x | 0.0000 | " in table  # One draw against itself.
+
+
+@pytest.mark.parametrize("script", ["random_exploration.py", "grasp_margin.py",
+                                    "goal_sampling.py"])
 @pytest.mark.parametrize("args, message", [
     (["--episodes", "0"], "--episodes 0: give at least 1"),
     (["--reference-path", "{tmp}"], "{tmp}: no panda_mujoco_gym/__init__.py there; give the "
