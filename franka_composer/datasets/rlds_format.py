@@ -40,9 +40,9 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     composer_env, task = adapter.composer_env, adapter.task
     # Through gym.make the episode length is TimeLimit's, which the dm_env logged here does
     # not see: it gets that length (the shorter, where it has one of its own).
-    steps = env.spec.max_episode_steps if env.spec is not None else None
-    if steps is not None and steps < (composer_env.episode_steps or float("inf")):
-        composer_env.set_episode_steps(steps)
+    limit = env.spec.max_episode_steps if env.spec is not None else None
+    if limit is not None and limit < (composer_env.episode_steps or float("inf")):
+        composer_env.set_episode_steps(limit)
     root.mkdir(parents=True, exist_ok=True)
     episode = {"seed": None}
     steps = successes = 0

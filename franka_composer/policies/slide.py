@@ -55,16 +55,16 @@ class StrikeCalibration:
       glide_gain, dead_kick: kick size to glide distance, distance = glide_gain^2 *
         f(angle) * (kick - dead_kick)^2 with the kick a fraction of a full step, fitted to
         strikes straight along +x.
-      glide_factors: f, as (strike angles, factors) between which it is interpolated.
-      overshoot: metres past the goal the strike aims for. Passing through the goal
-        succeeds where the puck is seen every few centimetres (0.05 s steps); at 0.5 s per
-        step it moves up to half a metre between observations and must stop there.
       path_turn_pieces: strike angle (deg) -> degrees the puck's path turns from the strike
-        direction, in pieces (strike angles, turns) measured with 3 to 4 seeds each. The
+        direction, in pieces (strike angles, turns) measured with 3 to 5 seeds each. The
         finger corner that meets the puck changes between pieces, and the turn with it:
         paths between pieces cannot be reached (the nearest reachable one is used), and
         strikes at the changes themselves go either way, so the pieces stop short of them.
         A strike at exactly 0 meets the flat front of the fingers.
+      glide_factors: f, as (strike angles, factors) between which it is interpolated.
+      overshoot: metres past the goal the strike aims for. Passing through the goal
+        succeeds where the puck is seen every few centimetres (0.05 s steps); at 0.5 s per
+        step it moves up to half a metre between observations and must stop there.
     """
 
     glide_gain: float
