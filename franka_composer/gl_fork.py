@@ -3,15 +3,20 @@
 Mesa's software GL (llvmpipe, behind both EGL and OSMesa here) starts its render threads
 at the first GL context of a process. A forked child inherits the driver's state but not
 those threads, and its first render waits for them forever (Gymnasium's async vector env
-and SB3's `SubprocVecEnv` fork by default). Two cases:
+forks by default on Linux; SB3's `SubprocVecEnv` with `start_method="fork"`). Three cases:
 
 - EGL: the driver's state belongs to an EGL display, so a child whose parent made contexts
   on dm_control's display opens a display of its own (same device) when it first makes a
   context. Processes that never render open nothing.
 - OSMesa has one state per process and no way to start another: a child of a process that
   made an OSMesa context raises `ForkedGLError` at its first render, saying what to do.
+- A GPU's own EGL (NVIDIA's) cannot make contexts in any forked child of a process that
+  initialised it, and dm_control initialises it on import: measured on an H100 and an H200,
+  the child's `eglCreateContext` fails with EGL_BAD_ALLOC, and a Gymnasium fork worker never
+  answers. Every forked child on an EGL other than Mesa's raises `ForkedGLError` at its
+  first render, before any EGL call.
 
-Either way a forked child never frees what it inherited (dm_control would, in garbage
+In every case a forked child never frees what it inherited (dm_control would, in garbage
 collection and at exit, and wait for the parent's threads): an at-fork hook disowns the
 inherited contexts, without a GL call.
 
@@ -47,6 +52,8 @@ def install() -> None:
     if getattr(_render.Renderer, "process_aware", False):
         return
     if _render.BACKEND == "egl":
+        global _egl_driver
+        _egl_driver = (os.getpid(), _egl_vendor())
         _render.Renderer = _process_egl_context(_render.Renderer)
     elif _render.BACKEND == "osmesa":
         _render.Renderer = _process_osmesa_context(_render.Renderer)
@@ -74,6 +81,36 @@ def _forget_inherited_gl() -> None:
         atexit.unregister(egl.eglTerminate)  # dm_control's, for its display, at exit.
 
 
+#: The EGL whose forked children can render, with displays of their own (`EGL_VENDOR`).
+FORK_SAFE_EGL_VENDOR = "Mesa Project"
+
+# (id of the process that initialised dm_control's EGL display, the driver's EGL_VENDOR); a
+# forked child inherits it, and with it which driver its ancestor started.
+_egl_driver: tuple[int, str] | None = None
+
+
+def _egl_vendor() -> str:
+    egl, renderer = _egl()
+    return (egl.eglQueryString(renderer.EGL_DISPLAY, egl.EGL_VENDOR) or b"").decode()
+
+
+def forked_children_render() -> bool:
+    """False where this process runs a GPU's own EGL, whose forked children are refused.
+    (With OSMesa, children of a process that rendered are refused; GLFW on a display is left
+    as dm_control has it.)"""
+    return _egl_driver is None or _egl_driver[1] == FORK_SAFE_EGL_VENDOR
+
+
+def _refuse_an_inherited_gpu_driver() -> None:
+    parent, vendor = _egl_driver
+    if parent != os.getpid() and vendor != FORK_SAFE_EGL_VENDOR:
+        raise ForkedGLError(
+            f"this process ({os.getpid()}) was forked from process {parent}, where the EGL "
+            f"driver of {vendor!r} had been initialised (dm_control opens its display on "
+            "import), and that driver cannot make GL contexts in a forked child (its "
+            f"eglCreateContext fails, or the render never returns): {_SPAWN_ADVICE}")
+
+
 def _process_egl_context(egl_context):
     class ProcessEGLContext(egl_context):
         """dm_control's EGL context, made on an EGL display of this process."""
@@ -81,6 +118,7 @@ def _process_egl_context(egl_context):
         process_aware = True
 
         def __init__(self, *args, **kwargs):
+            _refuse_an_inherited_gpu_driver()
             super().__init__(*args, **kwargs)
             _CONTEXTS.add(self)
 

@@ -5,6 +5,7 @@ figures drawn as the paper's are, and the goal bands split pick-and-place's epis
 
 from __future__ import annotations
 
+import json
 import pathlib
 import subprocess
 import sys
@@ -281,3 +282,23 @@ def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_el
         assert share[0] < motion["at_0.05"] < share[1]
         assert motion["at_0.5"] == pytest.approx(1.0, abs=1e-3)
         env.close()
+
+
+@pytest.mark.slow
+def test_render_backends_saves_the_scene_the_committed_frames_show(tmp_path, capsys):
+    module = load_script(EXPERIMENTS / "render_backends.py")
+    committed = RESULTS / "render-backends"
+    module.compare(committed / "nvidia-h100.npz", committed / "llvmpipe.npz")
+    report = json.loads(capsys.readouterr().out)
+    assert report == json.loads((committed / "comparison.json").read_text())
+    assert report["observations"]["max"] == 3 and report["renders"]["pixels_over_8"] == 2
+    module.save(str(tmp_path / "here.npz"))
+    assert "renderer" in json.loads(capsys.readouterr().out)
+    module.compare(tmp_path / "here.npz", committed / "llvmpipe.npz")
+    here = json.loads(capsys.readouterr().out)
+    # This machine's GL draws the committed episode: within it, frames one step apart (the
+    # arm a few centimetres further) differ by a mean of 3.7 levels.
+    assert here["observations"]["shape"] == [21, 84, 84, 3]
+    assert here["observations"]["mean"] < 0.5 and here["renders"]["mean"] < 0.5
+    module.compare(tmp_path / "here.npz", committed / "nvidia-h100.npz")
+    assert json.loads(capsys.readouterr().out)["observations"]["max"] <= 8
