@@ -15,8 +15,8 @@ import gymnasium as gym
 import franka_composer
 from franka_composer.adapters.registration import env_id
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
-                                         frame_size, output_folder, positive_int,
-                                         timing_options)
+                                         frame_size, given_timing, output_folder,
+                                         positive_int)
 from franka_composer.policies import make_expert, rollout
 
 DEFAULT_OUT = "demo_output"
@@ -97,7 +97,7 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     run's environment) on `task`; writes its video and first frame; returns a table row."""
     render = dict(render_mode=None if args.no_video else "rgb_array", width=args.width,
                   height=args.height)
-    timing = {name: value for name, value in timing_options(args).items() if value is not None}
+    timing = given_timing(args)
     if trained is None:
         env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render, **timing)
         policy = make_expert(env)

@@ -179,3 +179,12 @@ def timing_options(args: argparse.Namespace) -> dict:
         raise ValueError("--timing sets the control timestep: give --timing or "
                          "--control-timestep, not both")
     return dict(TIMINGS[args.timing])
+
+
+def given_timing(args: argparse.Namespace, run_timing: dict | None = None) -> dict:
+    """The timing options the command line gives (those left to the task omitted); with
+    none given, `run_timing` (a --policy run's: it acts at the timing it learned)."""
+    given = {name: value for name, value in timing_options(args).items() if value is not None}
+    if given or run_timing is None:
+        return given
+    return {name: value for name, value in run_timing.items() if value is not None}

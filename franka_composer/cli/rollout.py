@@ -15,8 +15,8 @@ import argparse
 import pathlib
 
 import franka_composer
-from franka_composer.cli.options import (add_timing, episode_seed, positive_int,
-                                         standard_deviation, timing_options)
+from franka_composer.cli.options import (add_timing, episode_seed, given_timing,
+                                         positive_int, standard_deviation)
 from franka_composer.controllers import CONTROLS
 
 
@@ -58,12 +58,12 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
-    given = timing_options(args)
-    if args.policy is not None and args.timing is None and args.control_timestep is None:
+    run_timing = None
+    if args.policy is not None:
         from franka_composer.training.runs import RunDir
 
-        given = RunDir(args.policy).read_config().timing_options  # It acts as it learned.
-    task_options = {name: value for name, value in given.items() if value is not None}
+        run_timing = RunDir(args.policy).read_config().timing_options
+    task_options = given_timing(args, run_timing)
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,
