@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import re
 import subprocess
 import sys
 
@@ -302,3 +303,50 @@ def test_render_backends_saves_the_scene_the_committed_frames_show(tmp_path, cap
     assert here["observations"]["mean"] < 0.5 and here["renders"]["mean"] < 0.5
     module.compare(tmp_path / "here.npz", committed / "nvidia-h100.npz")
     assert json.loads(capsys.readouterr().out)["observations"]["max"] <= 8
+
+
+@pytest.mark.slow
+def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_path,
+                                                                           monkeypatch):
+    # This suite's push spec stands in for the reference code's (not on PyPI, not in CI).
+    import gymnasium as gym
+
+    from franka_composer.cli import train as train_cli
+    from franka_composer.training import models
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    module = load_script(EXPERIMENTS / "reference_env_runs.py")
+    monkeypatch.setattr(models, "ENVIRONMENTS", {})
+    monkeypatch.setattr(train_cli, "run_config", train_cli.run_config)
+    module.install({"push": gym.spec("FrankaPushSparse-v0")})
+    tiny = ["--net-arch", "16,16", "--batch-size", "32", "--learning-starts", "100",
+            "--eval-every", "100", "--eval-episodes", "2", "--threads", "1", "--no-progress",
+            "--device", "cpu", "--seed", "1"]
+    out = tmp_path / "run"
+    assert main(["train", "--task", "push", "--algo", "sac", "--out", str(out),
+                 "--total-steps", "200", *tiny]) == 0
+    config = RunDir(out).read_config()
+    assert config.environment == "panda_mujoco_gym"
+    assert config.variant == "net_arch 16,16, batch_size 32, panda_mujoco_gym's env"
+    assert json.loads((out / "config.json").read_text())["environment"] == "panda_mujoco_gym"
+    assert [row["steps"] for row in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
+    for options, named in ((["--control", "osc"], "--control osc"),
+                           (["--timing", "reference"], "--timing or --control-timestep"),
+                           (["--no-terminate-on-success"], "--no-terminate-on-success"),
+                           (["--task", "reach"], "--task reach (the reference code has push)")):
+        refused = tmp_path / "refused"
+        arguments = ["train", "--algo", "sac", "--out", str(refused), *tiny, *options]
+        if "--task" not in options:
+            arguments += ["--task", "push"]
+        with pytest.raises(ValueError, match=re.escape(f"{named} cannot be given with it")):
+            main(arguments)
+        assert not refused.exists()
+    monkeypatch.undo()  # A process without the script: the run's env cannot be made.
+    message = ("the run trained in panda_mujoco_gym's push environment, which this process "
+               "does not build: train, evaluate or play it through "
+               "experiments/reference_env_runs.py")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        main(["train", "--resume", "--out", str(out), "--total-steps", "300"])
+    with pytest.raises(ValueError, match=re.escape(message)):
+        main(["evaluate", str(out), "--episodes", "1"])
+    assert RunDir(out).read_state()["steps"] == 200

@@ -15,6 +15,11 @@ from franka_composer.validation import check_choice
 
 DEVICES = ("auto", "cpu", "cuda")
 
+#: Other suites' environments a run may train in (`RunConfig.environment`): {name: a builder
+#: taking `make_env`'s arguments}. Empty in the package: the script that trains in one
+#: registers it (experiments/reference_env_runs.py), and elsewhere such a run is refused.
+ENVIRONMENTS: dict = {}
+
 #: What `--backend sbx` needs when sbx-rl is missing.
 SBX_MISSING = ("--backend sbx needs sbx-rl (Stable-Baselines3 ported to JAX): "
                "pip install sbx-rl, or pip install 'franka_composer[jax]'")
@@ -43,8 +48,10 @@ def algorithm_class(algo: str, backend: str = "sb3"):
 def make_env(task: str, *, terminate_on_success: bool = True,
              control: str = "mocap", randomization: str | None = None,
              control_timestep: float | None = None, velocity_timestep: float | None = None,
-             weld_time_constant: float | None = None, **render_options) -> gym.Env:
-    """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...).
+             weld_time_constant: float | None = None, environment: str | None = None,
+             **render_options) -> gym.Env:
+    """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...), or, with
+    `environment`, that suite's (`ENVIRONMENTS`).
 
     `terminate_on_success=True` is the paper's ids; False gives Fetch semantics (episodes
     always last 50 steps), for which HER's relabelled rewards and `done` flags are exact.
@@ -54,6 +61,16 @@ def make_env(task: str, *, terminate_on_success: bool = True,
     `weld_time_constant`: the mocap weld's, or None for the task's. `render_options`
     (`render_mode`, `width`, `height`) go to `gym.make` as they are.
     """
+    if environment is not None:
+        if environment not in ENVIRONMENTS:
+            raise ValueError(f"the run trained in {environment}'s {task} environment, which "
+                             "this process does not build: train, evaluate or play it through "
+                             "experiments/reference_env_runs.py")
+        return ENVIRONMENTS[environment](
+            task, terminate_on_success=terminate_on_success, control=control,
+            randomization=randomization, control_timestep=control_timestep,
+            velocity_timestep=velocity_timestep, weld_time_constant=weld_time_constant,
+            **render_options)
     options = {name: value for name, value in (("randomization", randomization),
                                                ("control_timestep", control_timestep),
                                                ("velocity_timestep", velocity_timestep),

@@ -50,6 +50,11 @@ class RunConfig:
     wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
     is how the networks' passes are computed while training; the weights are fp32 either
     way, so evaluation and loading do not depend on it.
+
+    `environment` names another suite whose env of the task the run trained in (the
+    reference code's, through experiments/reference_env_runs.py), or None for this
+    package's: only a process that can build it (`models.ENVIRONMENTS`) resumes or plays
+    the run.
     """
 
     task: str
@@ -68,6 +73,7 @@ class RunConfig:
     control_timestep: float | None = None
     velocity_timestep: float | None = None
     weld_time_constant: float | None = None
+    environment: str | None = None
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, tuple(TASK_CONFIGS))
@@ -129,6 +135,7 @@ class RunConfig:
                 "control_timestep": self.control_timestep,
                 "velocity_timestep": self.velocity_timestep,
                 "weld_time_constant": self.weld_time_constant,
+                "environment": self.environment,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
@@ -154,6 +161,7 @@ class RunConfig:
                   for name, value in self.hyperparameters.to_dict().items()
                   if name not in NOT_LEARNING and value != base[name]]
         parts += [label for differs, label in (
+            (self.environment is not None, f"{self.environment}'s env"),
             (self.control != "mocap", f"{self.control} control"),
             (self.timing_label != "", self.timing_label),
             (self.randomization is not None, f"randomization {self.randomization}"),
@@ -239,7 +247,8 @@ class RunConfig:
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""
         return dict(terminate_on_success=self.terminate_on_success, control=self.control,
-                    randomization=self.randomization, **self.timing_options)
+                    randomization=self.randomization, environment=self.environment,
+                    **self.timing_options)
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
@@ -247,7 +256,8 @@ class RunConfig:
         # have no "backend", "control", "precision" or "randomization": they are SB3's,
         # mocap, fp32, not randomised; those before the control timestep option, the task's;
         # those before the velocity timestep, velocities per control period; those before the
-        # weld's time constant, the default weld (the reference timing's runs included).
+        # weld's time constant, the default weld (the reference timing's runs included);
+        # those before other suites' envs, this package's.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
@@ -258,4 +268,5 @@ class RunConfig:
                    control_timestep=data.get("control_timestep"),
                    velocity_timestep=data.get("velocity_timestep"),
                    weld_time_constant=data.get("weld_time_constant"),
+                   environment=data.get("environment"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
