@@ -349,4 +349,9 @@ def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_
         main(["train", "--resume", "--out", str(out), "--total-steps", "300"])
     with pytest.raises(ValueError, match=re.escape(message)):
         main(["evaluate", str(out), "--episodes", "1"])
+    with pytest.raises(ValueError, match=re.escape(
+            f"{out} trained in panda_mujoco_gym's push environment, not this suite's")):
+        main(["rollout", "--task", "push", "--policy", str(out), "--episodes", "1",
+              "--out", str(tmp_path / "played.npz")])
+    assert not (tmp_path / "played.npz").exists()
     assert RunDir(out).read_state()["steps"] == 200

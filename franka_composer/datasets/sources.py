@@ -46,6 +46,9 @@ class TrainedPolicy:
         task = env.unwrapped.task.config.name
         if config.task != task:
             raise ValueError(f"{run_dir} trained {config.task}, not {task}")
+        if config.environment is not None:  # Another suite's env (RunConfig.environment).
+            raise ValueError(f"{run_dir} trained in {config.environment}'s {task} "
+                             "environment, not this suite's")
         control = env.unwrapped.task.config.control.kind
         if config.control != control:  # Its actions mean what they did in training.
             raise ValueError(f"{run_dir} acts through {config.control} control, not "
