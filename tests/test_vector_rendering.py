@@ -335,9 +335,7 @@ def test_forked_descendants_render_inherited_and_new_envs_until_displays_run_out
     assert reports[3].startswith("ForkedGLError: this process (")
     assert reports[3].endswith("no EGL display of its own is left to open (each forked "
                                "generation that renders takes one, and Mesa offers four): "
-                               "start the workers with spawn or forkserver (gym.make_vec(..., "
-                               "vectorization_mode='async', vector_kwargs={'context': "
-                               "'spawn'}); SubprocVecEnv(..., start_method='spawn'))")
+                               + SPAWN_ADVICE)
 
 
 @pytest.mark.skipif(not FORKS_RENDER, reason="a GPU's EGL: the child must leave through "
