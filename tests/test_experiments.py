@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import pickle
 import re
 import subprocess
 import sys
@@ -312,12 +313,17 @@ def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_
     import gymnasium as gym
 
     from franka_composer.cli import train as train_cli
-    from franka_composer.training import models
+    from franka_composer.training import exact_resume, models
     from franka_composer.training.runs import RunDir, read_eval_rows
 
     module = load_script(EXPERIMENTS / "reference_env_runs.py")
     monkeypatch.setattr(models, "ENVIRONMENTS", {})
     monkeypatch.setattr(train_cli, "run_config", train_cli.run_config)
+    for name in ("save", "restore"):
+        monkeypatch.setattr(exact_resume, name, getattr(exact_resume, name))
+    # This suite's env keeps its MjData inside dm_control's physics.
+    monkeypatch.setattr(module, "training_physics",
+                        lambda model: model.get_env().envs[0].unwrapped._env.physics.data)
     module.install({"push": gym.spec("FrankaPushSparse-v0")})
     tiny = ["--net-arch", "16,16", "--batch-size", "32", "--learning-starts", "100",
             "--eval-every", "100", "--eval-episodes", "2", "--threads", "1", "--no-progress",
@@ -330,6 +336,10 @@ def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_
     assert config.variant == "net_arch 16,16, batch_size 32, panda_mujoco_gym's env"
     assert json.loads((out / "config.json").read_text())["environment"] == "panda_mujoco_gym"
     assert [row["steps"] for row in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
+    kept = pickle.loads(RunDir(out).checkpoint_generators.read_bytes())
+    assert {"stream", "torch", "numpy"} <= kept.keys()
+    assert list(kept["panda_mujoco_gym"]) == ["qacc_warmstart"]
+    assert kept["panda_mujoco_gym"]["qacc_warmstart"].shape == (15,)  # arm 7, fingers 2, box 6
     for options, named in ((["--control", "osc"], "--control osc"),
                            (["--timing", "reference"], "--timing or --control-timestep"),
                            (["--no-terminate-on-success"], "--no-terminate-on-success"),
@@ -355,3 +365,31 @@ def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_
               "--out", str(tmp_path / "played.npz")])
     assert not (tmp_path / "played.npz").exists()
     assert RunDir(out).read_state()["steps"] == 200
+
+
+def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_path):
+    # The reference env's reset keeps MuJoCo's solver warm start from the episode before;
+    # a resume rebuilds the env by resets alone, so the checkpoint must give it back.
+    import types
+
+    import mujoco
+
+    module = load_script(EXPERIMENTS / "reference_env_runs.py")
+    data = mujoco.MjData(mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"))
+    env = types.SimpleNamespace(unwrapped=types.SimpleNamespace(data=data))
+    model = types.SimpleNamespace(get_env=lambda: types.SimpleNamespace(envs=[env]))
+    path = tmp_path / "generators.pkl"
+
+    def save(model, stream, path):
+        path.write_bytes(pickle.dumps({"stream": stream}))
+
+    data.qacc_warmstart[:] = np.arange(1.0, 7.0)
+    module.saving_carried_state(save)(model, {"seed": 3}, path)
+    assert pickle.loads(path.read_bytes())["stream"] == {"seed": 3}
+    data.qacc_warmstart[:] = 0.0
+    assert module.restoring_carried_state(lambda model, path: "stream")(model, path) == "stream"
+    np.testing.assert_array_equal(data.qacc_warmstart, np.arange(1.0, 7.0))
+    data.qacc_warmstart[:] = 0.0  # A restore that found the env changed keeps it as it is.
+    assert module.restoring_carried_state(lambda model, path: None)(model, path) is None
+    np.testing.assert_array_equal(data.qacc_warmstart, np.zeros(6))

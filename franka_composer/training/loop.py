@@ -162,6 +162,11 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
                 model.learn(total_timesteps=remaining, callback=callbacks,
                             reset_num_timesteps=not resume, tb_log_name="run",
                             progress_bar=progress)
+        if remaining > 0:
+            # Where training ended: exact at an episode's end, unless the stopping rule ended
+            # it inside a step (before SB3 stored the transition). Before the envs close: a
+            # checkpoint may read its training env (experiments/reference_env_runs.py).
+            checkpoint.save(exact=checkpoint.episode_ended and not evaluation.stopped_early)
     except KeyboardInterrupt as interrupt:
         precision.close()
         trained = getattr(checkpoint, "model", None) is not None
@@ -172,10 +177,6 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         precision.close()
         env.close()
         eval_env.close()
-    if remaining > 0:
-        # Where training ended: exact at an episode's end, unless the stopping rule ended it
-        # inside a step (before SB3 stored the transition).
-        checkpoint.save(exact=checkpoint.episode_ended and not evaluation.stopped_early)
     replace_atomically(run.final_model, model.save)
     replace_atomically(run.policy_file, lambda path: save_policy(model, path))
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
