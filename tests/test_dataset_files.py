@@ -1,4 +1,4 @@
-"""Damaged and foreign dataset files (datasets/npz_format.py, datasets/episodes.py,
+"""Damaged and foreign dataset files (episodes/npz_file.py, episodes/record.py,
 training/demos.py): each is refused by name, saying what is wrong, before anything
 trains; and recording never leaves half a dataset behind."""
 

@@ -5,7 +5,7 @@ The `.npz` file holds every episode concatenated (`observation`, `achieved_goal`
 `desired_goal` with one more row per episode than `action`, `reward`, `is_success`,
 `terminated`, `truncated`), `episode_length` and `metadata` (what it was recorded with: task,
 control, reward type, options); `franka_composer.policies.Trajectories.load` checks and
-splits it (`franka_composer.datasets.npz_format`). Minari and RLDS need the `[data]` extra
+splits it (`franka_composer.episodes.npz_file`). Minari and RLDS need the `[data]` extra
 (docs/guide/datasets.md).
 """
 

@@ -4,7 +4,7 @@ whole, so HER relabels their goals like the agent's own.
 
 A dataset is any of `franka_composer.datasets`' formats: a `.npz` file, a Minari dataset
 folder (the one holding `data/`), or an RLDS folder (holding `metadata.riegeli`). It must
-be whole (`datasets.episodes`) and say it was recorded with the task and controller being
+be whole (`episodes.record`) and say it was recorded with the task and controller being
 trained and sparse rewards (npz files written before they recorded it are refused), and
 its episodes must fit the task (the same observation shapes). They are kept:
 a run whose buffer cannot hold them and every step it will take is refused, since SB3's
@@ -18,8 +18,7 @@ import pathlib
 import numpy as np
 
 from franka_composer.adapters.registration import ENV_IDS
-from franka_composer.datasets.episodes import check_episodes
-from franka_composer.policies.rollout import OBSERVATION_KEYS, Trajectories
+from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
 from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.rewards import reward_from_distance
 
@@ -27,7 +26,7 @@ from franka_composer.tasks.rewards import reward_from_distance
 def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     """The episodes of the dataset at `path` as goal-dict arrays (observation keys with one
     more row than `action`, `reward`, `terminated`, `truncated`, `is_success`), checked
-    whole (`datasets.episodes`), as recorded with `env`'s task and controller and sparse
+    whole (`episodes.record`), as recorded with `env`'s task and controller and sparse
     rewards, and against its observation space: anything else is a ValueError naming the
     file and what is wrong."""
     path = pathlib.Path(path)

@@ -24,8 +24,7 @@ import zlib
 
 import numpy as np
 
-from franka_composer.datasets.episodes import GOAL_KEYS, check_episodes
-from franka_composer.policies.rollout import STEP_KEYS, Trajectories
+from franka_composer.episodes.record import GOAL_KEYS, STEP_KEYS, check_episodes
 
 #: The key holding `metadata`, a JSON string.
 METADATA_KEY = "metadata"
@@ -33,18 +32,18 @@ METADATA_KEY = "metadata"
 _DAMAGED = (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError)
 
 
-def write(trajectories: Trajectories, path: str | os.PathLike, metadata: dict | None = None
-          ) -> None:
+def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
+          metadata: dict | None = None) -> None:
     """Writes every episode, concatenated, with `episode_length` and `metadata` (JSON)."""
-    arrays = {key: np.concatenate([e[key] for e in trajectories.episodes])
-              for key in trajectories.episodes[0]}
+    arrays = {key: np.concatenate([e[key] for e in episodes]) for key in episodes[0]}
     if metadata:
         arrays[METADATA_KEY] = np.array(json.dumps(metadata))
-    np.savez_compressed(path, episode_length=trajectories.lengths, **arrays)
+    lengths = np.array([len(e["action"]) for e in episodes], dtype=np.int64)
+    np.savez_compressed(path, episode_length=lengths, **arrays)
 
 
-def read(path: str | os.PathLike) -> Trajectories:
-    """The episodes `write` wrote, with their metadata ({} in files from before it was
+def read(path: str | os.PathLike) -> tuple[list[dict[str, np.ndarray]], dict]:
+    """The episodes `write` wrote and their metadata ({} in files from before it was
     recorded); a ValueError naming `path` and what is wrong if the file is not whole."""
     try:
         data = np.load(path)
@@ -77,7 +76,7 @@ def read(path: str | os.PathLike) -> Trajectories:
     split.update({key: np.split(arrays[key], np.cumsum(lengths)[:-1]) for key in STEP_KEYS})
     episodes = [{key: split[key][i] for key in split} for i in range(len(lengths))]
     check_episodes(path, episodes)
-    return Trajectories(episodes, metadata=_metadata(path, arrays.get(METADATA_KEY)))
+    return episodes, _metadata(path, arrays.get(METADATA_KEY))
 
 
 def _episode_lengths(path, lengths: np.ndarray) -> np.ndarray:

@@ -1,5 +1,7 @@
-"""What every dataset reader checks of the episodes it gives back, whatever the format: a
-damaged or foreign file is refused by name, saying what is wrong, before anything trains.
+"""What an episode is wherever episodes are kept (a rollout's `Trajectories`, the npz, Minari
+and RLDS datasets, demonstrations): its keys, and the check every reader makes of the
+episodes it gives back, so that a damaged or foreign file is refused by name, saying what is
+wrong, before anything trains.
 
 An episode of T steps holds the observation's keys (at least the two goals; the state
 vector and camera images as its observation mode has them) with T + 1 rows (the reset's
@@ -11,10 +13,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.rollout import STEP_KEYS
-
+#: Keys of the Gymnasium goal observation dict in the state modes (the pixel modes add
+#: "<camera>_pixels" images, and "pixels" alone has no "observation").
+OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
 #: What every observation mode observes.
 GOAL_KEYS = ("achieved_goal", "desired_goal")
+#: Per-step arrays (one entry per action taken).
+STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
 
 
 def check_episodes(path, episodes: list[dict]) -> None:
