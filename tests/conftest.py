@@ -7,6 +7,7 @@ import importlib.util
 import os
 import pathlib
 import sys
+import warnings
 
 _REPO = pathlib.Path(__file__).resolve().parents[1]
 _SHARED_MENAGERIE = _REPO.parent / "shared" / "menagerie"
@@ -139,3 +140,28 @@ def load_script(path: pathlib.Path):
     sys.modules[spec.name] = module
     spec.loader.exec_module(module)
     return module
+
+
+#: What Gymnasium's env checker says of every env of this suite: that its state observations
+#: are unbounded (positions and velocities, as Fetch's).
+UNBOUNDED_OBSERVATIONS = {
+    "\x1b[33mWARN: A Box observation space minimum value is -infinity. This is probably "
+    "too low.\x1b[0m",
+    "\x1b[33mWARN: A Box observation space maximum value is infinity. This is probably "
+    "too high.\x1b[0m"}
+
+
+def env_checker_findings(env, sb3: bool = False) -> set[str]:
+    """What Gymnasium's env checker (and SB3's, with `sb3`) reports of `env`: they report
+    most findings as warnings, not errors."""
+    from gymnasium.utils.env_checker import check_env
+
+    with warnings.catch_warnings(record=True) as found:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=True)
+        if sb3:
+            from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+            sb3_check_env(env.unwrapped, warn=True)
+    return {str(warning.message) for warning in found}
+

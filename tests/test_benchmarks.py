@@ -62,9 +62,12 @@ def test_the_quick_bench_command_times_each_task(capsys):
 
 
 def test_bench_rejects_an_unknown_task_naming_the_valid_ones(capsys):
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as exit:
         main(["bench", "--tasks", "lift"])
-    assert "pick_and_place" in capsys.readouterr().err
+    assert exit.value.code == 2
+    assert capsys.readouterr().err.endswith(
+        "argument --tasks: unknown task(s) lift; valid tasks: push, slide, pick_and_place, "
+        "reach, stack, flip\n")
 
 
 @pytest.mark.parametrize("control", ["mocap", "osc", "joints"])

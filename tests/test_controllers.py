@@ -25,9 +25,10 @@ def _tilt_degrees(env) -> float:
 
 
 def _arm_torque_ratio(env) -> float:
-    """The largest |actuator force| / limit over the arm's motors now."""
-    force = env.physics.bind(env.task.panda.arm_actuators).force
-    return float(np.max(np.abs(force) / np.asarray(env.task.panda.arm_torque_limits)))
+    """The largest |torque the law commands| / limit over the arm's motors now: the motors'
+    ctrl, which MuJoCo would clamp to their range only when applying it."""
+    commanded = env.physics.bind(env.task.panda.arm_actuators).ctrl
+    return float(np.max(np.abs(commanded) / np.asarray(env.task.panda.arm_torque_limits)))
 
 
 @pytest.mark.parametrize("control, controller, actuation, action, name", [

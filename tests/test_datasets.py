@@ -148,14 +148,22 @@ def test_every_format_records_episodes_of_the_length_max_episode_steps_asks(tmp_
 
 
 def test_action_noise_is_a_function_of_the_seed_and_the_command_line_records(tmp_path, capsys):
-    for name in ("a", "b"):
-        assert main(["rollout", "--task", "push", "--episodes", "2", "--seed", "3",
-                     "--action-noise", "0.3", "--format", "npz",
+    def actions(name, seed, noise):
+        assert main(["rollout", "--task", "push", "--episodes", "2", "--seed", str(seed),
+                     "--action-noise", str(noise), "--format", "npz",
                      "--out", str(tmp_path / f"{name}.npz")]) == 0
+        with np.load(tmp_path / f"{name}.npz") as data:
+            return data["action"][:20]  # The first episode's first steps: equal lengths.
+
+    noisy = actions("a", 3, 0.3)
     assert "push: 2 episodes" in capsys.readouterr().out
-    with np.load(tmp_path / "a.npz") as a, np.load(tmp_path / "b.npz") as b:
-        np.testing.assert_array_equal(a["action"], b["action"])
-        assert np.abs(a["action"]).max() <= 1.0
+    np.testing.assert_array_equal(actions("b", 3, 0.3), noisy)
+    assert np.abs(noisy).max() <= 1.0
+    expert = actions("quiet", 3, 0)
+    # The first step sees the same reset: the expert's action plus episode 0's first draw.
+    draw = 0.3 * np.random.default_rng([3, 0]).normal(size=3)
+    np.testing.assert_allclose(noisy[0], np.clip(expert[0] + draw, -1, 1), rtol=0, atol=1e-6)
+    assert not np.array_equal(actions("other", 4, 0.3), noisy)
 
 
 def test_rollout_records_at_the_control_timestep_it_is_given(tmp_path):

@@ -217,9 +217,15 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     the same on a second play, the block starts still, and the closed-hand variant starts
     with the fingers at width 0 where this suite's open to 0.08 m."""
     module = load_script(EXPERIMENTS / "random_exploration.py")
-    np.testing.assert_array_equal(module.episode_actions(0, 3, 4), module.episode_actions(0, 3, 4))
     assert not np.array_equal(module.episode_actions(0, 3, 4), module.episode_actions(0, 4, 4))
     ours = module.make_env("ours", "pick_and_place")
+    played, step = [], ours.step
+    ours.step = lambda action: played.append(action) or step(action)
+    row = module.play(ours, seed=5, episode=2)
+    # What any suite is given: a function of the seed and the episode alone, as float32.
+    expected = np.random.default_rng([5, 2]).uniform(-1.0, 1.0, (50, 4))[:row["steps"]]
+    np.testing.assert_array_equal(np.array(played), expected.astype(np.float32))
+    del ours.step
     closed = module.make_env("closed", "pick_and_place")
     assert ours.reset(seed=0)[0]["observation"][6] == pytest.approx(0.08)
     assert closed.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-12)

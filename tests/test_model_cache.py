@@ -48,7 +48,10 @@ def test_cached_model_is_byte_identical_to_a_fresh_compile(cache, monkeypatch):
     full = build_task(task_config("push")).root_entity.mjcf_model
     compiled = compile_physics(full)  # Compiles, then writes the cache.
     assert len(list(cache.glob("*.mjb"))) == 1
-    cached = compile_physics(full)  # Reads the cache.
+    with monkeypatch.context() as patched:
+        patched.setattr(mjcf.Physics, "from_mjcf_model",
+                        classmethod(lambda cls, model: pytest.fail("compiled again")))
+        cached = compile_physics(full)  # Reads the cache.
     assert _model_bytes(cached.model.ptr) == _model_bytes(compiled.model.ptr)
     monkeypatch.setenv("FRANKA_COMPOSER_CACHE", "off")
     assert _model_bytes(compile_physics(full).model.ptr) == _model_bytes(compiled.model.ptr)
@@ -117,5 +120,10 @@ def test_a_killed_writers_leftover_is_swept_and_a_live_one_is_kept(cache, root):
 
 def test_a_cache_miss_keeps_dm_controls_readable_compile_errors(cache, root):
     root.worldbody.add("geom", name="broken", type="mesh", mesh=None)  # A mesh geom w/o mesh.
-    with pytest.raises(ValueError, match="broken"):
+    with pytest.raises(ValueError) as error:
         compile_physics(root)
+    # dm_control's form: MuJoCo's error, then the element and its MJCF.
+    message = str(error.value)
+    assert message.startswith("Compile error raised by Mujoco")
+    assert "Error: mesh geom 'broken' (id = 1) must have valid meshid\n" in message
+    assert message.endswith('\n<geom name="broken" class="/" type="mesh"/>')

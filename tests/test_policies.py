@@ -119,6 +119,12 @@ def test_same_seed_same_trajectories():
     for a, b in zip(first.episodes, second.episodes):
         for key in a:
             np.testing.assert_array_equal(a[key], b[key])
+    # Episode i is reset(seed=7 + i): seed 8's first episode is seed 7's second.
+    shifted = rollout(env, make_expert(env), 1, seed=8).episodes[0]
+    for key in shifted:
+        np.testing.assert_array_equal(shifted[key], first.episodes[1][key])
+    assert not np.array_equal(first.episodes[0]["desired_goal"][0],
+                              first.episodes[1]["desired_goal"][0])
 
 
 def test_saved_rollout_loads_back_with_its_shapes(tmp_path):

@@ -68,7 +68,7 @@ def test_timing_is_one_of_the_named_ones_and_not_given_beside_what_it_sets():
                                          "weld_time_constant: give it or control_timestep, "
                                          "not both"):
         gym.make("FrankaPushSparse-v0", timing="reference", control_timestep=0.1)
-    with pytest.raises(ValueError, match="velocity_timestep"):
+    with pytest.raises(ValueError, match="^velocity_timestep must be > 0, got -0.05$"):
         task_config("push", velocity_timestep=-0.05)
 
 

@@ -117,3 +117,6 @@ def test_pick_and_place_at_the_reference_timing_is_reported_running_until_it_has
     if len(finished) < 3:
         assert "**Running.**" in section and "no result yet" in section
         assert "%" not in section
+    else:  # Finished: the section gives the cell's result, no longer a running campaign.
+        assert "**Running.**" not in section and "no result yet" not in section
+        assert "%" in section

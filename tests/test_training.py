@@ -59,15 +59,18 @@ def test_table_i_is_the_papers():
     assert (tqc.n_critics, tqc.n_quantiles, tqc.top_quantiles_to_drop_per_net) == (2, 25, 2)
 
 
-def test_bad_names_are_value_errors_listing_choices():
+def test_bad_names_are_value_errors_listing_choices(capsys):
     with pytest.raises(ValueError, match="ddpg, sac, tqc"):
         hyperparameters("push", "ppo")
     with pytest.raises(ValueError, match="push, slide, pick_and_place, reach, stack, flip"):
         hyperparameters("lift", "sac")
     with pytest.raises(ValueError, match="valid hyperparameters: .*batch_size"):
         hyperparameters("push", "sac").replace(batchsize=3)
-    with pytest.raises(SystemExit):
+    with pytest.raises(SystemExit) as exit:
         cli.main(["train", "--algo", "ppo"])
+    assert exit.value.code == 2
+    assert capsys.readouterr().err.endswith(
+        "argument --algo: invalid choice: 'ppo' (choose from 'ddpg', 'sac', 'tqc')\n")
 
 
 def test_built_model_has_table_i_settings():
@@ -446,7 +449,8 @@ def test_a_run_stopped_while_writing_a_checkpoint_resumes_from_the_one_before(tm
 
 
 def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
-    with pytest.raises(ValueError, match="--resume"):
+    with pytest.raises(ValueError, match=re.escape(
+            f"{runs['ddpg']} already holds a run; pass --resume to continue it")):
         _train(runs["ddpg"], "ddpg", 300)
     RunDir(tmp_path / "bare").write_config(RunDir(runs["ddpg"]).read_config())
     with pytest.raises(ValueError, match="no complete checkpoint"):
@@ -521,8 +525,17 @@ def test_a_randomised_run_trains_resumes_and_evaluates_on_randomised_envs(tmp_pa
     # episodes at each of the 3 evaluations (steps 0, 100, 200).
     assert len(played) >= 4 + 2 * 3
     assert len(set(played)) == len(played)
+    from franka_composer.training import policy_file
+
+    evaluated = []
+    real_policy_env = policy_file.make_env
+    monkeypatch.setattr(policy_file, "make_env", lambda task, **options: evaluated.append(
+        options) or RecordPlayedDraws(real_policy_env(task, **options)))
+    played.clear()
     assert cli.main(["evaluate", str(out), "--episodes", "2"]) == 0
     assert "push" in capsys.readouterr().out
+    assert [options["randomization"] for options in evaluated] == ["default"]
+    assert len(played) == 2 and len(set(played)) == 2  # Each evaluated episode drawn anew.
     with pytest.raises(SystemExit):
         _train(tmp_path / "bad", "sac", 100, "--randomization", "strong")
     assert "invalid choice: 'strong' (choose from 'default')" in capsys.readouterr().err
@@ -545,11 +558,24 @@ def test_evaluate_prints_table_ii_layout(runs, tmp_path, capsys):
     assert printed.count("over 2 episodes") == 3
 
 
-def test_plot_draws_one_line_per_algorithm(runs, tmp_path):
+def test_plot_draws_one_line_per_algorithm(runs, tmp_path, monkeypatch, capsys):
     import matplotlib.image
+    import matplotlib.pyplot as plt
 
+    figures, close = [], plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: figures.append(fig) or close(fig))
     out = tmp_path / "curves.png"
     assert cli.main(["plot", *map(str, runs.values()), "--out", str(out)]) == 0
+    assert capsys.readouterr().out == f"3 curve(s) -> {out}\n"
+    (axes,) = figures[0].axes
+    lines = axes.get_lines()
+    assert [line.get_label() for line in lines] == [f"{algo.upper()} (1 seed)" for algo in runs]
+    assert [text.get_text() for text in axes.get_legend().get_texts()] == [
+        line.get_label() for line in lines]
+    for line, run in zip(lines, runs.values()):  # One seed: its median is its own curve.
+        rows = read_eval_rows(RunDir(run).eval_csv)
+        assert line.get_xdata().tolist() == [row["steps"] for row in rows]
+        assert line.get_ydata().tolist() == [row["success_rate"] for row in rows]
     image = matplotlib.image.imread(out)
     assert image.shape[0] == 432 and image.shape[1] == 540  # One panel, 4.5 x 3.6 in.
     assert np.ptp(image[..., :3]) > 0.5  # Not blank.

@@ -83,9 +83,11 @@ def test_bad_physics_settings_are_refused(field, value, message):
 
 
 def test_good_options_are_normalised_to_floats_and_tuples():
-    env = franka_composer.load("push", goal_centre=[0.5, 0.1], distance_threshold=1)
-    assert env.task.workspace.goal_box.centre == (0.5, 0.1)
-    assert env.task.distance_threshold == 1.0
+    env = franka_composer.load("push", goal_centre=[0.5, 0], distance_threshold=1)
+    centre = env.task.workspace.goal_box.centre
+    assert centre == (0.5, 0.0) and type(centre) is tuple
+    assert [type(value) for value in centre] == [float, float]
+    assert env.task.distance_threshold == 1.0 and type(env.task.distance_threshold) is float
 
 
 @pytest.mark.parametrize("options, message", [
