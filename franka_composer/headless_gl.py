@@ -7,7 +7,9 @@ user nor a display has chosen: frames render headless out of the box. A `MUJOCO_
 `DISPLAY` or `WAYLAND_DISPLAY` the user set is left alone (`osmesa` with Debian's
 `libosmesa6` where EGL is missing). dm_control's EGL backend opens its display at import,
 ~55 MB in every process (docs/guide/benchmarks.md); a process that never renders can avoid
-it with `MUJOCO_GL=disable`.
+it with `MUJOCO_GL=disable`. Where dm_control was imported first (shimmy imports it), or
+the user chose GLFW, without a display, the first render raises `HeadlessGLError` saying so
+(`check_can_render`), rather than failing inside dm_control's GL calls.
 """
 
 from __future__ import annotations
@@ -21,6 +23,31 @@ def choose_headless_backend() -> None:
     imported (it reads `MUJOCO_GL` once)."""
     if "MUJOCO_GL" in os.environ or "dm_control._render" in sys.modules:
         return  # The user chose, or dm_control already has.
-    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+    if _has_display():
         return
     os.environ["MUJOCO_GL"] = "egl"
+
+
+class HeadlessGLError(RuntimeError):
+    """dm_control renders through GLFW in a process without a display."""
+
+
+def check_can_render() -> None:
+    """A `HeadlessGLError` where dm_control renders through GLFW and there is no display:
+    its GL calls would fail deep inside (MjrContext has no _ptr)."""
+    render = sys.modules.get("dm_control._render")
+    if getattr(render, "BACKEND", None) != "glfw" or _has_display():
+        return
+    if os.environ.get("MUJOCO_GL") == "glfw":
+        why = "MUJOCO_GL=glfw, which needs a display"
+    else:
+        why = ("dm_control was imported before franka_composer (shimmy imports it, for one) "
+               "with MUJOCO_GL unset, so it took GLFW, which needs a display")
+    raise HeadlessGLError(
+        f"this process cannot render: {why}, and it has none (no DISPLAY or "
+        "WAYLAND_DISPLAY). Import franka_composer before dm_control and shimmy, or set "
+        "MUJOCO_GL=egl (or osmesa) before Python starts")
+
+
+def _has_display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

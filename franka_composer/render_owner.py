@@ -14,6 +14,8 @@ import os
 import threading
 import weakref
 
+from franka_composer import headless_gl
+
 # environment -> (process id, thread) of the thread that renders it.
 _OWNERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -24,11 +26,13 @@ class RenderThreadError(RuntimeError):
 
 def claim(environment) -> None:
     """Makes this thread the one that renders `environment`, or raises `RenderThreadError` if
-    another thread of this process already does. A forked child starts afresh: the GL state
-    it inherited is its parent's (`gl_fork`)."""
+    another thread of this process already does (`HeadlessGLError` if it cannot render at
+    all). A forked child starts afresh: the GL state it inherited is its parent's
+    (`gl_fork`)."""
     here = threading.current_thread()
     owner = _OWNERS.get(environment)
     if owner is None or owner[0] != os.getpid():
+        headless_gl.check_can_render()  # Before its first render in this process.
         if owner is not None:  # Rendered before this process was forked from its parent.
             _abandon_contexts(environment.physics)
         _OWNERS[environment] = (os.getpid(), here)

@@ -43,3 +43,39 @@ def test_a_backend_the_user_chose_is_kept():
     """`MUJOCO_GL=disable` spares a process that never renders dm_control's EGL backend."""
     probe = _probe(None, MUJOCO_GL="disable")
     assert probe == {"mujoco_gl": "disable", "frame_std": None}
+
+
+_GLFW_WITHOUT_A_DISPLAY = """
+import dm_control.composer  # Before franka_composer, as shimmy does, with MUJOCO_GL unset.
+import gymnasium as gym
+import franka_composer
+from franka_composer.headless_gl import HeadlessGLError
+for options in ({{"render_mode": "rgb_array"}}, {{"observation_mode": "pixels"}}):
+    env = gym.make("FrankaPushSparse-v0", width=64, height=64, **options)
+    try:
+        env.reset(seed=0)
+        env.render()
+    except HeadlessGLError as error:
+        print(error)
+    env.close()
+"""
+
+
+@pytest.mark.parametrize("mujoco_gl, why", [
+    (None, "dm_control was imported before franka_composer (shimmy imports it, for one) "
+           "with MUJOCO_GL unset, so it took GLFW, which needs a display"),
+    ("glfw", "MUJOCO_GL=glfw, which needs a display")])
+def test_glfw_without_a_display_is_refused_at_the_first_render_saying_why(mujoco_gl, why):
+    """Not an AttributeError from inside dm_control's GL calls."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    if mujoco_gl:
+        env["MUJOCO_GL"] = mujoco_gl
+    result = subprocess.run([sys.executable, "-c", _GLFW_WITHOUT_A_DISPLAY.format()], env=env,
+                            capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    message = (f"this process cannot render: {why}, and it has none (no DISPLAY or "
+               "WAYLAND_DISPLAY). Import franka_composer before dm_control and shimmy, or set "
+               "MUJOCO_GL=egl (or osmesa) before Python starts")
+    assert result.stdout.splitlines() == [message, message]  # A render; a pixel reset.
+
