@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
+import pathlib
+import tempfile
 from typing import Iterable, Sequence
 
 
@@ -59,6 +62,32 @@ def check_vector(name: str, value, size: int, **bounds) -> tuple[float, ...]:
     if len(items) != size:
         raise ValueError(f"{name} must have {size} number(s), got {len(items)}: {value!r}")
     return tuple(check_number(f"{name}[{i}]", item, **bounds) for i, item in enumerate(items))
+
+
+def check_writable(path, *, folder: bool = False) -> pathlib.Path:
+    """`path` as a Path if a file (or, with `folder`, a folder) can be written there: the
+    nearest folder on the way that exists takes a new file, or an existing file can be
+    written over. Found out before the work whose result would be lost to the path. A file
+    is made there and removed again, since os.access says yes to root even in /proc:
+    `tempfile.TemporaryFile`, unnamed where the file system allows (O_TMPFILE), so even the
+    folder's modification time stays as it was."""
+    path = pathlib.Path(path)
+    if not folder and path.exists() and not path.is_dir():
+        if not os.access(path, os.W_OK):
+            raise ValueError(f"cannot write to {path}: it is read-only")
+        return path
+    start = path if folder else path.parent
+    nearest = next((ancestor for ancestor in (start, *start.parents) if ancestor.exists()),
+                   pathlib.Path("."))
+    if not nearest.is_dir():
+        raise ValueError(f"cannot write to {path}: {nearest} is not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=nearest):
+            pass
+    except OSError as error:
+        raise ValueError(f"cannot write to {path}: no file can be made in {nearest} "
+                         f"({error.strerror or error})") from None
+    return path
 
 
 def _bounds(minimum, maximum, above) -> str:

@@ -128,6 +128,19 @@ def test_an_npz_of_another_task_or_controller_is_refused(recorded, push_env, tmp
                        "demonstrations of another task?")
 
 
+def test_demonstrations_whose_actions_the_env_cannot_take_are_refused(recorded, push_env,
+                                                                        tmp_path):
+    with np.load(recorded / "push.npz") as data:
+        actions, first = data["action"], int(data["episode_length"][0])
+    _refused(_rewrite(recorded / "push.npz", tmp_path / "cut.npz", action=actions[:, :2]),
+             push_env, "holds action of shape (2,) (episode 0), but this task's is (3,): "
+                       "demonstrations of another task or controller?")
+    scaled = actions * 50.0
+    _refused(_rewrite(recorded / "push.npz", tmp_path / "scaled.npz", action=scaled),
+             push_env, f"holds actions outside the action space [-1, 1] (episode 0: "
+                       f"{scaled[:first].min():g} to {scaled[:first].max():g})")
+
+
 def test_an_npz_from_before_metadata_is_refused_saying_how_to_record_it_again(recorded,
                                                                               push_env,
                                                                               tmp_path):

@@ -153,6 +153,14 @@ def test_evaluate_passes_over_a_damaged_model_zip_for_the_final_checkpoint(finis
                          "cpu"]) == 0
     assert _success_line(capsys).split(": ", 1)[1] == whole  # The same model, 200 steps.
     (run.checkpoint_model).write_bytes(b"")
+    # The policy file is the same actor: what a committed run plays.
+    with pytest.warns(RuntimeWarning, match=re.escape(
+            f"{run.checkpoint_model} is damaged (not a readable zip archive") + ".*" + re.escape(
+            f"using its policy file, {run.policy_file}")):
+        assert cli.main(["evaluate", str(run.root), "--episodes", "2", "--device",
+                         "cpu"]) == 0
+    assert _success_line(capsys).split(": ", 1)[1] == whole
+    run.policy_file.unlink()
     with pytest.raises(ValueError, match=re.escape(f"{run.checkpoint_model} is damaged "
                                                    "(not a readable zip archive")):
         cli.main(["evaluate", str(run.root), "--episodes", "2", "--device", "cpu"])

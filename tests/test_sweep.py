@@ -224,6 +224,7 @@ def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
     single = _write_run(tmp_path, "alone", [(0, 1, 0.0)], seed=2).root
     assert run_directories([tmp_path / "sweep", single]) == [
         tmp_path / "sweep" / "push-sac-seed0", tmp_path / "sweep" / "push-sac-seed1", single]
+    (tmp_path / "sweep" / "nothing").mkdir()
     with pytest.raises(ValueError, match="is neither a training run nor a sweep of runs"):
         run_directories([tmp_path / "sweep" / "nothing"])
 

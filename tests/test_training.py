@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -455,6 +456,63 @@ def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
     RunDir(tmp_path / "bare").write_config(RunDir(runs["ddpg"]).read_config())
     with pytest.raises(ValueError, match="no complete checkpoint"):
         _train(tmp_path / "bare", "ddpg", 300, "--resume")
+
+
+def test_a_run_that_cannot_train_is_refused_before_its_folder_is_made(tmp_path):
+    """Thousands of threads or a batch larger than the buffer would stall the run (past
+    SIGTERM's stop at an episode's end) or exhaust memory: refused first."""
+    cpus = len(os.sched_getaffinity(0))
+    out = tmp_path / "run"
+    with pytest.raises(ValueError, match=re.escape(
+            f"--threads {cpus + 1} is more than the {cpus} CPUs this process may use")):
+        _train(out, "sac", 100, "--threads", str(cpus + 1))
+    with pytest.raises(ValueError, match=re.escape(
+            "--batch-size 4000 is larger than the replay buffer (--buffer-size 2000) it is "
+            "sampled from")):
+        _train(out, "sac", 100, "--batch-size", "4000")
+    with pytest.raises(ValueError, match=re.escape(
+            "the scripted experts act on dx, dy, dz, which the joints controller does not "
+            "take: use control='mocap' or 'osc'")):
+        _train(out, "sac", 100, "--control", "joints", "--expert-demos", "2")
+    assert not out.exists()
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(ValueError, match=re.escape(
+            f"{out} is not empty and holds no run: give a new or empty folder as --out")):
+        _train(out, "sac", 100)
+    assert [path.name for path in out.iterdir()] == ["notes.txt"]
+
+
+def test_a_new_run_that_fails_before_its_first_checkpoint_leaves_nothing(tmp_path,
+                                                                          monkeypatch):
+    from franka_composer.training import loop
+
+    def failing(*args, **kwargs):
+        raise RuntimeError("the model could not be built")
+
+    monkeypatch.setattr(loop, "build_model", failing)
+    made, given = tmp_path / "made", tmp_path / "given"
+    given.mkdir()
+    for out in (made, given):
+        with pytest.raises(RuntimeError, match="the model could not be built"):
+            _train(out, "sac", 100)
+    assert not made.exists() and list(given.iterdir()) == []  # The folder given stays.
+
+
+def test_a_resume_keeps_what_the_run_trained_and_its_evaluations(runs, tmp_path):
+    run = RunDir(runs["sac"])
+    steps, config = run.read_state()["steps"], run.config_path.read_text()
+    with pytest.raises(ValueError, match=re.escape(
+            f"{run.root} has trained {steps} steps already, more than --total-steps 100")):
+        cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "100"])
+    assert run.config_path.read_text() == config
+    copy = tmp_path / "copy"
+    shutil.copytree(run.root, copy)
+    (copy / "eval.csv").unlink()
+    with pytest.raises(ValueError, match=re.escape(
+            f"{copy / 'eval.csv'} is missing: the run's evaluations up to its checkpoint would "
+            "be lost; put it back to resume")):
+        cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
 
 
 def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):

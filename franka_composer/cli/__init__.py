@@ -39,9 +39,11 @@ def main(argv: list[str] | None = None) -> int:
 
 def console(argv: list[str] | None = None) -> int:
     """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
-    status 2, as argparse reports its own errors, not a traceback, and so is a Panda that
-    cannot be found (status 1); a reader that has gone (`franka-composer evaluate ... |
-    head`) ends the command quietly, with the status a shell gives a command SIGPIPE ends."""
+    status 2, as argparse reports its own errors, not a traceback, and so are a Panda that
+    cannot be found and a file that cannot be written or read after all (OSError: a full
+    disk, a folder removed meanwhile; status 1); a reader that has gone (`franka-composer
+    evaluate ... | head`) ends the command quietly, with the status a shell gives a command
+    SIGPIPE ends."""
     try:
         try:
             return main(argv)
@@ -54,3 +56,6 @@ def console(argv: list[str] | None = None) -> int:
         # The interpreter flushes stdout again on exit: let that write go nowhere.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + signal.SIGPIPE
+    except OSError as error:  # After BrokenPipeError, one of its kind.
+        print(f"franka-composer: error: {error}", file=sys.stderr)
+        return 1

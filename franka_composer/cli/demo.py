@@ -18,8 +18,12 @@ from franka_composer.cli.options import (add_tasks_argument, add_timing, episode
                                          frame_size, given_timing, output_folder,
                                          positive_int)
 from franka_composer.policies import make_expert, rollout
+from franka_composer.validation import check_writable
 
 DEFAULT_OUT = "demo_output"
+#: Episodes each task's video shows where --video-episodes is not given (or every episode,
+#: if there are fewer).
+DEFAULT_VIDEO_EPISODES = 3
 TABLE_HEADER = ("task", "episodes", "success rate", "mean episode length", "env steps/s")
 
 
@@ -51,9 +55,10 @@ def add_parser(subparsers) -> None:
                         help=f"folder for the videos and first frames (default: {DEFAULT_OUT}/)")
     parser.add_argument("--no-video", action="store_true",
                         help="do not render: write no MP4 or PNG files, print only the table")
-    parser.add_argument("--video-episodes", type=positive_int, default=3,
-                        help="how many of the first episodes each task's video shows "
-                             "(default: 3)")
+    parser.add_argument("--video-episodes", type=positive_int, default=None,
+                        help="how many of the first episodes each task's video shows, at "
+                             f"most --episodes (default: {DEFAULT_VIDEO_EPISODES}, or every "
+                             "episode if fewer)")
     parser.add_argument("--width", type=frame_size, default=480,
                         help="frame width in pixels, at most 1024 (default: 480)")
     parser.add_argument("--height", type=frame_size, default=480,
@@ -64,6 +69,11 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    if args.video_episodes is not None and args.video_episodes > args.episodes:
+        raise ValueError(f"--video-episodes {args.video_episodes} is more than --episodes "
+                         f"{args.episodes}: each task's video shows its first episodes")
+    if not args.no_video:
+        check_writable(args.out, folder=True)  # Also the default, which the parser passes.
     trained = None if args.policy is None else _adopt_the_runs_task(args)
     rows = []
     with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode") as bar:
@@ -111,7 +121,7 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     frames: list = []
 
     def record(environment, episode: int) -> None:
-        if episode < args.video_episodes:
+        if episode < (args.video_episodes or DEFAULT_VIDEO_EPISODES):
             frames.append(environment.render())
 
     trajectories = rollout(env, policy, args.episodes, seed=args.seed,

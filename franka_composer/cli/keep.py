@@ -1,5 +1,5 @@
 """`franka-composer keep`: the small files of runs still training or finished, copied where
-they can be committed (`training.runs.keep_run`; `sweep --sync` does the same for a sweep's
+they can be committed (`training.keep`; `sweep --sync` does the same for a sweep's
 cells)."""
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training.runs import RunDir, keep_run
+    from franka_composer.training.keep import check_kept_apart, files_to_keep, keep_run
+    from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import run_directories
 
     runs = [root.resolve() for root in run_directories(args.runs)]  # `.` has no name.
@@ -34,11 +35,9 @@ def run(args: argparse.Namespace) -> int:
     if repeated:
         raise ValueError(f"two runs named {', '.join(repeated)}: each is kept as --into "
                          "DIR/<its name>, so one would overwrite the other")
-    inside = [root for root in runs if (args.into / root.name).resolve() == root]
-    if inside:
-        raise ValueError(f"{inside[0]} is the run itself: give --into a folder other than "
-                         "the one holding the runs")
-    for root in runs:
-        keep_run(RunDir(root), RunDir(args.into / root.name))
+    check_kept_apart(runs, args.into, "--into")
+    kept = [files_to_keep(RunDir(root)) for root in runs]  # Every run checked first.
+    for root, files in zip(runs, kept):
+        keep_run(files, RunDir(args.into / root.name))
     print(f"{args.into}: {', '.join(names)}")
     return 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import pathlib
 
+from franka_composer.validation import check_writable
+
 
 def number(text: str) -> float:
     """`text` as a float; NaN (which fails every range check) if it is not a number."""
@@ -49,20 +51,30 @@ def frame_size(text: str) -> int:
 
 
 def output_file(text: str) -> pathlib.Path:
-    """A file to write at the end of a command: not a folder (missing parent folders are
-    made when it is written), so a long evaluation is not lost to a bad path."""
+    """A file to write at the end of a command: not a folder, and where a file can be made
+    (missing parent folders are made when it is written), so a long evaluation is not lost
+    to a bad path."""
     path = pathlib.Path(text)
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a file, got the folder {text!r}")
-    return path
+    return _writable(path, folder=False)
 
 
 def output_folder(text: str) -> pathlib.Path:
-    """A folder to write into: made if missing, refused if a file stands there."""
+    """A folder to write into: made if missing, refused if a file stands there or nothing
+    can be written there."""
     path = pathlib.Path(text)
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
-    return path
+    return _writable(path, folder=True)
+
+
+def _writable(path: pathlib.Path, folder: bool) -> pathlib.Path:
+    """`check_writable`, its refusal as argparse's."""
+    try:
+        return check_writable(path, folder=folder)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def figure_file(text: str) -> pathlib.Path:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import pathlib
 
 from franka_composer.cli.options import add_run_dirs, figure_file
 
@@ -21,7 +20,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--wall-clock", action="store_true",
                         help="each run's wall-clock minutes on the x axis, not environment "
                              "steps: how recipes whose steps cost differently compare")
-    parser.add_argument("--out", type=figure_file, default=pathlib.Path("curves.png"),
+    parser.add_argument("--out", type=figure_file, default="curves.png",
                         help="image file to write (PNG, PDF or SVG by extension)")
     parser.set_defaults(func=run)
 

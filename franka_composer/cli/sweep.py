@@ -164,14 +164,14 @@ def check_cells(cells, out, train_args: tuple[str, ...]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.sweep import (cell_status, run_sweep, status_table,
-                                                sync_cell)
+                                                sync_cells)
 
     cells, rule = cells_of(args)
     if args.status:
         print(status_table([cell_status(cell, args.out) for cell in cells]))
         return 0
     if args.sync:
-        synced = [cell.name for cell in cells if sync_cell(cell, args.out, args.sync)]
+        synced = sync_cells(cells, args.out, args.sync)
         print(f"{args.sync}: {', '.join(synced) if synced else 'no cell has a run yet'}")
         return 0
     train_args = (*rule, *args.train_args)

@@ -59,9 +59,11 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
     """Checks --demos before the run directory exists: they load as the task's, and the
     buffer keeps them."""
     if args.expert_demos is not None:  # (Beside --demos, RunConfig has refused them.)
+        from franka_composer.policies import check_expert_control
         from franka_composer.tasks import TASK_CONFIGS
         from franka_composer.training import demos
 
+        check_expert_control(TASK_CONFIGS[args.task].replace(control=args.control).control)
         # The most the expert's episodes can hold: each as long as the task's horizon.
         demos.check_room(args.expert_demos * TASK_CONFIGS[args.task].max_episode_steps,
                          buffer_size, total_steps)
@@ -290,6 +292,9 @@ def check_new_run(args: argparse.Namespace):
         raise ValueError(f"--buffer-size {hp.buffer_size} is smaller than one {config.task} "
                          f"episode ({episode} steps): HER stores whole episodes (Table I: "
                          "1e6)")
+    if hp.batch_size > hp.buffer_size:
+        raise ValueError(f"--batch-size {hp.batch_size} is larger than the replay buffer "
+                         f"(--buffer-size {hp.buffer_size}) it is sampled from")
     _check_demos(settings, hp.buffer_size, args.total_steps or hp.total_steps)
     return config
 
@@ -316,6 +321,23 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
             + ": only --total-steps, --device, --threads and --checkpoint-every may change")
 
 
+def _check_threads(threads: int | None) -> None:
+    """More threads than CPUs only queue for them (thousands stall a gradient step, and with
+    it the stop at the episode's end that SIGTERM waits for)."""
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    if threads is not None and cpus and threads > cpus:
+        raise ValueError(f"--threads {threads} is more than the {cpus} CPUs this process may "
+                         "use")
+
+
+def _check_budget(args: argparse.Namespace, run_dir) -> None:
+    """A resume's --total-steps may raise the run's budget, not go below what it trained."""
+    steps = run_dir.read_state().get("steps", 0)
+    if args.total_steps is not None and args.total_steps < steps:
+        raise ValueError(f"{run_dir.root} has trained {steps} steps already, more than "
+                         f"--total-steps {args.total_steps}")
+
+
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training import loop
     from franka_composer.training.runs import RunDir
@@ -323,17 +345,23 @@ def run(args: argparse.Namespace) -> int:
     settings = with_defaults(args)
     out = args.out or pathlib.Path("runs") / (
         f"{settings.task}-{settings.algo}-seed{settings.seed}")
+    _check_threads(args.threads)
+    made_folder = False
     if args.resume:
         run_dir = RunDir(out)
         _check_resumed_as_given(args, run_dir)
         run_dir.recover_checkpoint()
+        _check_budget(args, run_dir)
     else:
+        made_folder = not out.exists()
         run_dir = loop.start(out, check_new_run(args))
     threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
     try:
-        with _limit_threads(threads, run_dir.read_config().backend):
+        with _limit_threads(threads, run_dir.read_config().backend), \
+                loop.removed_if_it_fails_before_a_checkpoint(
+                    run_dir, new=not args.resume, made_folder=made_folder):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
                                device=args.device, checkpoint_every=args.checkpoint_every,
                                threads=threads, progress=args.progress)

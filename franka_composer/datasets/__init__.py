@@ -20,7 +20,7 @@ from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end
 from franka_composer.tasks.config import expand_timing
-from franka_composer.validation import check_choice, check_number
+from franka_composer.validation import check_choice, check_number, check_writable
 
 #: The formats `record` writes.
 FORMATS = ("npz", "minari", "rlds")
@@ -48,6 +48,8 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     source = source_name(policy_dir, action_noise)
     if format == "minari":
         dataset_id = dataset_id or default_dataset_id(task, control, source)
+    elif dataset_id is not None:
+        raise ValueError("--dataset-id names a Minari dataset: give it with --format minari")
     _check_destination(out, format, dataset_id)
     # A named timing is kept as the values it sets: what the name stands for may change.
     options = expand_timing(options)
@@ -106,10 +108,14 @@ def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -
     """Where `record` writes must take a new dataset whole, found out before the episodes
     are recorded: an npz file's name ends in .npz (numpy would add it); Minari and RLDS
     datasets are folders, and one already there is not added to (envlogger would append
-    the new episodes to an RLDS dataset's, Minari refuses at the end)."""
+    the new episodes to an RLDS dataset's, Minari refuses at the end); either can be
+    written there (`check_writable`)."""
     if format == "npz":
         if out.suffix != ".npz":
             raise ValueError(f"an npz dataset's path must end in .npz, got {str(out)!r}")
+        if out.is_dir():
+            raise ValueError(f"an npz dataset is a file, and {out} is a folder")
+        check_writable(out)
         return
     if out.is_file():
         raise ValueError(f"a {format} dataset is a folder, and {out} is a file")
@@ -119,6 +125,7 @@ def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -
     if format == "minari" and dataset_id is not None and (out / dataset_id).exists():
         raise ValueError(f"{out} already holds the Minari dataset {dataset_id}: choose "
                          "another --out or --dataset-id")
+    check_writable(out, folder=True)
 
 
 __all__ = ["FORMATS", "default_dataset_id", "readable_options", "record"]

@@ -42,14 +42,19 @@ def make_expert(env) -> Expert:
     unwrapped = getattr(env, "unwrapped", env)
     task = unwrapped.task
     expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
-    if not task.config.control.moves_the_tcp:
-        raise ValueError(f"the scripted experts act on dx, dy, dz, which the "
-                         f"{task.config.control.kind} controller does not take: use "
-                         f"control='mocap' or 'osc'")
+    check_expert_control(task.config.control)
     composer_env = getattr(unwrapped, "composer_env", unwrapped)
     expert_input = ExpertInput(task.observation_layout, task.desired_goal_key,
                                read_state=lambda: task.state_vector(composer_env.physics))
     return expert(task.observation_layout, task.config, expert_input)
 
 
-__all__ = ["EXPERTS", "Expert", "Trajectories", "make_expert", "rollout"]
+def check_expert_control(control) -> None:
+    """A ValueError unless the experts can act through `control` (`ControlSettings`)."""
+    if not control.moves_the_tcp:
+        raise ValueError(f"the scripted experts act on dx, dy, dz, which the {control.kind} "
+                         "controller does not take: use control='mocap' or 'osc'")
+
+
+__all__ = ["EXPERTS", "Expert", "Trajectories", "check_expert_control", "make_expert",
+           "rollout"]

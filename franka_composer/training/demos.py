@@ -49,6 +49,7 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
         if shape != spaces[key].shape:
             raise ValueError(f"{path} holds {key} of shape {shape}, but this task's is "
                              f"{spaces[key].shape}: demonstrations of another task?")
+    _check_actions(path, episodes, env.action_space)
     _check_sparse_rewards(path, episodes)
     return episodes
 
@@ -111,6 +112,22 @@ def _timing(config) -> str:
 
 #: The rewards training uses: -1 until the goal is reached, 0 there.
 _SPARSE = np.unique(reward_from_distance(np.array([0.0, np.inf]), "sparse", 1.0))
+
+
+def _check_actions(path, episodes: list[dict], space) -> None:
+    """The actions must be ones the env takes: of its shape, within its bounds (the buffer
+    would otherwise teach the critic actions the actor can never take)."""
+    for index, episode in enumerate(episodes):
+        actions = np.asarray(episode["action"])
+        if actions.shape[1:] != space.shape:
+            raise ValueError(f"{path} holds action of shape {actions.shape[1:]} (episode "
+                             f"{index}), but this task's is {space.shape}: demonstrations "
+                             "of another task or controller?")
+        if not (np.isfinite(actions).all() and (actions >= space.low).all()
+                and (actions <= space.high).all()):
+            raise ValueError(f"{path} holds actions outside the action space "
+                             f"[{space.low.min():g}, {space.high.max():g}] (episode {index}: "
+                             f"{actions.min():g} to {actions.max():g})")
 
 
 def _check_sparse_rewards(path, episodes: list[dict]) -> None:

@@ -8,9 +8,11 @@ it at once, with a checkpoint from which the run goes on with a fresh episode st
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib.util
 import pathlib
+import shutil
 import signal
 import warnings
 
@@ -72,13 +74,36 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
 
 
 def start(root: pathlib.Path, config: RunConfig) -> RunDir:
-    """Creates a run directory for `config`; one that already holds a run is a ValueError."""
+    """Creates a run directory for `config`; a folder that already holds a run, or anything
+    else, is a ValueError (a failed start removes what it made: nothing else may be there)."""
     run = RunDir(pathlib.Path(root))
     if run.config_path.exists():
         raise ValueError(f"{run.root} already holds a run; pass --resume to continue it "
                          "or choose another --out")
+    if run.root.is_dir() and any(run.root.iterdir()):
+        raise ValueError(f"{run.root} is not empty and holds no run: give a new or empty "
+                         "folder as --out")
     run.write_config(config)
     return run
+
+
+@contextlib.contextmanager
+def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool, made_folder: bool):
+    """Where a `new` run fails (an error, not an interrupt) before its first checkpoint,
+    what it wrote is removed, and its folder if `start` made it: a second try with the same
+    --out then starts afresh instead of being refused as a run without a checkpoint."""
+    try:
+        yield
+    except Exception:
+        if new and not run.read_state():
+            for path in run.root.iterdir():
+                if path.is_dir():
+                    shutil.rmtree(path)
+                else:
+                    path.unlink()
+            if made_folder:
+                run.root.rmdir()
+        raise
 
 
 def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
@@ -115,6 +140,9 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         if not state:
             raise ValueError(f"{run.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
+        if not run.eval_csv.is_file():
+            raise ValueError(f"{run.eval_csv} is missing: the run's evaluations up to its "
+                             "checkpoint would be lost; put it back to resume")
         # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
         clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
         model, stream = _resume(run, config, state, env, device)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import pathlib
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -127,12 +128,20 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
 
 def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
     """What `run` trained, ready to act on `env`: its full model (model.zip, else its latest
-    checkpoint: `RunDir.best_model`) where it has one, else its policy file (a run as
-    committed)."""
+    checkpoint: `RunDir.best_model`) where it has one whole, else its policy file (a run as
+    committed; a warning says which damaged model was passed over)."""
     config = run.read_config()
     if run.final_model.is_file() or run.checkpoint_model.is_file():
-        return load_model(config.algo, run.best_model(), env=env, device=device,
-                          backend=config.backend)
+        try:
+            model = run.best_model()
+        except ValueError as damaged:
+            if not run.policy_file.is_file():
+                raise
+            warnings.warn(f"{damaged}: using its policy file, {run.policy_file}",
+                          RuntimeWarning, stacklevel=2)
+        else:
+            return load_model(config.algo, model, env=env, device=device,
+                              backend=config.backend)
     if not run.policy_file.is_file():
         raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
                          "no policy.pt)")

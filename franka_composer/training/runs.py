@@ -22,6 +22,7 @@ import csv
 import dataclasses
 import io
 import json
+import math
 import os
 import pathlib
 import shutil
@@ -63,7 +64,12 @@ class RunDir:
         time None or absent where it was not recorded throughout); {} before it ends."""
         if not self.outcome_path.is_file():
             return {}
-        return read_json(self.outcome_path, "a run's outcome")
+        outcome = read_json(self.outcome_path, "a run's outcome")
+        if not (isinstance(outcome.get("steps"), int)
+                and isinstance(outcome.get("stopped_early"), bool)):
+            raise ValueError(f"{self.outcome_path} is not a run's outcome: it needs a whole "
+                             "number of steps and stopped_early true or false")
+        return outcome
 
     def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
                       cpu_time_s: float | None = None) -> None:
@@ -208,6 +214,8 @@ class RunDir:
         return self.root / "tensorboard"
 
     def read_config(self) -> RunConfig:
+        if not self.root.exists():
+            raise ValueError(f"{self.root} does not exist")
         if not self.config_path.is_file():
             raise ValueError(f"{self.root} is not a training run (no config.json)")
         recorded = read_json(self.config_path, "a run's config")
@@ -279,30 +287,15 @@ LOCK_WAIT_S = 1.0
 
 def run_finished(run: RunDir, budget: int | None = None) -> bool:
     """Whether `run` has ended at `budget` steps (None: its own, config.json's total_steps),
-    or before it by the stopping rule."""
+    or before it by the stopping rule. Its config is read either way: a run whose
+    config.json is damaged is named, not counted as finished."""
     outcome = run.read_outcome()
     if not outcome:
         return False
+    config = run.read_config()
     if budget is None:
-        budget = run.read_config().hyperparameters.total_steps
+        budget = config.hyperparameters.total_steps
     return bool(outcome["stopped_early"] or outcome["steps"] >= budget)
-
-
-def keep_run(run: RunDir, kept: RunDir, budget: int | None = None) -> None:
-    """Copies into `kept` what `run` has kept, small enough to commit as it grows:
-    config.json, the evaluations a resume keeps, and once it has finished (`run_finished`
-    at `budget`) outcome.json and policy.pt. A run taken on to a larger budget than it
-    finished at loses its outcome and policy here until it finishes again."""
-    kept.root.mkdir(parents=True, exist_ok=True)
-    shutil.copy(run.config_path, kept.config_path)
-    write_eval_rows(kept.eval_csv, run.kept_evaluations())
-    finished = run_finished(run, budget)
-    for path, copy in ((run.outcome_path, kept.outcome_path),
-                       (run.policy_file, kept.policy_file)):
-        if finished and path.is_file():
-            shutil.copy(path, copy)
-        elif copy.is_file():
-            copy.unlink()
 
 
 def _take_lock(handle) -> None:
@@ -333,7 +326,9 @@ def success_curve(rows: list[dict[str, float]]) -> dict[int, float]:
 
 
 def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
-    """The rows of an eval.csv as floats (steps as int); [] when it does not exist."""
+    """The rows of an eval.csv as floats (steps as int); [] when it does not exist. A row no
+    run writes (steps not whole or not increasing, a wall time not finite and >= 0, a
+    success rate outside [0, 1]) is a ValueError naming the file and its line."""
     if not path.is_file():
         return []
     try:
@@ -346,15 +341,34 @@ def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
         raise ValueError(f"{path} is not an eval.csv: its columns are "
                          f"{', '.join(reader.fieldnames or ()) or 'none'}, not "
                          f"{', '.join(EVAL_COLUMNS)}")
-    rows = []
+    rows: list[dict[str, float]] = []
     for line, row in enumerate(reader, start=2):
         try:
-            rows.append({k: (int(float(v)) if k == "steps" else float(v))
-                         for k, v in row.items()})
+            values = {name: float(value) for name, value in row.items()}
         except (TypeError, ValueError):
             raise ValueError(f"{path}, line {line}: expected numbers for "
                              f"{', '.join(EVAL_COLUMNS)}, got {row}") from None
+        problem = _eval_row_problem(values, rows[-1]["steps"] if rows else None)
+        if problem:
+            raise ValueError(f"{path}, line {line}: {problem}")
+        rows.append({**values, "steps": int(values["steps"])})
     return rows
+
+
+def _eval_row_problem(row: dict[str, float], previous_steps: int | None) -> str | None:
+    """What makes `row` (an eval.csv row's numbers) no evaluation a run writes, after the one
+    at `previous_steps`; None if nothing does."""
+    steps, wall_time, success_rate = row["steps"], row["wall_time_s"], row["success_rate"]
+    if not (steps >= 0 and steps.is_integer()):
+        return f"steps must be a whole number >= 0, got {steps}"
+    if previous_steps is not None and steps <= previous_steps:
+        return (f"steps must increase from row to row, got {steps:.0f} after "
+                f"{previous_steps}")
+    if not 0.0 <= wall_time < math.inf:
+        return f"wall_time_s must be a finite number >= 0, got {wall_time}"
+    if not 0.0 <= success_rate <= 1.0:
+        return f"success_rate must be within [0, 1], got {success_rate}"
+    return None
 
 
 def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:

@@ -24,7 +24,8 @@ import sys
 import time
 
 from franka_composer.training.report import with_variant
-from franka_composer.training.runs import RunDir, keep_run, read_eval_rows, run_finished
+from franka_composer.training.keep import check_kept_apart, files_to_keep, keep_run
+from franka_composer.training.runs import RunDir, read_eval_rows, run_finished
 from franka_composer.training.signals import interrupt_on
 
 
@@ -189,18 +190,21 @@ def cell_finished(run: RunDir, cell: Cell) -> bool:
     return run_finished(run, cell.steps)
 
 
-def sync_cell(cell: Cell, root: pathlib.Path, kept: pathlib.Path) -> bool:
-    """Copies into `kept`/<cell> what the cell's run under `root` has kept (`keep_run`, at
-    the cell's budget). False where the cell has no run."""
-    run = RunDir(root / cell.name)
-    if not run.config_path.is_file():
-        return False
-    keep_run(run, RunDir(kept / cell.name), cell.steps)
-    return True
+def sync_cells(cells: list[Cell], root: pathlib.Path, kept: pathlib.Path) -> list[str]:
+    """Copies into `kept`/<cell> what each cell's run under `root` has kept (`keep_run`, at
+    the cell's budget), once every run has been checked; the names of the cells that have a
+    run."""
+    check_kept_apart([root / cell.name for cell in cells], kept, "--sync")
+    runs = {cell: RunDir(root / cell.name) for cell in cells}
+    files = {cell: files_to_keep(run, cell.steps) for cell, run in runs.items()
+             if run.config_path.is_file()}
+    for cell, kept_files in files.items():
+        keep_run(kept_files, RunDir(kept / cell.name))
+    return [cell.name for cell in files]
 
 
 def finished_in(kept: pathlib.Path, cells: list[Cell]) -> list[Cell]:
-    """The `cells` finished (`cell_finished`) in `kept`, where `sync_cell` copies them: done,
+    """The `cells` finished (`cell_finished`) in `kept`, where `sync_cells` copies them: done,
     even where their run directory is gone, as on a machine handed back bare."""
     return [cell for cell in cells if cell_finished(RunDir(kept / cell.name), cell)]
 
@@ -347,6 +351,8 @@ def run_directories(paths) -> list[pathlib.Path]:
         if RunDir(path).config_path.is_file():
             runs.append(path)
             continue
+        if not path.exists():
+            raise ValueError(f"{path} does not exist")
         inside = sorted(p.parent for p in path.glob("*/config.json"))
         if not inside:
             raise ValueError(f"{path} is neither a training run nor a sweep of runs "

@@ -1,0 +1,247 @@
+"""Bad input to the subcommands is refused with one clear error naming what was wrong, before
+anything is built or written: output paths where nothing can be written, damaged run files
+(also before `keep` and `sweep --sync` copy anything), and options that would be ignored."""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import re
+
+import pytest
+
+from franka_composer import cli
+from franka_composer.training import hyperparameters
+from franka_composer.training.run_config import RunConfig
+from franka_composer.training.runs import RunDir, read_eval_rows
+
+#: A folder in which not even root can make a file (Linux's /proc).
+PROC = pathlib.Path("/proc")
+needs_proc = pytest.mark.skipif(not PROC.is_dir(), reason="no /proc here")
+HEADER = "steps,wall_time_s,success_rate,mean_reward\n"
+
+
+def _run(root: pathlib.Path, rows: str = "0,1,0.0,-1\n2000,2,0.5,-1\n",
+         outcome: bool = True, seed: int = 0) -> RunDir:
+    """A push SAC run of 2000 steps with `rows` in its eval.csv, finished if `outcome`."""
+    run = RunDir(root)
+    run.write_config(RunConfig("push", "sac", seed, hyperparameters("push", "sac").replace(
+        total_steps=2000)))
+    run.eval_csv.write_text(HEADER + rows)
+    if outcome:
+        run.write_outcome(2000, False, 2.0)
+    return run
+
+
+def _parse_error(argv: list[str], capsys) -> str:
+    """The last line argparse prints refusing `argv`."""
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(argv)
+    assert exit_info.value.code == 2
+    return capsys.readouterr().err.splitlines()[-1]
+
+
+#: Each output option, as (command line before it, the option); RUN is a run directory.
+OUTPUTS = [(["demo"], "--out"), (["train"], "--out"), (["keep", "RUN"], "--into"),
+           (["sweep", "--grid", "table2", "--out", "sweep"], "--sync"),
+           (["evaluate", "RUN"], "--out"), (["plot", "RUN"], "--out"),
+           (["report", "RUN"], "--out")]
+
+
+@pytest.mark.parametrize("before, option", OUTPUTS)
+def test_an_output_path_under_a_file_is_refused_as_parsed(before, option, tmp_path, capsys):
+    (tmp_path / "afile").write_text("kept")
+    path = tmp_path / "afile" / ("x.png" if before[0] == "plot" else "x")
+    error = _parse_error([*before, option, str(path)], capsys)
+    assert error.endswith(f"error: argument {option}: cannot write to {path}: "
+                          f"{tmp_path / 'afile'} is not a folder")
+    assert (tmp_path / "afile").read_text() == "kept"
+
+
+@needs_proc
+@pytest.mark.parametrize("before, option", OUTPUTS)
+def test_an_output_path_where_no_file_can_be_made_is_refused_as_parsed(before, option, capsys):
+    """os.access says yes to root in /proc: a file made and removed again says no."""
+    path = PROC / "franka-composer" / ("x.png" if before[0] == "plot" else "x")
+    error = _parse_error([*before, option, str(path)], capsys)
+    assert re.search(f"error: argument {option}: cannot write to {path}: no file can be made "
+                     r"in /proc \(.+\)$", error)
+
+
+def test_a_writable_output_path_is_taken_and_its_folder_left_as_it_was(tmp_path):
+    """Not even the folder's modification time changes (`sweep` parses each cell's `train`
+    --out, and a look must not touch a run)."""
+    before = tmp_path.stat().st_mtime_ns
+    args = cli.build_parser().parse_args(["keep", "RUN", "--into", str(tmp_path / "a" / "b")])
+    assert args.into == tmp_path / "a" / "b"
+    args = cli.build_parser().parse_args(["report", "RUN", "--out", str(tmp_path / "r.md")])
+    assert args.out == tmp_path / "r.md"
+    assert list(tmp_path.iterdir()) == [] and tmp_path.stat().st_mtime_ns == before
+
+
+@pytest.mark.parametrize("format, name, message", [
+    ("npz", "afile/x.npz", "cannot write to {tmp}/afile/x.npz: {tmp}/afile is not a folder"),
+    ("npz", "folder.npz", "an npz dataset is a file, and {tmp}/folder.npz is a folder"),
+    ("minari", "afile/data", "cannot write to {tmp}/afile/data: {tmp}/afile is not a folder"),
+    ("rlds", "afile/data", "cannot write to {tmp}/afile/data: {tmp}/afile is not a folder"),
+])
+def test_rollout_refuses_an_out_it_cannot_write_before_recording(format, name, message,
+                                                                   tmp_path):
+    (tmp_path / "afile").write_text("kept")
+    (tmp_path / "folder.npz").mkdir()
+    with pytest.raises(ValueError, match=f"^{re.escape(message.format(tmp=tmp_path))}$"):
+        cli.main(["rollout", "--task", "push", "--episodes", "1", "--format", format,
+                  "--out", str(tmp_path / name)])
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["afile", "folder.npz"]
+    assert list((tmp_path / "folder.npz").iterdir()) == []
+
+
+@needs_proc
+@pytest.mark.parametrize("format, name", [("npz", "x.npz"), ("minari", "data"),
+                                          ("rlds", "data")])
+def test_rollout_refuses_an_out_where_no_file_can_be_made(format, name):
+    with pytest.raises(ValueError, match=re.escape(f"cannot write to /proc/{name}: no file "
+                                                   "can be made in /proc (")):
+        cli.main(["rollout", "--task", "push", "--episodes", "1", "--format", format,
+                  "--out", f"/proc/{name}"])
+
+
+def test_an_os_error_that_escapes_is_one_line_and_status_1(monkeypatch, capsys):
+    def fails(argv):
+        raise PermissionError(13, "Permission denied", "table.md")
+
+    monkeypatch.setattr(cli, "main", fails)
+    assert cli.console(["report", "RUN"]) == 1
+    assert capsys.readouterr().err == (
+        "franka-composer: error: [Errno 13] Permission denied: 'table.md'\n")
+
+
+def test_rollout_refuses_a_dataset_id_outside_minari(tmp_path):
+    for format in ("npz", "rlds"):
+        out = tmp_path / ("x.npz" if format == "npz" else "x")
+        with pytest.raises(ValueError, match="^--dataset-id names a Minari dataset: give it "
+                                             "with --format minari$"):
+            cli.main(["rollout", "--task", "push", "--episodes", "1", "--format", format,
+                      "--dataset-id", "foo", "--out", str(out)])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_demo_refuses_more_video_episodes_than_episodes(tmp_path):
+    with pytest.raises(ValueError, match="^--video-episodes 5 is more than --episodes 1: "
+                                         "each task's video shows its first episodes$"):
+        cli.main(["demo", "--episodes", "1", "--video-episodes", "5", "--out",
+                  str(tmp_path / "videos")])
+    assert list(tmp_path.iterdir()) == []
+    # Without --video-episodes, a short demo's video shows every episode it has.
+    assert cli.build_parser().parse_args(["demo", "--episodes", "1"]).video_episodes is None
+
+
+def test_a_policy_or_run_that_does_not_exist_is_named_so(tmp_path):
+    missing = tmp_path / "nothere"
+    for argv in (["rollout", "--task", "push", "--episodes", "1", "--policy", str(missing),
+                  "--out", str(tmp_path / "x.npz")],
+                 ["report", str(missing)]):
+        with pytest.raises(ValueError, match=f"^{re.escape(str(missing))} does not exist$"):
+            cli.main(argv)
+    with pytest.raises(ValueError, match="is not a training run \\(no config.json\\)$"):
+        RunDir(tmp_path).read_config()
+
+
+@pytest.mark.parametrize("row, problem", [
+    ("2000,2,7.0,-1", "success_rate must be within [0, 1], got 7.0"),
+    ("2000,2,-2,-1", "success_rate must be within [0, 1], got -2.0"),
+    ("2000,2,inf,-1", "success_rate must be within [0, 1], got inf"),
+    ("2000,2,nan,-1", "success_rate must be within [0, 1], got nan"),
+    ("2000,nan,0.5,-1", "wall_time_s must be a finite number >= 0, got nan"),
+    ("2000,-1,0.5,-1", "wall_time_s must be a finite number >= 0, got -1.0"),
+    ("2000,inf,0.5,-1", "wall_time_s must be a finite number >= 0, got inf"),
+    ("-100,2,0.5,-1", "steps must be a whole number >= 0, got -100.0"),
+    ("1500.5,2,0.5,-1", "steps must be a whole number >= 0, got 1500.5"),
+    ("inf,2,0.5,-1", "steps must be a whole number >= 0, got inf"),
+    ("1000,2,0.5,-1", "steps must increase from row to row, got 1000 after 1000"),
+    ("500,2,0.5,-1", "steps must increase from row to row, got 500 after 1000"),
+])
+def test_an_eval_csv_row_no_run_writes_is_named_with_its_line(row, problem, tmp_path):
+    path = tmp_path / "eval.csv"
+    path.write_text(HEADER + "0,1,0.0,-1\n1000,1.5,0.25,-1\n" + row + "\n")
+    with pytest.raises(ValueError, match=f"^{re.escape(f'{path}, line 4: {problem}')}$"):
+        read_eval_rows(path)
+
+
+@pytest.mark.parametrize("command", [["plot", "--out", "curves.png"], ["report"]])
+def test_plot_and_report_refuse_a_success_rate_out_of_range(command, tmp_path):
+    run = _run(tmp_path / "run", rows="0,1,0.0,-1\n2000,2,7.0,-1\n")
+    out = [command[0], str(run.root), *(f"{tmp_path}/{word}" if word == "curves.png" else word
+                                         for word in command[1:])]
+    with pytest.raises(ValueError, match=re.escape(
+            f"{run.eval_csv}, line 3: success_rate must be within [0, 1], got 7.0")):
+        cli.main(out)
+    assert not (tmp_path / "curves.png").exists()
+
+
+@pytest.mark.parametrize("damage, message", [
+    (("eval.csv", HEADER + "0,1,7.0,-1\n"),
+     "eval.csv, line 2: success_rate must be within [0, 1], got 7.0"),
+    (("outcome.json", "{x"), "outcome.json is not a run's outcome: Expecting property name"),
+    (("outcome.json", '{"wall_time_s": 2}'), "outcome.json is not a run's outcome: it needs "
+                                             "a whole number of steps and stopped_early true "
+                                             "or false"),
+    (("config.json", "{x"), "config.json is not a run's config: Expecting property name"),
+])
+def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path):
+    good, bad = _run(tmp_path / "runs" / "a"), _run(tmp_path / "runs" / "b", seed=1)
+    name, text = damage
+    (bad.root / name).write_text(text)
+    kept = tmp_path / "kept"
+    with pytest.raises(ValueError, match=re.escape(f"{bad.root / message}")):
+        cli.main(["keep", str(good.root), str(bad.root), "--into", str(kept)])
+    assert not kept.exists()
+
+
+def test_keep_refuses_to_keep_a_run_into_itself(tmp_path):
+    run = _run(tmp_path / "run")
+    before = sorted(os.listdir(run.root))
+    with pytest.raises(ValueError, match=f"^--into {re.escape(str(run.root))} is the run "
+                                         "itself: give a folder outside the runs$"):
+        cli.main(["keep", str(run.root), "--into", str(run.root)])
+    inside = run.root / "kept"
+    with pytest.raises(ValueError, match=f"^--into {re.escape(str(inside))} is inside the run "
+                                         f"{re.escape(str(run.root))}: give a folder outside "
+                                         "the runs$"):
+        cli.main(["keep", str(run.root), "--into", str(inside)])
+    assert sorted(os.listdir(run.root)) == before
+
+
+def _sweep(out: pathlib.Path, *more: str) -> list[str]:
+    return ["sweep", "--out", str(out), "--tasks", "push", "--algos", "sac", "--seeds", "0",
+            "1", "--steps", "2000", *more]
+
+
+def test_sweep_status_and_sync_name_a_cells_damaged_config(tmp_path, capsys):
+    """A finished cell whose config.json is garbage is not "done", nor copied."""
+    out = tmp_path / "sweep"
+    _run(out / "push-sac-seed0")
+    damaged = _run(out / "push-sac-seed1", seed=1)
+    damaged.config_path.write_text("{x")
+    message = (f"^{re.escape(str(damaged.config_path))} is not a run's config: Expecting "
+               "property name enclosed in double quotes")
+    with pytest.raises(ValueError, match=message):
+        cli.main(_sweep(out, "--status"))
+    with pytest.raises(ValueError, match=message):
+        cli.main(_sweep(out, "--sync", str(tmp_path / "kept")))
+    assert not (tmp_path / "kept").exists()
+    assert capsys.readouterr().out == ""
+
+
+def test_sweep_sync_refuses_the_sweeps_own_folder(tmp_path):
+    out = tmp_path / "sweep"
+    run = _run(out / "push-sac-seed0", rows="0,1,0.0,-1\n1000,2,0.2,-1\n2000,3,0.4,-1\n",
+               outcome=False)
+    run.checkpoint.mkdir()
+    run.checkpoint_state.write_text(json.dumps({"steps": 1000}))
+    before = run.eval_csv.read_bytes()
+    with pytest.raises(ValueError, match="push-sac-seed0 is the run itself: give --sync a "
+                                         "folder other than the one holding the runs$"):
+        cli.main(_sweep(out, "--sync", str(out)))
+    assert run.eval_csv.read_bytes() == before  # Not cut back to its checkpoint.
