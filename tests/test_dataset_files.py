@@ -196,6 +196,14 @@ def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_pat
                                 "Unable to synchronously open file (truncated file")
 
 
+def test_the_folder_rollout_wrote_minari_datasets_into_names_them(recorded, push_env):
+    """`rollout --format minari --out DIR` keeps its dataset under DIR/<namespace>/<id>."""
+    _refused(recorded / "minari", push_env, "is not a dataset: expected a .npz file, a Minari "
+             "dataset folder (holding data/) or an RLDS folder (holding metadata.riegeli); "
+             f"it holds the Minari dataset(s) {recorded / 'minari/franka_composer/push/expert-v0'}"
+             ": give one of them")
+
+
 def test_minari_records_under_a_relative_datasets_path(tmp_path, monkeypatch):
     """Minari's collector joined a relative MINARI_DATASETS_PATH to itself once every
     episode was recorded."""

@@ -37,8 +37,12 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     elif (path / "data").is_dir() or (path / "metadata.json").is_file():
         episodes = _minari_episodes(path, env)
     else:
+        inside = sorted(found.parent.parent for found in path.glob("**/data/metadata.json"))
+        hint = (f"; it holds the Minari dataset(s) {', '.join(map(str, inside))}: give one "
+                "of them" if inside and path.is_dir() else "")
         raise ValueError(f"{path} is not a dataset: expected a .npz file, a Minari dataset "
-                         f"folder (holding data/) or an RLDS folder (holding metadata.riegeli)")
+                         f"folder (holding data/) or an RLDS folder (holding "
+                         f"metadata.riegeli){hint}")
     check_episodes(path, episodes)
     spaces = env.observation_space.spaces
     for key in OBSERVATION_KEYS:
