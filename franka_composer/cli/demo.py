@@ -18,6 +18,7 @@ from franka_composer.cli.options import (add_tasks_argument, add_timing, episode
                                          frame_size, given_timing, output_folder,
                                          positive_int)
 from franka_composer.policies import make_expert, rollout
+from franka_composer.tasks import task_config
 from franka_composer.validation import check_writable
 
 DEFAULT_OUT = "demo_output"
@@ -75,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_video:
         check_writable(args.out, folder=True)  # Also the default, which the parser passes.
     trained = None if args.policy is None else _adopt_the_runs_task(args)
+    for task in args.tasks:  # A bad timing is refused before the first episode.
+        task_config(task, **given_timing(args))
     rows = []
     with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode") as bar:
         for task in args.tasks:
