@@ -49,3 +49,20 @@ def test_version_prints_the_package_version():
 
     result = franka_composer("--version", stdout=subprocess.PIPE)
     assert (result.returncode, result.stdout) == (0, f"franka-composer {__version__}\n")
+
+
+def test_a_warning_of_this_package_is_one_line(tmp_path):
+    """A damaged model.zip beside a committed run's policy file: played, saying so."""
+    run = tmp_path / "run"
+    run.mkdir()
+    for name in ("config.json", "policy.pt"):
+        (run / name).write_bytes((A_COMMITTED_RUN / name).read_bytes())
+    (run / "model.zip").write_bytes(b"garbage")
+    result = franka_composer("evaluate", str(run), "--episodes", "1", "--device", "cpu",
+                             stdout=subprocess.PIPE)
+    assert result.returncode == 0 and "push" in result.stdout
+    assert result.stderr.splitlines() == [
+        f"franka-composer: warning: {run / 'model.zip'} is damaged (not a readable zip "
+        f"archive: File is not a zip file), and the run has no checkpoint to use instead: "
+        f"using its policy file, {run / 'policy.pt'}"]
+

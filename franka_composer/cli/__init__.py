@@ -9,8 +9,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import pathlib
 import signal
 import sys
+import warnings
 
 from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
@@ -44,6 +46,7 @@ def console(argv: list[str] | None = None) -> int:
     disk, a folder removed meanwhile; status 1); a reader that has gone (`franka-composer
     evaluate ... | head`) ends the command quietly, with the status a shell gives a command
     SIGPIPE ends."""
+    warnings.formatwarning = _format_warning
     try:
         try:
             return main(argv)
@@ -59,3 +62,16 @@ def console(argv: list[str] | None = None) -> int:
     except OSError as error:  # After BrokenPipeError, one of its kind.
         print(f"franka-composer: error: {error}", file=sys.stderr)
         return 1
+
+
+_PACKAGE = pathlib.Path(__file__).resolve().parents[1]
+_default_format_warning = warnings.formatwarning
+
+
+def _format_warning(message, category, filename, lineno, line=None) -> str:
+    """This package's warnings to a terminal as one line, as its errors are, not Python's
+    file, line and source; other libraries' as Python writes them."""
+    if pathlib.Path(filename).resolve().is_relative_to(_PACKAGE):
+        return f"franka-composer: warning: {message}\n"
+    return _default_format_warning(message, category, filename, lineno, line)
+
