@@ -130,11 +130,15 @@ def _check_trained_as(run, config) -> None:
 
 def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace:
     """The `train` arguments of `cell` under `out` with `train_args`, read by train's own
-    parser."""
+    parser; an option it does not take is a ValueError saying it came after --."""
     from franka_composer.cli import build_parser
     from franka_composer.training.sweep import train_command
 
-    return build_parser().parse_args(train_command(cell, out, train_args)[3:])
+    args, unknown = build_parser().parse_known_args(train_command(cell, out, train_args)[3:])
+    if unknown:
+        raise ValueError(f"the options after -- go to each cell's train, which does not take "
+                         f"{' '.join(unknown)} (franka-composer train --help lists its options)")
+    return args
 
 
 def cell_config(cell, out, train_args: tuple[str, ...]):
