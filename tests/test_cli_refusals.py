@@ -133,6 +133,9 @@ def test_demo_refuses_more_video_episodes_than_episodes(tmp_path):
         cli.main(["demo", "--episodes", "1", "--video-episodes", "5", "--out",
                   str(tmp_path / "videos")])
     assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="^--video-episodes sets what the videos show, and "
+                                         "--no-video writes none: give one of them$"):
+        cli.main(["demo", "--episodes", "1", "--video-episodes", "1", "--no-video"])
     # Without --video-episodes, a short demo's video shows every episode it has.
     assert cli.build_parser().parse_args(["demo", "--episodes", "1"]).video_episodes is None
 

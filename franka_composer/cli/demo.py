@@ -70,6 +70,9 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    if args.video_episodes is not None and args.no_video:
+        raise ValueError("--video-episodes sets what the videos show, and --no-video writes "
+                         "none: give one of them")
     if args.video_episodes is not None and args.video_episodes > args.episodes:
         raise ValueError(f"--video-episodes {args.video_episodes} is more than --episodes "
                          f"{args.episodes}: each task's video shows its first episodes")
