@@ -23,7 +23,7 @@ def choose_headless_backend() -> None:
     imported (it reads `MUJOCO_GL` once)."""
     if "MUJOCO_GL" in os.environ or "dm_control._render" in sys.modules:
         return  # The user chose, or dm_control already has.
-    if _has_display():
+    if has_display():
         return
     os.environ["MUJOCO_GL"] = "egl"
 
@@ -36,7 +36,7 @@ def check_can_render() -> None:
     """A `HeadlessGLError` where dm_control renders through GLFW and there is no display:
     its GL calls would fail deep inside (MjrContext has no _ptr)."""
     render = sys.modules.get("dm_control._render")
-    if getattr(render, "BACKEND", None) != "glfw" or _has_display():
+    if getattr(render, "BACKEND", None) != "glfw" or has_display():
         return
     if os.environ.get("MUJOCO_GL") == "glfw":
         why = "MUJOCO_GL=glfw, which needs a display"
@@ -49,5 +49,6 @@ def check_can_render() -> None:
         "MUJOCO_GL=egl (or osmesa) before Python starts")
 
 
-def _has_display() -> bool:
+def has_display() -> bool:
+    """Whether an X or Wayland display is set for this process."""
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

@@ -9,7 +9,6 @@ relabel, runs) and `is_success` is the task's.
 
 from __future__ import annotations
 
-import os
 import sys
 from typing import Any
 
@@ -19,6 +18,7 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from franka_composer import render_owner, seeding, suite
+from franka_composer.headless_gl import has_display
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_choice
@@ -240,8 +240,7 @@ def _check_render_size(width: int, height: int) -> None:
 def _check_display() -> None:
     """`human` rendering opens a GLFW window; without a display GLFW aborts the whole
     process (an assertion in C, no Python exception), so refuse before it is touched."""
-    if sys.platform.startswith(("linux", "freebsd", "openbsd")) and not (
-            os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    if sys.platform.startswith(("linux", "freebsd", "openbsd")) and not has_display():
         raise RuntimeError("render_mode='human' needs a display, and none was found (neither "
                            "DISPLAY nor WAYLAND_DISPLAY is set): use render_mode='rgb_array' "
                            "for headless frames, or set DISPLAY")
