@@ -350,6 +350,26 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, mon
         np.testing.assert_array_equal(resumed[2][name], whole[2][name])
 
 
+def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
+    """Stopped by SIGTERM, a run with its progress bar closes the bar: one left open is
+    closed by the garbage collector, at interpreter shutdown, where rich's close fails
+    ("Exception ignored in tqdm.__del__ ... sys.meta_path is None")."""
+    import gc
+
+    from tqdm.std import tqdm
+
+    _stop_asked_at(monkeypatch, 160)
+    options = [o for o in TINY if o != "--no-progress"]  # The bar is on by default.
+    gc.disable()  # Nothing closes a bar that was left open before the test looks.
+    try:
+        assert cli.main(["train", "--task", "push", "--algo", "sac", "--seed", "1", "--out",
+                         str(tmp_path / "run"), "--total-steps", "400", *options]) == 130
+        assert RunDir(tmp_path / "run").read_state()["steps"] >= 160
+        assert [bar for bar in tqdm._instances if not bar.disable] == []
+    finally:
+        gc.enable()
+
+
 def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, monkeypatch):
     """A checkpoint that is not at an episode's end (a second signal, checkpoints written
     before resumes were exact) resumes with episodes seeded by the run's seed and step."""

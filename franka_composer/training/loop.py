@@ -16,7 +16,7 @@ import shutil
 import signal
 import warnings
 
-from stable_baselines3.common.callbacks import CallbackList
+from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from franka_composer.training import demos, exact_resume
@@ -177,7 +177,10 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream,
                                   threads=threads)
     precision = GradientStepPrecision(config.precision)
-    callbacks = CallbackList([precision, evaluation, checkpoint])
+    # The loop's own bar, not learn(progress_bar=True)'s: an interrupt skips SB3's closing
+    # of it, and a bar left open is closed at interpreter shutdown, where rich fails.
+    bar = ProgressBarCallback() if progress else None
+    callbacks = CallbackList([precision, evaluation, checkpoint, *([bar] if bar else [])])
     remaining = hp.total_steps - model.num_timesteps
     if run.read_outcome().get("stopped_early"):
         remaining = 0  # It met the stopping rule: more steps would not be the same run.
@@ -188,8 +191,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
                            *_stop_signals()):
             if remaining > 0:
                 model.learn(total_timesteps=remaining, callback=callbacks,
-                            reset_num_timesteps=not resume, tb_log_name="run",
-                            progress_bar=progress)
+                            reset_num_timesteps=not resume, tb_log_name="run")
         if remaining > 0:
             # Where training ended: exact at an episode's end, unless the stopping rule ended
             # it inside a step (before SB3 stored the transition). Before the envs close: a
@@ -203,6 +205,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         raise
     finally:
         precision.close()
+        if bar is not None and hasattr(bar, "pbar"):
+            bar.pbar.close()  # Closed already where training ended; a second close is none.
         env.close()
         eval_env.close()
     replace_atomically(run.final_model, model.save)
