@@ -274,6 +274,68 @@ def test_the_reference_experiments_name_a_bad_argument(script, args, message, tm
     assert message.format(tmp=tmp_path) in completed.stderr
 
 
+class _ScriptedSuccesses:
+    """An env whose episodes succeed at the steps each script lists, and end at success
+    (`terminate`) or after 4 steps."""
+
+    def __init__(self, scripts, terminate):
+        self.scripts, self.terminate, self.seeds = list(scripts), terminate, []
+
+    def reset(self, seed=None):
+        self.seeds.append(seed)
+        self.succeeds, self.t = self.scripts.pop(0), 0
+        return {"observation": np.zeros(1)}, {}
+
+    def step(self, action):
+        self.t += 1
+        success = self.t in self.succeeds
+        return ({"observation": np.zeros(1)}, 0.0, success and self.terminate, self.t == 4,
+                {"is_success": float(success)})
+
+
+def test_cross_play_counts_a_success_at_any_step_and_at_the_last():
+    module = load_script(EXPERIMENTS / "cross_play.py")
+    resets = []
+
+    class Policy:
+        def reset(self):
+            resets.append(True)
+
+        def predict(self, obs, deterministic=True):
+            assert deterministic
+            return np.zeros(4), None
+
+    # Succeeding at step 2 only, at steps 2 and 4, never, at step 4.
+    scripts = [{2}, {2, 4}, set(), {4}]
+    env = _ScriptedSuccesses(scripts, terminate=False)
+    assert module.play(Policy(), env, 4, seed=7) == (0.75, 0.5)
+    assert env.seeds == [7, None, None, None] and len(resets) == 4
+    # Ending on success, the episode's last step is its success: the two agree.
+    assert module.play(Policy(), _ScriptedSuccesses(scripts, terminate=True), 4,
+                       seed=7) == (0.75, 0.75)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--episodes", "0"], "argument --episodes: must be a positive integer, got '0'"),
+    ([], "give a RUN_DIR, --expert or both"),
+    (["{tmp}/none"], "{tmp}/none does not exist"),
+    ([str(RESULTS / "table2" / "push-tqc-seed0")],
+     f"{RESULTS / 'table2' / 'push-tqc-seed0'} trained push; this compares pick_and_place"),
+    (["--expert"], "--reference-path {tmp}/none: no panda_mujoco_gym/__init__.py there; give "
+                   "the folder of a checkout of the reference code's repository")])
+def test_cross_play_names_a_bad_argument_before_it_plays(args, message, tmp_path):
+    checkout = tmp_path / "reference"  # Holds a checkout's marker, so the rest is read.
+    (checkout / "panda_mujoco_gym").mkdir(parents=True)
+    (checkout / "panda_mujoco_gym" / "__init__.py").write_text("")
+    reference = tmp_path / "none" if "--expert" in args else checkout
+    args = [arg.format(tmp=tmp_path) for arg in args]
+    completed = subprocess.run([sys.executable, str(EXPERIMENTS / "cross_play.py"),
+                                "--reference-path", str(reference), *args],
+                               capture_output=True, text=True, check=False)
+    assert completed.returncode == 2
+    assert completed.stderr.strip().splitlines()[-1].endswith(message.format(tmp=tmp_path))
+
+
 def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_elsewhere():
     """The scripted grasp holds the block at -1 in every suite of this package, drops it at
     -0.1 with 0.5 s steps and the stiff weld, and the hand's motion within a step is read
