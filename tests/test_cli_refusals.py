@@ -237,6 +237,20 @@ def test_sweep_status_and_sync_name_a_cells_damaged_config(tmp_path, capsys):
     assert capsys.readouterr().out == ""
 
 
+@needs_proc
+def test_sweep_reads_an_out_it_cannot_write_and_refuses_to_train_there(capsys):
+    """--status and --sync only read --out (a sweep on a read-only mount can be looked at);
+    a sweep that would train there is refused before Ray starts."""
+    out = PROC / "franka-composer-sweep"
+    assert cli.main(_sweep(out, "--status")) == 0
+    assert capsys.readouterr().out.splitlines()[2:] == [
+        "| push-sac-seed0 | waiting | 0 | 2,000 | – | – |",
+        "| push-sac-seed1 | waiting | 0 | 2,000 | – | – |"]
+    with pytest.raises(ValueError, match=f"^--out: cannot write to {re.escape(str(out))}: no "
+                                         r"file can be made in /proc \(.+\)$"):
+        cli.main(_sweep(out))
+
+
 def test_sweep_sync_refuses_the_sweeps_own_folder(tmp_path):
     out = tmp_path / "sweep"
     run = _run(out / "push-sac-seed0", rows="0,1,0.0,-1\n1000,2,0.2,-1\n2000,3,0.4,-1\n",

@@ -69,6 +69,15 @@ def output_folder(text: str) -> pathlib.Path:
     return _writable(path, folder=True)
 
 
+def folder_path(text: str) -> pathlib.Path:
+    """A folder that may be read or written, as the command decides (`sweep --out`: read by
+    --status and --sync, written by a run, which checks it then): not a file."""
+    path = pathlib.Path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
+    return path
+
+
 def _writable(path: pathlib.Path, folder: bool) -> pathlib.Path:
     """`check_writable`, its refusal as argparse's."""
     try:

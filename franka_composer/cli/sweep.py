@@ -6,10 +6,11 @@ from __future__ import annotations
 import argparse
 import fnmatch
 
-from franka_composer.cli.options import (add_tasks_argument, output_folder, positive_int,
-                                         positive_seconds, training_seed)
+from franka_composer.cli.options import (add_tasks_argument, folder_path, output_folder,
+                                         positive_int, positive_seconds, training_seed)
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
+from franka_composer.validation import check_writable
 
 #: `train` options the sweep sets itself, per cell.
 _SET_BY_THE_SWEEP = ("--task", "--algo", "--seed", "--out", "--total-steps", "--resume")
@@ -31,8 +32,9 @@ def add_parser(subparsers) -> None:
                     "`plot OUT` read the sweep. Options "
                     "after `--` go to every cell's `train` (e.g. -- --update-schedule "
                     "episode --threads 1). Needs Ray: pip install 'franka_composer[sweep]'.")
-    parser.add_argument("--out", type=output_folder, required=True,
-                        help="the sweep's directory: one run directory per cell")
+    parser.add_argument("--out", type=folder_path, required=True,
+                        help="the sweep's directory: one run directory per cell (only read "
+                             "by --status and --sync)")
     parser.add_argument("--grid", choices=sorted(GRIDS),
                         help="a named grid: table2 is the paper's Table II with this suite's "
                              "budgets and the early-stopping rule")
@@ -178,6 +180,10 @@ def run(args: argparse.Namespace) -> int:
         synced = sync_cells(cells, args.out, args.sync)
         print(f"{args.sync}: {', '.join(synced) if synced else 'no cell has a run yet'}")
         return 0
+    try:
+        check_writable(args.out, folder=True)
+    except ValueError as error:
+        raise ValueError(f"--out: {error}") from None
     train_args = (*rule, *args.train_args)
     for option in args.train_args:
         if option.split("=", 1)[0] in _SET_BY_THE_SWEEP:
