@@ -315,6 +315,27 @@ def test_cross_play_counts_a_success_at_any_step_and_at_the_last():
                        seed=7) == (0.75, 0.75)
 
 
+def test_cross_play_prints_a_row_per_policy(monkeypatch, capsys):
+    # This suite's pick-and-place (0.05 s per step) stands in for the reference code's.
+    import gymnasium as gym
+
+    module = load_script(EXPERIMENTS / "cross_play.py")
+    monkeypatch.setattr(module.reference_env_runs, "reference_specs",
+                        lambda path: {"pick_and_place": gym.spec("FrankaPickAndPlaceSparse-v0")})
+    monkeypatch.setattr(module.reference_env_runs.peer_worker, "reference_path_error",
+                        lambda path: None)
+    run = RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"
+    assert module.main(["--reference-path", "unused", str(run), "--expert",
+                        "--episodes", "2", "--seed", "3"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| ")]
+    assert rows[0].startswith("| run | trained in | steps | this suite, reference timing |")
+    assert rows[1].startswith("| pick_and_place-tqc-seed0 | this suite, 0.5 s per step | "
+                              "500,000 | ")
+    assert rows[2] == ("| scripted expert | – | – | 100.0 ± 0.0 | 100.0 ± 0.0 | +0.0 | "
+                       "100.0 ± 0.0 | 100.0 ± 0.0 |")
+    assert len(rows) == 3
+
+
 @pytest.mark.parametrize("args, message", [
     (["--episodes", "0"], "argument --episodes: must be a positive integer, got '0'"),
     ([], "give a RUN_DIR, --expert or both"),
