@@ -16,7 +16,11 @@ success here (the scripted moves may pass the goal): this suite's env is made wi
 `terminate_on_success=False`, the reference code's is stepped past its termination
 (`env.unwrapped`). Prints a Markdown table: per G, the episodes whose block was held, and
 the median slip, how far the block fell in the hand from the end of the close (mm); then
-how the hand moves within a step (`hand_motion`), which sets how hard a lift jerks the block.
+how the hand moves within a step (`hand_motion`), which sets how hard a lift jerks the block;
+then how far off the block's centre the open hand may descend, along x and along y (the
+fingers' closing axis), and still grasp and keep it at G = -1 (`OFFSETS`), with the median
+height above its target at which the hand stopped coming down (on the block's top where a
+finger lands there): the wider that reach, the likelier an exploring learner's first grasps.
 """
 
 from __future__ import annotations
@@ -34,6 +38,8 @@ import random_exploration  # noqa: E402  (experiments/, not a package)
 SUITES = ("ours", "stiff_weld", "ours_reference_timing", "reference")
 SQUEEZES = (-1.0, -0.5, -0.3, -0.2, -0.15, -0.12, -0.1, -0.08, -0.05, 0.0)
 HELD = 0.10  # m above the block's start at the end of the carry.
+#: How far (m) off the block's centre the open hand descends, along x and along y.
+OFFSETS = (0.0, 0.005, 0.01, 0.015, 0.02, 0.025, 0.03, 0.035)
 RESULT_PREFIX = random_exploration.RESULT_PREFIX
 
 
@@ -77,12 +83,16 @@ class Script:
                 return
 
 
-def attempt(script: Script, seed: int, squeeze: float) -> dict:
-    """One grasp, lift and carry holding `squeeze`: whether the block stayed, and its slip."""
+def attempt(script: Script, seed: int, squeeze: float, off_centre=(0.0, 0.0)) -> dict:
+    """One grasp, lift and carry holding `squeeze`: whether the block stayed, its slip, and
+    how far above its target (mm) the open hand stopped coming down `off_centre` (x, y; m)
+    away from the block's centre."""
     script.reset(seed)
     start = script.block.copy()
-    script.go(start + [0.0, 0.0, 0.06], 1.0)
-    script.go(start, 1.0)
+    grasp = start + [*off_centre, 0.0]
+    script.go(grasp + [0.0, 0.0, 0.06], 1.0)
+    script.go(grasp, 1.0)
+    stopped_above = 1000.0 * float(script.tcp[2] - grasp[2])
     for _ in range(2):
         script.step([0.0, 0.0, 0.0], -1.0)
     gap = script.tcp[2] - script.block[2]
@@ -93,7 +103,8 @@ def attempt(script: Script, seed: int, squeeze: float) -> dict:
     for _ in range(3):
         script.step([*toward_centre, 0.0], squeeze)
     return {"held": bool(script.block[2] - start[2] >= HELD),
-            "slip_mm": 1000.0 * float(script.tcp[2] - script.block[2] - gap)}
+            "slip_mm": 1000.0 * float(script.tcp[2] - script.block[2] - gap),
+            "stopped_above_mm": stopped_above}
 
 
 def hand_motion(env, suite: str, seed: int, axis: int) -> dict:
@@ -145,6 +156,9 @@ def worker(suite: str, episodes: int, seed: int, reference_path: pathlib.Path | 
     script = Script(env)
     rows = {str(g): [attempt(script, seed + i, g) for i in range(episodes)] for g in SQUEEZES}
     rows["motion"] = [hand_motion(env, suite, seed, axis) for axis in (0, 2)]
+    rows["off_centre"] = [[[attempt(script, seed + i, -1.0, offset * np.eye(2)[axis])
+                            for i in range(episodes)] for offset in OFFSETS]
+                          for axis in (0, 1)]
     env.close()
     print(RESULT_PREFIX + json.dumps(rows), file=answers, flush=True)
     return 0
@@ -169,6 +183,17 @@ def table(results: dict[str, dict[str, list[dict]]], episodes: int) -> str:
                  f"0.05 s, {100 * m['at_0.5']:.1f} % at 0.5 s, tilted {m['tilt_deg']:.1f} deg"
                  for m in (rows["motion"][index] for rows in results.values())]
         lines.append(f"| {axis} | " + " | ".join(cells) + " |")
+    lines += ["", "| the open hand descends off the block's centre by | "
+              + " | ".join(titles[s] for s in results) + " |", "|---|" + "---|" * len(results)]
+    for index, axis in enumerate("xy"):
+        for column, offset in enumerate(OFFSETS):
+            cells = []
+            for rows in results.values():
+                attempts = rows["off_centre"][index][column]
+                stopped = np.median([row["stopped_above_mm"] for row in attempts])
+                cells.append(f"{sum(row['held'] for row in attempts)}/{episodes} held, "
+                             f"stopped {int(round(stopped))} mm above")
+            lines.append(f"| {1000 * offset:.0f} mm along {axis} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -361,7 +361,7 @@ def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_el
     """The scripted grasp holds the block at -1 in every suite of this package, drops it at
     -0.1 with 0.5 s steps and the stiff weld, and the hand's motion within a step is read
     back as the weld sets it (0.05 s into a 5 cm move: 94-95 % with 0.01 s, 70-71 % with
-    0.02 s)."""
+    0.02 s); a grasp 15 mm off-centre holds, one 20 mm off along the closing axis does not."""
     module = load_script(EXPERIMENTS / "grasp_margin.py")
     for suite, weak_held, share in (("ours_reference_timing", True, (0.68, 0.73)),
                                     ("stiff_weld", False, (0.93, 0.96))):
@@ -372,6 +372,12 @@ def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_el
         motion = module.hand_motion(env, suite, seed=2, axis=2)
         assert share[0] < motion["at_0.05"] < share[1]
         assert motion["at_0.5"] == pytest.approx(1.0, abs=1e-3)
+        # Off the block's centre along the fingers' closing axis (y), an open finger lands
+        # on the block's top from 20 mm on: the hand stops there and grasps nothing.
+        grasp = module.attempt(script, seed=2, squeeze=-1.0, off_centre=(0.0, 0.015))
+        assert grasp["held"] and grasp["stopped_above_mm"] < 3
+        grasp = module.attempt(script, seed=2, squeeze=-1.0, off_centre=(0.0, 0.02))
+        assert not grasp["held"] and grasp["stopped_above_mm"] > 20
         env.close()
 
 
