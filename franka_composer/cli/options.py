@@ -63,10 +63,7 @@ def output_file(text: str) -> pathlib.Path:
 def output_folder(text: str) -> pathlib.Path:
     """A folder to write into: made if missing, refused if a file stands there or nothing
     can be written there."""
-    path = pathlib.Path(text)
-    if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
-    return _writable(path, folder=True)
+    return _writable(folder_path(text), folder=True)
 
 
 def folder_path(text: str) -> pathlib.Path:
