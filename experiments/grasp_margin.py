@@ -83,16 +83,21 @@ class Script:
                 return
 
 
-def attempt(script: Script, seed: int, squeeze: float, off_centre=(0.0, 0.0)) -> dict:
-    """One grasp, lift and carry holding `squeeze`: whether the block stayed, its slip, and
-    how far above its target (mm) the open hand stopped coming down `off_centre` (x, y; m)
-    away from the block's centre."""
+def attempt(script: Script, seed: int, squeeze: float, off_centre=(0.0, 0.0),
+            descended=None) -> dict:
+    """One grasp, lift and carry holding `squeeze`: whether the block stayed, its slip, how
+    far above its target (mm) the open hand stopped coming down `off_centre` (x, y; m) away
+    from the block's centre, and how far (mm) its descent shoved the block sideways. Calls
+    `descended()`, if given, between the descent and the close."""
     script.reset(seed)
     start = script.block.copy()
     grasp = start + [*off_centre, 0.0]
     script.go(grasp + [0.0, 0.0, 0.06], 1.0)
     script.go(grasp, 1.0)
     stopped_above = 1000.0 * float(script.tcp[2] - grasp[2])
+    shoved = 1000.0 * float(np.linalg.norm(script.block[:2] - start[:2]))
+    if descended is not None:
+        descended()
     for _ in range(2):
         script.step([0.0, 0.0, 0.0], -1.0)
     gap = script.tcp[2] - script.block[2]
@@ -104,7 +109,7 @@ def attempt(script: Script, seed: int, squeeze: float, off_centre=(0.0, 0.0)) ->
         script.step([*toward_centre, 0.0], squeeze)
     return {"held": bool(script.block[2] - start[2] >= HELD),
             "slip_mm": 1000.0 * float(script.tcp[2] - script.block[2] - gap),
-            "stopped_above_mm": stopped_above}
+            "stopped_above_mm": stopped_above, "shoved_mm": shoved}
 
 
 def hand_motion(env, suite: str, seed: int, axis: int) -> dict:

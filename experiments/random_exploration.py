@@ -9,8 +9,10 @@ block more gives it more to learn from.
         [--episodes 200] [--seed 0]
 
 Further rows play this suite at 0.5 s per step with the default's stiff weld (the reference
-timing before it took the reference code's weld), and at the reference timing with the
-fingers closed at reset, as the reference code's are (`SUITES`). DIR is a checkout of the reference code's repository (`panda_mujoco_gym`, not on PyPI;
+timing before it took the reference code's weld), at the reference timing with the
+fingers closed at reset, as the reference code's are, and at the reference timing with the
+surface guard let go, as the reference code has none (`SUITES`; `--only` plays some).
+DIR is a checkout of the reference code's repository (`panda_mujoco_gym`, not on PyPI;
 without it the reference is left out, saying so). Each suite runs in a process of its own
 (`benchmarks/peer_worker.py` imports it: the reference registers the same ids as this
 suite), through Gymnasium only: the block's position is the observation's achieved goal in
@@ -36,7 +38,8 @@ import peer_worker  # noqa: E402  (benchmarks/, not a package)
 #: The suites compared, by name: this suite's task options (None: the reference code), and
 #: the title of its row. "stiff_weld" is the reference timing as it was before 2026-11-26
 #: (0.5 s per step, velocities per 0.05 s, the default's 0.01 s weld); "closed" starts with
-#: the fingers closed, as the reference code's do (this suite's start open).
+#: the fingers closed, as the reference code's do (this suite's start open); "no_guard" lets
+#: the hand's target go as deep as the action sends it (`let_guard_go`).
 SUITES = {
     "ours": ({}, "this suite"),
     "stiff_weld": ({"control_timestep": 0.5, "velocity_timestep": 0.05,
@@ -45,6 +48,8 @@ SUITES = {
     "ours_reference_timing": ({"timing": "reference"}, 'this suite, timing="reference"'),
     "closed": ({"timing": "reference"},
                'this suite, timing="reference", fingers closed at reset'),
+    "no_guard": ({"timing": "reference"},
+                 'this suite, timing="reference", the surface guard let go'),
     "reference": (None, "reference code"),
 }
 RESULT_PREFIX = peer_worker.RESULT_PREFIX
@@ -75,6 +80,15 @@ def play(env, seed: int, episode: int) -> dict:
     return {"away": away, "highest": highest, "far_steps": far_steps, "steps": steps}
 
 
+def let_guard_go() -> None:
+    """The hand's target as deep as the action sends it, down to z = 0, in this process, as
+    the reference code's (it keeps only z >= 0). Replaces the guard's method on its class,
+    never the package's file."""
+    from franka_composer.surface_guard import BoundSurfaceGuard
+
+    BoundSurfaceGuard.guard = lambda self, tcp, target, stiffness: max(target[2], 0.0)
+
+
 def make_env(suite: str, task: str, reference_path: pathlib.Path | None = None,
              **options):
     """`task`'s sparse env in `suite` (imported here: one suite per process), with `options`
@@ -88,6 +102,8 @@ def make_env(suite: str, task: str, reference_path: pathlib.Path | None = None,
                                  else {**suite_options, **options}))
     if suite == "closed":  # The reference code's reset: the fingers closed.
         env.unwrapped.task._initial_finger_width = 0.0
+    if suite == "no_guard":
+        let_guard_go()
     return env
 
 
@@ -168,11 +184,13 @@ def run_suites(script: str, suites, arguments: list[str],
 def main(argv: list[str] | None = None) -> int:
     parser = comparison_parser(__doc__, SUITES, episodes=200)
     parser.add_argument("--task", choices=tuple(peer_worker.TASK_NAMES), default="pick_and_place")
+    parser.add_argument("--only", nargs="+", choices=tuple(SUITES), metavar="SUITE",
+                        help=f"play only these rows (of {', '.join(SUITES)})")
     args = parser.parse_args(argv)
     check_arguments(parser, args)
     if args.suite:
         return worker(args.suite, args.task, args.episodes, args.seed, args.reference_path)
-    results = run_suites(__file__, SUITES, ["--task", args.task, "--episodes",
+    results = run_suites(__file__, args.only or SUITES, ["--task", args.task, "--episodes",
                                             str(args.episodes), "--seed", str(args.seed)],
                          args.reference_path)
     print(f"{args.task}, {args.episodes} episodes of uniform random actions, seed {args.seed}\n")

@@ -261,7 +261,7 @@ def test_goal_sampling_draws_each_reset_from_its_seed_and_compares_alike_draws()
 
 
 @pytest.mark.parametrize("script", ["random_exploration.py", "grasp_margin.py",
-                                    "goal_sampling.py"])
+                                    "grasp_reach.py", "goal_sampling.py"])
 @pytest.mark.parametrize("args, message", [
     (["--episodes", "0"], "--episodes 0: give at least 1"),
     (["--reference-path", "{tmp}"], "{tmp}: no panda_mujoco_gym/__init__.py there; give the "
@@ -381,6 +381,41 @@ def test_grasp_margin_keeps_the_block_where_the_reference_timing_does_and_not_el
         env.close()
 
 
+def test_grasp_reach_finds_the_guard_holding_a_finger_on_the_block_top(monkeypatch):
+    """25 mm off the block's centre along the closing axis, an open finger comes down on the
+    block's top edge: the guard stops the hand on it, pressing nothing; let go, the finger
+    sinks into the block by about the overlap (5 mm) under tens of newtons, the block is
+    shoved aside and the grasp holds. The changes stay in the one env (and the guard's class
+    is restored after the test)."""
+    from franka_composer.surface_guard import BoundSurfaceGuard
+
+    module = load_script(EXPERIMENTS / "grasp_reach.py")
+    monkeypatch.setattr(BoundSurfaceGuard, "guard", BoundSurfaceGuard.guard)
+
+    def reach(*changes):
+        env = module.grasp_margin.make_env("ours_reference_timing", None)
+        env.reset(seed=0)
+        for change in changes:
+            change(env)
+        script, watcher = module.grasp_margin.Script(env), module.watch(env)
+        descent = {}
+        row = module.grasp_margin.attempt(
+            script, 2, -1.0, (0.0, 0.025),
+            descended=lambda: descent.update(press=watcher.press, depth=watcher.depth))
+        env.close()
+        return {**row, **descent}
+
+    guarded = reach()
+    assert not guarded["held"] and guarded["stopped_above_mm"] > 20
+    assert guarded["press"] < 1.0 and guarded["depth"] < 1e-3 and guarded["shoved_mm"] < 1
+    softer = reach(module.reference_block)  # The block's own contacts change nothing here.
+    assert not softer["held"] and softer["stopped_above_mm"] > 20
+    let_go = reach(module.let_guard_go)
+    assert let_go["held"] and let_go["stopped_above_mm"] < 1
+    assert let_go["press"] > 20 and 0.004 < let_go["depth"] < 0.007
+    assert 3 < let_go["shoved_mm"] < 7
+
+
 @pytest.mark.slow
 def test_render_backends_saves_the_scene_the_committed_frames_show(tmp_path, capsys):
     module = load_script(EXPERIMENTS / "render_backends.py")
@@ -401,31 +436,54 @@ def test_render_backends_saves_the_scene_the_committed_frames_show(tmp_path, cap
     assert json.loads(capsys.readouterr().out)["observations"]["max"] <= 8
 
 
+#: A run of a few hundred steps that trains, evaluates and checkpoints in seconds.
+TINY_TRAINING = ["--net-arch", "16,16", "--batch-size", "32", "--learning-starts", "100",
+                 "--eval-every", "100", "--eval-episodes", "2", "--threads", "1",
+                 "--no-progress", "--device", "cpu", "--seed", "1"]
+
+
+def train_in_another_env(monkeypatch, script: str):
+    """The experiments/ `script` that registers another environment, loaded with what it
+    installs (`models.ENVIRONMENTS`, `train`'s run_config) put back after the test."""
+    from franka_composer.cli import train as train_cli
+    from franka_composer.training import models
+
+    module = load_script(EXPERIMENTS / script)
+    monkeypatch.setattr(models, "ENVIRONMENTS", {})
+    monkeypatch.setattr(train_cli, "run_config", train_cli.run_config)
+    return module
+
+
+def assert_refused_without_the_script(out: pathlib.Path, environment: str) -> None:
+    """Neither resumed nor evaluated by a process that cannot build its `environment`."""
+    message = (f"the run trained in {environment} environment, which this process does not "
+               "build: train, evaluate or play it through the experiments/ script that "
+               "trained it")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        main(["train", "--resume", "--out", str(out), "--total-steps", "300"])
+    with pytest.raises(ValueError, match=re.escape(message)):
+        main(["evaluate", str(out), "--episodes", "1"])
+
+
 @pytest.mark.slow
 def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_path,
                                                                            monkeypatch):
     # This suite's push spec stands in for the reference code's (not on PyPI, not in CI).
     import gymnasium as gym
 
-    from franka_composer.cli import train as train_cli
-    from franka_composer.training import exact_resume, models
+    from franka_composer.training import exact_resume
     from franka_composer.training.runs import RunDir, read_eval_rows
 
-    module = load_script(EXPERIMENTS / "reference_env_runs.py")
-    monkeypatch.setattr(models, "ENVIRONMENTS", {})
-    monkeypatch.setattr(train_cli, "run_config", train_cli.run_config)
+    module = train_in_another_env(monkeypatch, "reference_env_runs.py")
     for name in ("save", "restore"):
         monkeypatch.setattr(exact_resume, name, getattr(exact_resume, name))
     # This suite's env keeps its MjData inside dm_control's physics.
     monkeypatch.setattr(module, "training_physics",
                         lambda model: model.get_env().envs[0].unwrapped._env.physics.data)
     module.install({"push": gym.spec("FrankaPushSparse-v0")})
-    tiny = ["--net-arch", "16,16", "--batch-size", "32", "--learning-starts", "100",
-            "--eval-every", "100", "--eval-episodes", "2", "--threads", "1", "--no-progress",
-            "--device", "cpu", "--seed", "1"]
     out = tmp_path / "run"
     assert main(["train", "--task", "push", "--algo", "sac", "--out", str(out),
-                 "--total-steps", "200", *tiny]) == 0
+                 "--total-steps", "200", *TINY_TRAINING]) == 0
     config = RunDir(out).read_config()
     assert config.environment == "panda_mujoco_gym"
     assert config.variant == "net_arch 16,16, batch_size 32, panda_mujoco_gym's env"
@@ -440,26 +498,59 @@ def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_
                            (["--no-terminate-on-success"], "--no-terminate-on-success"),
                            (["--task", "reach"], "--task reach (the reference code has push)")):
         refused = tmp_path / "refused"
-        arguments = ["train", "--algo", "sac", "--out", str(refused), *tiny, *options]
+        arguments = ["train", "--algo", "sac", "--out", str(refused), *TINY_TRAINING, *options]
         if "--task" not in options:
             arguments += ["--task", "push"]
         with pytest.raises(ValueError, match=re.escape(f"{named} cannot be given with it")):
             main(arguments)
         assert not refused.exists()
     monkeypatch.undo()  # A process without the script: the run's env cannot be made.
-    message = ("the run trained in panda_mujoco_gym's push environment, which this process "
-               "does not build: train, evaluate or play it through "
-               "experiments/reference_env_runs.py")
-    with pytest.raises(ValueError, match=re.escape(message)):
-        main(["train", "--resume", "--out", str(out), "--total-steps", "300"])
-    with pytest.raises(ValueError, match=re.escape(message)):
-        main(["evaluate", str(out), "--episodes", "1"])
+    assert_refused_without_the_script(out, "panda_mujoco_gym's push")
     with pytest.raises(ValueError, match=re.escape(
             f"{out} trained in panda_mujoco_gym's push environment, not this suite's")):
         main(["rollout", "--task", "push", "--policy", str(out), "--episodes", "1",
               "--out", str(tmp_path / "played.npz")])
     assert not (tmp_path / "played.npz").exists()
     assert RunDir(out).read_state()["steps"] == 200
+
+
+@pytest.mark.slow
+def test_an_unguarded_run_trains_with_the_guard_let_go_and_is_refused_elsewhere(tmp_path,
+                                                                              monkeypatch):
+    from franka_composer.surface_guard import BoundSurfaceGuard
+    from franka_composer.training import models
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    module = train_in_another_env(monkeypatch, "unguarded_runs.py")
+    monkeypatch.setattr(BoundSurfaceGuard, "guard", BoundSurfaceGuard.guard)
+    out = tmp_path / "run"
+    assert module.main(["train", "--task", "pick_and_place", "--algo", "sac", "--timing",
+                        "reference", "--out", str(out), "--total-steps", "200", *TINY_TRAINING]) == 0
+    config = RunDir(out).read_config()
+    assert json.loads((out / "config.json").read_text())["environment"] == module.NAME
+    assert config.variant == ("net_arch 16,16, batch_size 32, unguarded franka_composer's "
+                              "env, reference timing")
+    assert [row["steps"] for row in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
+    # Its envs send the hand's target as deep as the action says, down to z = 0: full
+    # downward steps from the start reach 5 cm below the hand where the floor stops the
+    # guarded hand's target 7.2 mm above it (the fingertips on the floor).
+    env = models.make_env("pick_and_place", environment=module.NAME)
+    env.reset(seed=0)
+    law = env.unwrapped.task.controller.law
+    for _ in range(5):
+        tcp = env.unwrapped.task.controller.law._tcp_pos[2]
+        env.step(np.array([0.5, 0.0, -1.0, 0.0], dtype=np.float32))
+    assert law._target[2] == pytest.approx(max(0.0, tcp - 0.05), abs=1e-9)
+    assert law._target[2] < 0.002
+    env.close()
+    monkeypatch.undo()  # A process without the script: the guard is back, the run refused.
+    assert_refused_without_the_script(out, "unguarded franka_composer's pick_and_place")
+    env = models.make_env("pick_and_place")
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.array([0.5, 0.0, -1.0, 0.0], dtype=np.float32))
+    assert env.unwrapped.task.controller.law._target[2] == pytest.approx(0.0072, abs=5e-4)
+    env.close()
 
 
 def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_path):

@@ -15,9 +15,10 @@ from franka_composer.validation import check_choice
 
 DEVICES = ("auto", "cpu", "cuda")
 
-#: Other suites' environments a run may train in (`RunConfig.environment`): {name: a builder
-#: taking `make_env`'s arguments}. Empty in the package: the script that trains in one
-#: registers it (experiments/reference_env_runs.py), and elsewhere such a run is refused.
+#: Other environments a run may train in (`RunConfig.environment`): {name: a builder taking
+#: `make_env`'s arguments}. Empty in the package: the script that trains in one registers it
+#: (experiments/reference_env_runs.py, experiments/unguarded_runs.py), and elsewhere such a
+#: run is refused.
 ENVIRONMENTS: dict = {}
 
 #: What `--backend sbx` needs when sbx-rl is missing.
@@ -65,7 +66,7 @@ def make_env(task: str, *, terminate_on_success: bool = True,
         if environment not in ENVIRONMENTS:
             raise ValueError(f"the run trained in {environment}'s {task} environment, which "
                              "this process does not build: train, evaluate or play it through "
-                             "experiments/reference_env_runs.py")
+                             "the experiments/ script that trained it")
         return ENVIRONMENTS[environment](
             task, terminate_on_success=terminate_on_success, control=control,
             randomization=randomization, control_timestep=control_timestep,

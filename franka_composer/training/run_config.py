@@ -51,10 +51,10 @@ class RunConfig:
     is how the networks' passes are computed while training; the weights are fp32 either
     way, so evaluation and loading do not depend on it.
 
-    `environment` names another suite whose env of the task the run trained in (the
-    reference code's, through experiments/reference_env_runs.py), or None for this
-    package's: only a process that can build it (`models.ENVIRONMENTS`) resumes or plays
-    the run.
+    `environment` names another env of the task the run trained in (the reference code's,
+    through experiments/reference_env_runs.py; this suite's with the surface guard let go,
+    through experiments/unguarded_runs.py), or None for this package's: only a process that
+    can build it (`models.ENVIRONMENTS`) resumes or plays the run.
     """
 
     task: str
