@@ -138,7 +138,8 @@ class FingerOnBlock:
 
 
 def watch(env) -> FingerOnBlock:
-    """A `FingerOnBlock` measuring after every physics step of `env`."""
+    """A `FingerOnBlock` measuring after every physics step of `env` (this suite's: from its
+    next reset on, when Composer gathers the task's hooks again)."""
     if is_reference(env):
         model, data = env.model, env.data
         block = [model.geom("obj_geom").id]
