@@ -416,6 +416,47 @@ def test_grasp_reach_finds_the_guard_holding_a_finger_on_the_block_top(monkeypat
     assert 3 < let_go["shoved_mm"] < 7
 
 
+def test_hand_on_top_counts_a_hand_stopped_on_the_block_and_not_one_beside_it():
+    import gymnasium as gym
+
+    module = load_script(EXPERIMENTS / "hand_on_top.py")
+    on_top = np.array([0.005, 0.025, 0.027])  # A finger's tip on the top, 25 mm off.
+    assert module.held_on_top(on_top, width=0.08, action_z=-1.0, came_down=0.0)
+    assert not module.held_on_top(on_top, width=0.08, action_z=-0.2, came_down=0.0)  # Not down.
+    assert not module.held_on_top(on_top, width=0.08, action_z=-1.0, came_down=0.01)  # Moving.
+    assert not module.held_on_top(on_top, width=0.03, action_z=-1.0, came_down=0.0)  # Closed.
+    assert not module.held_on_top(on_top + [0.0, 0.0, 0.01], 0.08, -1.0, 0.0)  # Above it.
+    assert not module.held_on_top(on_top + [0.0, 0.04, 0.0], 0.08, -1.0, 0.0)  # Beside it.
+    assert module.at_block_height(np.array([0.0, 0.02, 0.0]))
+    assert not module.at_block_height(np.array([0.0, 0.02, 0.027]))
+    # Through the wrapper: down onto the top, then held there twice, the episode ending.
+    steps = iter([(on_top, 0.08)] * 3)
+
+    class Env(gym.Env):
+        observation_space, action_space = None, None
+
+        def reset(self, **kwargs):
+            return self._obs(np.array([0.0, 0.0, 0.1]), 0.08), {}
+
+        def step(self, action):
+            offset, width = next(steps)
+            done = action[0] > 0
+            return self._obs(offset, width), 0.0, False, done, {}
+
+        @staticmethod
+        def _obs(offset, width):
+            observation = np.zeros(19)
+            observation[:3], observation[6] = offset + [0.6, 0.0, 0.02], width
+            return {"observation": observation, "achieved_goal": np.array([0.6, 0.0, 0.02])}
+
+    wrapped = module.HandOnTop(Env())
+    wrapped.reset()
+    wrapped.step(np.array([0.0, 0.0, -1.0, 1.0]))  # Came down 7 cm onto the top.
+    wrapped.step(np.array([0.0, 0.0, -1.0, 1.0]))  # Held there.
+    wrapped.step(np.array([1.0, 0.0, -1.0, 1.0]))  # Held there; the episode ends.
+    assert wrapped.rows == [(2, 0, False)]
+
+
 @pytest.mark.slow
 def test_render_backends_saves_the_scene_the_committed_frames_show(tmp_path, capsys):
     module = load_script(EXPERIMENTS / "render_backends.py")

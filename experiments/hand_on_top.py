@@ -1,0 +1,123 @@
+"""How often a trained pick-and-place policy's open hand is held on the block's top: the
+surface guard stops a finger that comes down on the block's top edge there, where the
+reference code's finger sinks in and squeezes the block between the fingers, a grasp
+(docs/experiments/grasp-margin.md, "What narrows the reach"). If trained policies' hands
+often end up there, the guard's narrower catch costs them grasps; if rarely, it is not
+what they ran into.
+
+    python experiments/hand_on_top.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--seed 100]
+
+Plays each run's policy through `measure_success`, the loop of `franka-composer evaluate
+--episodes N --seed S` (the run's own env and timing), and counts, per episode, the steps
+that end with the hand held on the block's top (`held_on_top`: commanded down, it came down
+less than 2 mm, its fingers open wider than the block, the tool centre point 24-30 mm
+above the block's centre (a finger's tip on its top), within 60 mm of it along the closing
+axis and 20 mm across), the steps that end with the hand at the block's height within that
+reach of it (`at_block_height`), and whether the block rose more than 1 cm. Prints a Markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+
+import gymnasium as gym
+import numpy as np
+
+from franka_composer.cli.options import episode_seed, positive_int
+
+#: The tool centre point's height above the block's centre (m) with a finger's tip on its
+#: top: half the block (0.02) plus the tip's depth below the point (7.3 mm), give or take.
+ON_TOP = (0.024, 0.030)
+HALF_BLOCK = 0.02  # m.
+ACROSS = 0.020  # m off the block's centre along x, at most.
+REACH = 0.060  # m off it along y (the closing axis), at most: a finger still over it.
+DOWN = -0.5  # The action's z at or below which the policy commands the hand down.
+STILL = 0.002  # m: a hand commanded down that came down less was stopped.
+LIFTED = 0.01  # m above the block's resting height.
+
+
+def held_on_top(offset: np.ndarray, width: float, action_z: float, came_down: float) -> bool:
+    """Whether a step ended with the hand, its fingers open wider than the block, stopped
+    with a finger's tip on the block's top although commanded down; `offset`: the tool
+    centre point minus the block's centre (m), `came_down`: how far it came down (m)."""
+    return bool(action_z <= DOWN and came_down < STILL and width > 2 * HALF_BLOCK
+                and ON_TOP[0] <= offset[2] <= ON_TOP[1] and abs(offset[0]) <= ACROSS
+                and abs(offset[1]) <= REACH)
+
+
+def at_block_height(offset: np.ndarray) -> bool:
+    """Whether a step ended with the tool centre point at the block's height and a finger's
+    reach of it (where the fingers, open or closed, are on its sides or on it)."""
+    return bool(abs(offset[2]) <= 0.012 and abs(offset[0]) <= ACROSS
+                and abs(offset[1]) <= REACH)
+
+
+class HandOnTop(gym.Wrapper):
+    """Records, for each episode played through it, (steps held on top, steps at the block's
+    height, lifted), so that `measure_success` (evaluate's own loop) plays the episodes."""
+
+    def __init__(self, env: gym.Env):
+        super().__init__(env)
+        self.rows: list[tuple[int, int, bool]] = []
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._resting = obs["achieved_goal"][2]
+        self._on_top = self._down = 0
+        self._lifted = False
+        self._tcp_z = obs["observation"][2]
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        offset = obs["observation"][:3] - obs["achieved_goal"]
+        width = float(obs["observation"][6])
+        came_down, self._tcp_z = self._tcp_z - obs["observation"][2], obs["observation"][2]
+        self._on_top += held_on_top(offset, width, float(np.clip(action[2], -1.0, 1.0)),
+                                    float(came_down))
+        self._down += at_block_height(offset)
+        self._lifted |= bool(obs["achieved_goal"][2] - self._resting > LIFTED)
+        if terminated or truncated:
+            self.rows.append((self._on_top, self._down, self._lifted))
+        return obs, reward, terminated, truncated, info
+
+
+def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[dict, np.ndarray]:
+    """(facts of the run, rows of (steps held on top, steps at the block's height, lifted))
+    per episode."""
+    from franka_composer.training.evaluation import measure_success
+    from franka_composer.training.policy_file import trained_on_its_task
+    from franka_composer.training.runs import RunDir
+
+    config = RunDir(run_root).read_config()
+    if config.task != "pick_and_place":
+        raise SystemExit(f"{run_root}: a {config.task} run; this reads pick_and_place")
+    with trained_on_its_task(run_root, device="cpu", wrap=HandOnTop) as (_, env, model):
+        measure_success(model, env, episodes, seed=seed)
+        return ({"steps": int(model.num_timesteps), "timing": config.timing_label or "default"},
+                np.array(env.rows, dtype=float))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", type=pathlib.Path, nargs="+", metavar="RUN_DIR")
+    parser.add_argument("--episodes", type=positive_int, default=200)
+    parser.add_argument("--seed", type=episode_seed, default=100)
+    args = parser.parse_args()
+    print(f"{args.episodes} deterministic episodes per policy, first reset seed {args.seed}\n")
+    print("| run | timing | steps trained | episodes with the hand held on the block's "
+          "top | steps held there (all episodes) | episodes with the hand at the block's "
+          "height | episodes lifting it > 1 cm |")
+    print("|---|---|---|---|---|---|---|")
+    for root in args.runs:
+        facts, rows = episodes_of(root, args.episodes, args.seed)
+        count = len(rows)
+        print(f"| {root.parent.name}/{root.name} | {facts['timing']} | {facts['steps']:,} | "
+              f"{int((rows[:, 0] > 0).sum())}/{count} | {int(rows[:, 0].sum())} | "
+              f"{int((rows[:, 1] > 0).sum())}/{count} | {int(rows[:, 2].sum())}/{count} |",
+              flush=True)
+
+
+if __name__ == "__main__":
+    main()
