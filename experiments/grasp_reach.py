@@ -25,7 +25,6 @@ contact normal within 45 deg of vertical) and how deep (mm) a finger sank into t
 
 from __future__ import annotations
 
-import json
 import pathlib
 import sys
 
@@ -103,10 +102,11 @@ def is_reference(env) -> bool:
 class FingerOnBlock:
     """Physics step by physics step, since the last `clear`: the largest normal force (N) of
     a finger-block contact whose normal is within 45 deg of vertical (a finger pressing on
-    the block's top, not squeezing its sides), and the deepest (m) any finger-block contact
-    went. After a physics step the contact forces are not yet solved for the new state:
-    each step with a finger-block contact is solved again on a scratch copy (`mj_forward`),
-    so the env's own data is never touched."""
+    the block's top, not squeezing its sides), the deepest (m) any finger-block contact
+    went, and the height (m) of the first finger-block contact. After a physics step the
+    contact forces are not yet solved for the new state: each step with a finger-block
+    contact is solved again on a scratch copy (`mj_forward`), so the env's own data is
+    never touched."""
 
     def __init__(self, model, data, fingers, block) -> None:
         self._model, self._data = model, data
@@ -117,6 +117,7 @@ class FingerOnBlock:
 
     def clear(self) -> None:
         self.press, self.depth = 0.0, 0.0
+        self.first_touch_z = None  # m: the height of the first finger-block contact.
 
     def _touching(self, data) -> list[int]:
         return [index for index in range(data.ncon)
@@ -131,6 +132,8 @@ class FingerOnBlock:
         mujoco.mj_forward(self._model, scratch)
         for index in self._touching(scratch):
             contact = scratch.contact[index]
+            if self.first_touch_z is None:
+                self.first_touch_z = float(contact.pos[2])
             self.depth = max(self.depth, -float(contact.dist))
             if abs(contact.frame[2]) > np.sqrt(0.5):
                 mujoco.mj_contactForce(self._model, scratch, index, self._force)
@@ -215,22 +218,14 @@ def table(results: dict[str, list[list[dict]]], episodes: int) -> str:
     return "\n".join(lines)
 
 
+def report(results: dict, episodes: int, seed: int) -> str:
+    return (f"pick_and_place at the reference timing, {episodes} grasps per offset, seed "
+            f"{seed}, the gripper action held at -1\n\n" + table(results, episodes))
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = random_exploration.comparison_parser(__doc__, VARIANTS, episodes=20)
-    args = parser.parse_args(argv)
-    random_exploration.check_arguments(parser, args)
-    if args.suite:
-        answers, sys.stdout = sys.stdout, sys.stderr
-        rows = reach(args.suite, args.episodes, args.seed, args.reference_path)
-        print(random_exploration.RESULT_PREFIX + json.dumps(rows), file=answers, flush=True)
-        return 0
-    results = random_exploration.run_suites(
-        __file__, VARIANTS, ["--episodes", str(args.episodes), "--seed", str(args.seed)],
-        args.reference_path)
-    print(f"pick_and_place at the reference timing, {args.episodes} grasps per offset, "
-          f"seed {args.seed}, the gripper action held at -1\n")
-    print(table(results, args.episodes))
-    return 0
+    return random_exploration.comparison_main(argv, __doc__, __file__, VARIANTS, reach,
+                                              report)
 
 
 if __name__ == "__main__":

@@ -13,7 +13,8 @@ that end with the hand held on the block's top (`held_on_top`: commanded down, i
 less than 2 mm, its fingers open wider than the block, the tool centre point 24-30 mm
 above the block's centre (a finger's tip on its top), within 60 mm of it along the closing
 axis and 20 mm across), the steps that end with the hand at the block's height within that
-reach of it (`at_block_height`), and whether the block rose more than 1 cm. Prints a Markdown table.
+reach of it (`at_block_height`), whether the block rose more than 2 cm (a lift: tipped, it
+rises up to 14.6 mm), and whether it tipped (`tipped`). Prints a Markdown table.
 """
 
 from __future__ import annotations
@@ -34,28 +35,45 @@ ACROSS = 0.020  # m off the block's centre along x, at most.
 REACH = 0.060  # m off it along y (the closing axis), at most: a finger still over it.
 DOWN = -0.5  # The action's z at or below which the policy commands the hand down.
 STILL = 0.002  # m: a hand commanded down that came down less was stopped.
-LIFTED = 0.01  # m above the block's resting height.
+#: m above the block's resting height: a lift. A 4 cm cube tipped onto an edge rises 8.3 mm,
+#: onto a corner 14.6 mm, without leaving the floor.
+LIFTED = 0.02
+#: rad: a block turned this far about x or y (its Euler angles, observation[10:12]) tipped.
+TIPPED = 0.3
 
 
-def held_on_top(offset: np.ndarray, width: float, action_z: float, came_down: float) -> bool:
+
+def held_on_top(offset, width, action_z, came_down):
     """Whether a step ended with the hand, its fingers open wider than the block, stopped
     with a finger's tip on the block's top although commanded down; `offset`: the tool
-    centre point minus the block's centre (m), `came_down`: how far it came down (m)."""
-    return bool(action_z <= DOWN and came_down < STILL and width > 2 * HALF_BLOCK
-                and ON_TOP[0] <= offset[2] <= ON_TOP[1] and abs(offset[0]) <= ACROSS
-                and abs(offset[1]) <= REACH)
+    centre point minus the block's centre (m, last axis x y z), `came_down`: how far it came
+    down (m). Elementwise over arrays of steps."""
+    offset = np.asarray(offset)
+    return ((np.asarray(action_z) <= DOWN) & (np.asarray(came_down) < STILL)
+            & (np.asarray(width) > 2 * HALF_BLOCK)
+            & (ON_TOP[0] <= offset[..., 2]) & (offset[..., 2] <= ON_TOP[1])
+            & (np.abs(offset[..., 0]) <= ACROSS) & (np.abs(offset[..., 1]) <= REACH))
 
 
-def at_block_height(offset: np.ndarray) -> bool:
+def tipped(euler):
+    """Whether the block's orientation (x-y-z Euler angles, rad) is tipped from upright.
+    Elementwise over arrays of steps."""
+    euler = np.asarray(euler)
+    return (np.abs(euler[..., 0]) > TIPPED) | (np.abs(euler[..., 1]) > TIPPED)
+
+
+def at_block_height(offset):
     """Whether a step ended with the tool centre point at the block's height and a finger's
-    reach of it (where the fingers, open or closed, are on its sides or on it)."""
-    return bool(abs(offset[2]) <= 0.012 and abs(offset[0]) <= ACROSS
-                and abs(offset[1]) <= REACH)
+    reach of it (where the fingers, open or closed, are on its sides or on it).
+    Elementwise over arrays of steps."""
+    offset = np.asarray(offset)
+    return ((np.abs(offset[..., 2]) <= 0.012) & (np.abs(offset[..., 0]) <= ACROSS)
+            & (np.abs(offset[..., 1]) <= REACH))
 
 
 class HandOnTop(gym.Wrapper):
     """Records, for each episode played through it, (steps held on top, steps at the block's
-    height, lifted), so that `measure_success` (evaluate's own loop) plays the episodes."""
+    height, lifted, tipped), so that `measure_success` (evaluate's own loop) plays the episodes."""
 
     def __init__(self, env: gym.Env):
         super().__init__(env)
@@ -65,7 +83,7 @@ class HandOnTop(gym.Wrapper):
         obs, info = self.env.reset(**kwargs)
         self._resting = obs["achieved_goal"][2]
         self._on_top = self._down = 0
-        self._lifted = False
+        self._lifted = self._tipped = False
         self._tcp_z = obs["observation"][2]
         return obs, info
 
@@ -74,18 +92,19 @@ class HandOnTop(gym.Wrapper):
         offset = obs["observation"][:3] - obs["achieved_goal"]
         width = float(obs["observation"][6])
         came_down, self._tcp_z = self._tcp_z - obs["observation"][2], obs["observation"][2]
-        self._on_top += held_on_top(offset, width, float(np.clip(action[2], -1.0, 1.0)),
-                                    float(came_down))
-        self._down += at_block_height(offset)
+        self._on_top += bool(held_on_top(offset, width, np.clip(action[2], -1.0, 1.0),
+                                         came_down))
+        self._down += bool(at_block_height(offset))
         self._lifted |= bool(obs["achieved_goal"][2] - self._resting > LIFTED)
+        self._tipped |= bool(tipped(obs["observation"][10:12]))
         if terminated or truncated:
-            self.rows.append((self._on_top, self._down, self._lifted))
+            self.rows.append((self._on_top, self._down, self._lifted, self._tipped))
         return obs, reward, terminated, truncated, info
 
 
 def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[dict, np.ndarray]:
-    """(facts of the run, rows of (steps held on top, steps at the block's height, lifted))
-    per episode."""
+    """(facts of the run, rows of (steps held on top, steps at the block's height, lifted,
+    tipped)) per episode."""
     from franka_composer.training.evaluation import measure_success
     from franka_composer.training.policy_file import trained_on_its_task
     from franka_composer.training.runs import RunDir
@@ -108,14 +127,15 @@ def main() -> None:
     print(f"{args.episodes} deterministic episodes per policy, first reset seed {args.seed}\n")
     print("| run | timing | steps trained | episodes with the hand held on the block's "
           "top | steps held there (all episodes) | episodes with the hand at the block's "
-          "height | episodes lifting it > 1 cm |")
+          "height | episodes lifting it > 2 cm | episodes tipping it |")
     print("|---|---|---|---|---|---|---|")
     for root in args.runs:
         facts, rows = episodes_of(root, args.episodes, args.seed)
         count = len(rows)
         print(f"| {root.parent.name}/{root.name} | {facts['timing']} | {facts['steps']:,} | "
               f"{int((rows[:, 0] > 0).sum())}/{count} | {int(rows[:, 0].sum())} | "
-              f"{int((rows[:, 1] > 0).sum())}/{count} | {int(rows[:, 2].sum())}/{count} |",
+              f"{int((rows[:, 1] > 0).sum())}/{count} | {int(rows[:, 2].sum())}/{count} | "
+              f"{int(rows[:, 3].sum())}/{count} |",
               flush=True)
 
 

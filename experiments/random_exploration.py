@@ -181,6 +181,26 @@ def run_suites(script: str, suites, arguments: list[str],
     return results
 
 
+def comparison_main(argv, doc: str, script: str, variants, play, report,
+                    episodes: int = 20) -> int:
+    """The command line of a comparison that plays each of `variants` in a process of its
+    own (`script --suite NAME`): a worker prints `play(name, episodes, seed,
+    reference_path)` as its RESULT line; the parent prints `report(results, episodes,
+    seed)`, results being {name: its RESULT}."""
+    parser = comparison_parser(doc, variants, episodes=episodes)
+    args = parser.parse_args(argv)
+    check_arguments(parser, args)
+    if args.suite:
+        answers, sys.stdout = sys.stdout, sys.stderr
+        rows = play(args.suite, args.episodes, args.seed, args.reference_path)
+        print(RESULT_PREFIX + json.dumps(rows), file=answers, flush=True)
+        return 0
+    results = run_suites(script, variants, ["--episodes", str(args.episodes), "--seed",
+                                            str(args.seed)], args.reference_path)
+    print(report(results, args.episodes, args.seed))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = comparison_parser(__doc__, SUITES, episodes=200)
     parser.add_argument("--task", choices=tuple(peer_worker.TASK_NAMES), default="pick_and_place")

@@ -261,7 +261,7 @@ def test_goal_sampling_draws_each_reset_from_its_seed_and_compares_alike_draws()
 
 
 @pytest.mark.parametrize("script", ["random_exploration.py", "grasp_margin.py",
-                                    "grasp_reach.py", "goal_sampling.py"])
+                                    "grasp_reach.py", "push_tip.py", "goal_sampling.py"])
 @pytest.mark.parametrize("args, message", [
     (["--episodes", "0"], "--episodes 0: give at least 1"),
     (["--reference-path", "{tmp}"], "{tmp}: no panda_mujoco_gym/__init__.py there; give the "
@@ -454,7 +454,10 @@ def test_hand_on_top_counts_a_hand_stopped_on_the_block_and_not_one_beside_it():
     wrapped.step(np.array([0.0, 0.0, -1.0, 1.0]))  # Came down 7 cm onto the top.
     wrapped.step(np.array([0.0, 0.0, -1.0, 1.0]))  # Held there.
     wrapped.step(np.array([1.0, 0.0, -1.0, 1.0]))  # Held there; the episode ends.
-    assert wrapped.rows == [(2, 0, False)]
+    assert wrapped.rows == [(2, 0, False, False)]
+    # A block tipped onto an edge about x (its centre 8 mm up, not lifted) reads tipped.
+    assert module.tipped(np.array([np.pi / 4, 0.0])) and module.tipped(np.array([0.0, -0.5]))
+    assert not module.tipped(np.array([0.1, -0.1]))
 
 
 @pytest.mark.slow
@@ -562,20 +565,22 @@ def test_an_unguarded_run_trains_with_the_guard_let_go_and_is_refused_elsewhere(
     from franka_composer.training import models
     from franka_composer.training.runs import RunDir, read_eval_rows
 
-    module = train_in_another_env(monkeypatch, "unguarded_runs.py")
+    module = train_in_another_env(monkeypatch, "altered_runs.py")
+    name = module.ALTERATIONS["unguarded"][0]
     monkeypatch.setattr(BoundSurfaceGuard, "guard", BoundSurfaceGuard.guard)
     out = tmp_path / "run"
-    assert module.main(["train", "--task", "pick_and_place", "--algo", "sac", "--timing",
-                        "reference", "--out", str(out), "--total-steps", "200", *TINY_TRAINING]) == 0
+    assert module.main(["unguarded", "train", "--task", "pick_and_place", "--algo", "sac",
+                        "--timing", "reference", "--out", str(out), "--total-steps", "200",
+                        *TINY_TRAINING]) == 0
     config = RunDir(out).read_config()
-    assert json.loads((out / "config.json").read_text())["environment"] == module.NAME
+    assert json.loads((out / "config.json").read_text())["environment"] == name
     assert config.variant == ("net_arch 16,16, batch_size 32, unguarded franka_composer's "
                               "env, reference timing")
     assert [row["steps"] for row in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
     # Its envs send the hand's target as deep as the action says, down to z = 0: full
     # downward steps from the start reach 5 cm below the hand where the floor stops the
     # guarded hand's target 7.2 mm above it (the fingertips on the floor).
-    env = models.make_env("pick_and_place", environment=module.NAME)
+    env = models.make_env("pick_and_place", environment=name)
     env.reset(seed=0)
     law = env.unwrapped.task.controller.law
     for _ in range(5):
@@ -592,6 +597,32 @@ def test_an_unguarded_run_trains_with_the_guard_let_go_and_is_refused_elsewhere(
         env.step(np.array([0.5, 0.0, -1.0, 0.0], dtype=np.float32))
     assert env.unwrapped.task.controller.law._target[2] == pytest.approx(0.0072, abs=5e-4)
     env.close()
+
+
+def test_a_damped_block_run_damps_the_block_in_every_env_it_builds(monkeypatch):
+    """The block's free joint damped as the reference code's in the envs the script builds,
+    and a push that tips the undamped block over slides the damped one."""
+    module = train_in_another_env(monkeypatch, "altered_runs.py")
+    push_tip = load_script(EXPERIMENTS / "push_tip.py")
+    from franka_composer.training import models
+
+    name = module.ALTERATIONS["damped_block"][0]
+    module.install("damped_block")
+    pushed = {}
+    for environment in (None, name):
+        env = models.make_env("pick_and_place", environment=environment,
+                              terminate_on_success=False, control_timestep=0.5,
+                              velocity_timestep=0.05, weld_time_constant=0.02)
+        env.reset(seed=0)
+        physics = env.unwrapped.composer_env.physics
+        damping = physics.model.dof_damping[-6:]  # The block's free joint comes last.
+        assert list(damping) == [0.0] * 6 if environment is None else [0.01] * 6
+        script = push_tip.grasp_margin.Script(env)
+        watcher = push_tip.grasp_reach.watch(env.unwrapped)
+        pushed[environment] = push_tip.push(script, watcher, 1, 0.0)
+        env.close()
+    assert pushed[None]["tipped"] and not pushed[name]["tipped"]
+    assert pushed[name]["slide_mm"] > 100
 
 
 def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_path):

@@ -17,7 +17,7 @@ DEVICES = ("auto", "cpu", "cuda")
 
 #: Other environments a run may train in (`RunConfig.environment`): {name: a builder taking
 #: `make_env`'s arguments}. Empty in the package: the script that trains in one registers it
-#: (experiments/reference_env_runs.py, experiments/unguarded_runs.py), and elsewhere such a
+#: (experiments/reference_env_runs.py, experiments/altered_runs.py), and elsewhere such a
 #: run is refused.
 ENVIRONMENTS: dict = {}
 

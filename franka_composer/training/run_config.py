@@ -52,8 +52,8 @@ class RunConfig:
     way, so evaluation and loading do not depend on it.
 
     `environment` names another env of the task the run trained in (the reference code's,
-    through experiments/reference_env_runs.py; this suite's with the surface guard let go,
-    through experiments/unguarded_runs.py), or None for this package's: only a process that
+    through experiments/reference_env_runs.py; this suite's with one of its differences from
+    the reference code undone, through experiments/altered_runs.py), or None for this package's: only a process that
     can build it (`models.ENVIRONMENTS`) resumes or plays the run.
     """
 
