@@ -92,7 +92,9 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             "observation layout are those above at either timing; what differs from the "
             "reference code at both is Menagerie's Panda (no arm servos holding the neutral "
             "pose, other finger pads), the guard that keeps the hand's target out of the "
-            "floor, and the contact parameters."]),
+            "floor, the contact parameters, and the object's free joint, undamped here "
+            "where the reference code's is damped (0.01), which keeps its block from "
+            "tipping over when pushed."]),
         ("Arguments", [
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',
