@@ -128,7 +128,7 @@ def main() -> None:
     print("| run | timing | steps trained | episodes with the hand held on the block's "
           "top | steps held there (all episodes) | episodes with the hand at the block's "
           "height | episodes lifting it > 2 cm | episodes tipping it |")
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for root in args.runs:
         facts, rows = episodes_of(root, args.episodes, args.seed)
         count = len(rows)

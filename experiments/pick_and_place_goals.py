@@ -79,7 +79,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=positive_int, default=200)
     parser.add_argument("--seed", type=episode_seed, default=100)
     args = parser.parse_args()
-    print("| run | steps | goal | episodes | success | block lifted |")
+    print("| run | steps | goal | episodes | success | block rose > 1 cm |")
     print("|---|---|---|---|---|---|")
     for root in args.runs:
         steps, rows = episodes_of(root, args.episodes, args.seed)
