@@ -33,15 +33,15 @@ import gymnasium as gym
 
 from franka_composer import cli
 from franka_composer.cli import train as train_cli
+from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
 from franka_composer.training import models
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import random_exploration  # noqa: E402  (experiments/, not a package)
 
-#: The reference code's block's free-joint damping (N s/m and N m s/rad, all six degrees of
-#: freedom); this suite's has none. On the 4 cm, 0.1 kg cube (moment of inertia
-#: 2.7e-5 kg m^2) a turn dies out with a time constant of 2.7 ms, a slide in 10 s.
-BLOCK_DAMPING = 0.01
+#: The reference code's block's free-joint damping (the task option `object_damping` sets
+#: it in the package; set here at run time, as the damped-block cell was started).
+BLOCK_DAMPING = REFERENCE_OBJECT_DAMPING
 
 
 def damp_block(env) -> None:

@@ -15,6 +15,7 @@ import sys
 import numpy as np
 import pytest
 
+import franka_composer
 from conftest import load_script
 from franka_composer.cli import main
 
@@ -616,6 +617,11 @@ def test_a_damped_block_run_damps_the_block_in_every_env_it_builds(monkeypatch):
         env.reset(seed=0)
         physics = env.unwrapped.composer_env.physics
         damping = physics.model.dof_damping[-6:]  # The block's free joint comes last.
+        # As the task option damps it (`object_damping`, the reference code's value).
+        optioned = franka_composer.load("pick_and_place", object_damping=0.01 if environment
+                                        else 0.0)
+        np.testing.assert_array_equal(damping, optioned.physics.model.dof_damping[-6:])
+        optioned.close()
         assert list(damping) == [0.0] * 6 if environment is None else [0.01] * 6
         script = push_tip.grasp_margin.Script(env)
         watcher = push_tip.grasp_reach.watch(env.unwrapped)

@@ -7,6 +7,7 @@ import pytest
 
 import franka_composer
 from conftest import grasp_block, move_tcp_to
+from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
 pytestmark = pytest.mark.usefixtures("composer_path")
@@ -129,6 +130,33 @@ def test_pushed_block_slides_along_the_floor_without_tipping_over():
         if abs(roll) < 0.2 and abs(pitch) < 0.2 and height < 0.025:
             upright += 1
     assert upright >= 4
+
+
+def _full_speed_push(seed: int, **options) -> tuple[float, float]:
+    """Pick-and-place at the reference timing: the closed hand 5 cm behind the block, level
+    with its centre, then three full steps along +x; (the block's largest tilt about x or y
+    at a step's end, rad; how far it went, m)."""
+    env = franka_composer.load("pick_and_place", seed=seed, terminate_on_success=False,
+                               timing="reference", **options)
+    timestep = env.reset()
+    block = timestep.observation["block/position"].copy()
+    timestep = move_tcp_to(env, timestep, block + [-0.05, 0, 0.06], gripper=-1)
+    timestep = move_tcp_to(env, timestep, block + [-0.05, 0, 0.0], gripper=-1)
+    tilt = 0.0
+    for _ in range(3):
+        timestep = env.step(np.array([1, 0, 0, -1], np.float32))
+        tilt = max(tilt, np.abs(timestep.observation["block/orientation_euler"][:2]).max())
+    return tilt, float(np.linalg.norm(timestep.observation["block/position"][:2] - block[:2]))
+
+
+def test_a_full_speed_push_rolls_the_block_over_unless_its_joint_is_damped():
+    """The undamped block (a real one's) rolls over under a full-speed push; damped as the
+    reference code's (object_damping=0.01) it slides upright (docs/experiments/push-tip.md)."""
+    undamped = [_full_speed_push(seed) for seed in range(6)]
+    damped = [_full_speed_push(seed, object_damping=REFERENCE_OBJECT_DAMPING)
+              for seed in range(6)]
+    assert sum(tilt > 1.5 for tilt, _ in undamped) >= 4  # Onto another face, or further.
+    assert all(tilt < 0.1 and moved > 0.1 for tilt, moved in damped)
 
 
 def test_a_block_stacked_on_another_stays_there():

@@ -30,13 +30,14 @@ NAN, INF = float("nan"), float("inf")
     ("neutral_arm_qpos", (0, 3.0, 0, -1.85, 0, 2.26, 0.79),
      r"neutral_arm_qpos\[1\] = 3.0 is outside joint2's range \[-1.7628, 1.7628\] rad"),
     ("object_friction", -0.5, "object_friction must be >= 0, got -0.5"),
+    ("object_damping", -0.01, "object_damping must be >= 0, got -0.01"),
     ("floor_friction", -1, "floor_friction must be >= 0, got -1"),
     ("object_mass", 0, "object_mass must be > 0, got 0"),
     ("block_half_size", 0.0, "block_half_size must be > 0, got 0.0"),
     ("block_half_size", (0.02,), "block_half_size must be a finite number > 0, got"),
     ("puck_radius", 0.03, "puck_radius does not apply to push: its objects are blocks "
                           r"\(its object options: object_mass, object_friction, "
-                          r"block_half_size\)"),
+                          r"object_damping, block_half_size\)"),
     ("object_range", (-0.1, 0.3), r"object_range\[0\] must be >= 0, got -0.1"),
     ("goal_max_height", -0.2, "goal_max_height must be >= 0"),
     ("goal_in_air_probability", 1.5, "goal_in_air_probability must be >= 0 and <= 1, got 1.5"),

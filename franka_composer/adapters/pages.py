@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import textwrap
 
-from franka_composer.tasks.config import TIMINGS, TaskConfig
+from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig
 from franka_composer.tasks.layout import layout_for
 
 #: Line width of the page.
@@ -93,8 +93,8 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             "reference code at both is Menagerie's Panda (no arm servos holding the neutral "
             "pose, other finger pads), the guard that keeps the hand's target out of the "
             "floor, the contact parameters, and the object's free joint, undamped here "
-            "where the reference code's is damped (0.01), which keeps its block from "
-            "tipping over when pushed."]),
+            "where the reference code's block's is damped, which keeps it from tipping over "
+            f"when pushed (object_damping={REFERENCE_OBJECT_DAMPING:g} damps it so)."]),
         ("Arguments", [
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',

@@ -79,10 +79,19 @@ class Workspace:
     goal_in_air_probability: float = 0.0
 
 
+#: The damping of the paper's reference code's block's free joint (its push and
+#: pick-and-place XML: `<joint type="free" damping="0.01"/>`; its slide's puck has none):
+#: on a 4 cm, 0.1 kg cube a turn dies out within 2.7 ms, so a push slides the block where
+#: an undamped one tips over (docs/experiments/push-tip.md). Task option `object_damping`.
+REFERENCE_OBJECT_DAMPING = 0.01
+
+
 @dataclasses.dataclass(frozen=True)
 class BlockSpec:
     """A cube: `half_size` (m), `mass` (kg), sliding `friction`, colour; `coloured_faces`
-    tells its faces apart in images; `entity_name` names its observables ("block/position")."""
+    tells its faces apart in images; `entity_name` names its observables ("block/position");
+    `joint_damping` damps its free joint's six degrees of freedom (N s/m, N m s/rad; none
+    by default, as a real block)."""
 
     half_size: float = 0.02
     mass: float = 1.0
@@ -90,6 +99,7 @@ class BlockSpec:
     rgba: tuple[float, ...] = (0.1, 0.45, 0.9, 1.0)
     coloured_faces: bool = False
     entity_name: str = "block"
+    joint_damping: float = 0.0
 
     def make(self) -> Prop:
         return Block(half_size=self.half_size, mass=self.mass, friction=self.friction,
@@ -99,13 +109,15 @@ class BlockSpec:
 
 @dataclasses.dataclass(frozen=True)
 class PuckSpec:
-    """A flat cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction`."""
+    """A flat cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction`;
+    `joint_damping` as a block's."""
 
     radius: float = 0.03
     half_height: float = 0.03
     mass: float = 1.0
     friction: float = 0.04
     entity_name: str = "puck"
+    joint_damping: float = 0.0
 
     def make(self) -> Prop:
         return Puck(radius=self.radius, half_height=self.half_height, mass=self.mass,
@@ -448,6 +460,7 @@ def _physics(name, value):
 OPTIONS: dict[str, Option] = {
     "object_mass": Option(("objects", "mass"), _positive),
     "object_friction": Option(("objects", "friction"), _non_negative),
+    "object_damping": Option(("objects", "joint_damping"), _non_negative),
     "block_half_size": Option(("objects", "half_size"), _positive),
     "puck_radius": Option(("objects", "radius"), _positive),
     "puck_half_height": Option(("objects", "half_height"), _positive),

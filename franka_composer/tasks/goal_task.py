@@ -56,8 +56,11 @@ class GoalTask(composer.Task):
         self._episode_started = False  # Cameras render from the first episode on.
 
         arena.attach(panda)
-        for prop in self._props:
-            arena.add_free_entity(prop)
+        for prop, spec in zip(self._props, config.objects):
+            if spec.joint_damping:  # A free joint that can be damped (a freejoint cannot).
+                arena.attach(prop).add("joint", type="free", damping=spec.joint_damping)
+            else:
+                arena.add_free_entity(prop)
         self._goal_spec: Goal = GOALS[config.goal](config, arena, panda, self._props)
         self._goal = np.zeros(self._goal_spec.size)
         if not config.observations.goal_marker_visible:
