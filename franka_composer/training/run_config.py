@@ -53,8 +53,9 @@ class RunConfig:
 
     `environment` names another env of the task the run trained in (the reference code's,
     through experiments/reference_env_runs.py; this suite's with one of its differences from
-    the reference code undone, through experiments/altered_runs.py), or None for this package's: only a process that
-    can build it (`models.ENVIRONMENTS`) resumes or plays the run.
+    the reference code undone, through experiments/altered_runs.py), or None for this
+    package's: only a process that can build it (`models.ENVIRONMENTS`) resumes or plays
+    the run.
     """
 
     task: str
