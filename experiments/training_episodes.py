@@ -2,8 +2,8 @@
 per window of training steps, the share of its episodes (exploration noise and all) in
 which the hand was held on the block's top, came to the block's height, lifted the block
 (more than 2 cm), tipped it, and succeeded. Set side by side, runs in this suite and in the
-reference code's env (`experiments/reference_env_runs.py`) show whether their learners met the block
-alike on the way, which the finished policies cannot (`hand_on_top.py`).
+reference code's env (`experiments/reference_env_runs.py`) show whether their learners met
+the block alike on the way, which the finished policies cannot (`hand_on_top.py`).
 
     python experiments/training_episodes.py RUN_DIR [RUN_DIR ...] [--window 50000]
 
