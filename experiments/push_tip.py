@@ -28,6 +28,7 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import altered_runs  # noqa: E402  (experiments/, not a package)
 import grasp_reach  # noqa: E402
+import hand_on_top  # noqa: E402
 
 grasp_margin, random_exploration = grasp_reach.grasp_margin, grasp_reach.random_exploration
 #: The tool centre point's height above the block's centre (m) during the push: the
@@ -35,8 +36,6 @@ grasp_margin, random_exploration = grasp_reach.grasp_margin, grasp_reach.random_
 HEIGHTS = (-0.012, 0.0, 0.01)
 BEHIND = 0.05  # m behind the block's centre, along -x, where the push starts.
 PUSHES = 3  # Full steps along +x (5 cm each).
-TIPPED = 0.3  # rad about x or y.
-HALF_BLOCK = 0.02  # m.
 
 
 def reference_solver(env) -> None:
@@ -87,11 +86,12 @@ def push(script, watcher, seed: int, height: float) -> dict:
     tipped = False
     for _ in range(PUSHES):
         script.step([1.0, 0.0, 0.0], -1.0)
-        tipped |= bool(np.abs(script.obs["observation"][10:12]).max() > TIPPED)
+        tipped |= bool(hand_on_top.tipped(script.obs["observation"][10:12]))
     touch = watcher.first_touch_z
     return {"tipped": tipped,
             "slide_mm": 1000.0 * float(np.linalg.norm(script.block[:2] - start[:2])),
-            "touch_mm": None if touch is None else 1000.0 * (touch - (start[2] - HALF_BLOCK))}
+            "touch_mm": None if touch is None
+            else 1000.0 * (touch - (start[2] - hand_on_top.HALF_BLOCK))}
 
 
 def pushes(variant: str, episodes: int, seed: int, reference_path) -> list[list[dict]]:
