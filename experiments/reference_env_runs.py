@@ -10,10 +10,10 @@ algorithm, its settings and the training loop (issue 37).
 
 A run made so holds `"environment": "panda_mujoco_gym"` in its config.json and is labelled
 "panda_mujoco_gym's env"; franka-composer refuses to resume or play it without this script.
-The reference env has its own controller, timing and termination (on success): a run that
-asks for others (--control, --timing, --control-timestep, --randomization,
---no-terminate-on-success, --demos, --expert-demos, --preset) is refused before its
-directory is made. DIR is a checkout of the reference code's repository (not on PyPI); it
+The reference env has its own controller, timing, block and termination (on success): a run
+that asks for others (--control, --timing, --control-timestep, --object-damping,
+--randomization, --no-terminate-on-success, --demos, --expert-demos, --preset) is refused
+before its directory is made. DIR is a checkout of the reference code's repository (not on PyPI); it
 registers the same ids as this suite, so it is imported with this suite's ids kept as they
 are, and its envs are made from its own specs.
 
@@ -76,8 +76,8 @@ def reference_specs(path: pathlib.Path) -> dict[str, gym.envs.registration.EnvSp
 
 
 def unsupported(specs: dict, task: str, *, terminate_on_success: bool, control: str,
-                randomization: str | None, timing: dict, demos: bool = False,
-                preset: str | None = None) -> list[str]:
+                randomization: str | None, timing: dict, object_damping: float = 0.0,
+                demos: bool = False, preset: str | None = None) -> list[str]:
     """What of a run's settings the reference env does not have, as the options that ask
     for it; [] when it can be trained there."""
     default = TASK_CONFIGS[task]
@@ -90,26 +90,28 @@ def unsupported(specs: dict, task: str, *, terminate_on_success: bool, control: 
         (any(value != default_timing[name] for name, value in given.items()),
          "--timing or --control-timestep"),
         (randomization is not None, f"--randomization {randomization}"),
+        (object_damping != 0, f"--object-damping {object_damping:g}"),
         (not terminate_on_success, "--no-terminate-on-success"),
         (demos, "--demos or --expert-demos"),
         (preset is not None, f"--preset {preset}")) if asked]
 
 
 def refusal(options: list[str]) -> ValueError:
-    return ValueError(f"the reference code's env has its own controller, timing and "
+    return ValueError(f"the reference code's env has its own controller, timing, block and "
                       f"termination and no demonstrations: {', '.join(options)} cannot be "
                       "given with it")
 
 
 def build(specs: dict, task: str, *, terminate_on_success: bool, control: str,
           randomization: str | None, control_timestep, velocity_timestep, weld_time_constant,
-          **render_options) -> gym.Env:
+          object_damping: float = 0.0, **render_options) -> gym.Env:
     """`models.make_env` for a run in the reference env (`models.ENVIRONMENTS`)."""
     options = unsupported(specs, task, terminate_on_success=terminate_on_success,
                           control=control, randomization=randomization,
                           timing=dict(control_timestep=control_timestep,
                                       velocity_timestep=velocity_timestep,
-                                      weld_time_constant=weld_time_constant))
+                                      weld_time_constant=weld_time_constant),
+                          object_damping=object_damping)
     if options:
         raise refusal(options)
     return gym.make(specs[task], **render_options)
@@ -124,7 +126,7 @@ def checked_run_config(specs: dict, run_config):
         options = unsupported(
             specs, config.task, terminate_on_success=config.terminate_on_success,
             control=config.control, randomization=config.randomization,
-            timing=config.timing_options,
+            timing=config.timing_options, object_damping=config.object_damping,
             demos=config.demos is not None or config.expert_demos is not None,
             preset=config.preset)
         if options:

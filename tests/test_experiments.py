@@ -540,6 +540,7 @@ def test_a_run_in_another_suites_env_is_trained_there_and_refused_elsewhere(tmp_
     assert kept["panda_mujoco_gym"]["qacc_warmstart"].shape == (15,)  # arm 7, fingers 2, box 6
     for options, named in ((["--control", "osc"], "--control osc"),
                            (["--timing", "reference"], "--timing or --control-timestep"),
+                           (["--object-damping", "0.01"], "--object-damping 0.01"),
                            (["--no-terminate-on-success"], "--no-terminate-on-success"),
                            (["--task", "reach"], "--task reach (the reference code has push)")):
         refused = tmp_path / "refused"

@@ -1087,6 +1087,68 @@ def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, ca
     assert not (tmp_path / "both").exists()
 
 
+def _object_damping(env) -> np.ndarray:
+    """The damping of the degrees of freedom of `env`'s objects' free joints."""
+    model = env.unwrapped._env.physics.model
+    return np.concatenate([model.dof_damping[model.jnt_dofadr[joint]:][:6]
+                           for joint in np.flatnonzero(model.jnt_type == 0)])  # mjJNT_FREE
+
+
+def test_a_run_on_damped_objects_is_recorded_and_played_on_them(tmp_path):
+    """--object-damping 0.01 (the reference code's block): config.json holds it, the variant
+    names it, evaluation, `rollout --policy` and the run's expert demonstrations are on
+    objects damped so, a resume that says otherwise is refused, and a dataset recorded on
+    undamped objects is refused naming both dynamics. A run recorded before the option had
+    undamped objects, and is the same run as one given none."""
+    from franka_composer.cli.train import run_config
+    from franka_composer.datasets import record
+    from franka_composer.policies.rollout import Trajectories
+    from franka_composer.training.policy_file import trained_on_its_task
+    from franka_composer.training.run_config import RunConfig
+
+    out = tmp_path / "damped"
+    assert _train(out, "sac", 100, "--object-damping", "0.01", "--expert-demos", "1") == 0
+    config = RunDir(out).read_config()
+    assert config.object_damping == 0.01
+    assert config.variant == "net_arch 16,16, batch_size 32, buffer_size 2000, object damping " \
+                             "0.01, 1 expert demos"
+    saved = json.loads(RunDir(out).config_path.read_text())
+    assert saved["object_damping"] == 0.01
+    with trained_on_its_task(out, device="cpu") as (_, env, _policy):
+        env.reset(seed=0)
+        np.testing.assert_array_equal(_object_damping(env), np.full(6, 0.01))
+    assert Trajectories.load(RunDir(out).expert_demos).metadata["options"][
+        "object_damping"] == 0.01
+    assert cli.main(["rollout", "--task", "push", "--policy", str(out), "--episodes", "1",
+                     "--out", str(tmp_path / "played.npz")]) == 0
+    assert Trajectories.load(tmp_path / "played.npz").metadata["options"] == {
+        "control_timestep": 0.05, "weld_time_constant": 0.01, "object_damping": 0.01}
+    with pytest.raises(ValueError, match="--resume goes on with the run's own settings, and "
+                                         ".* has object_damping 0.01, not "
+                                         "--object-damping's 0.0"):
+        _train(out, "sac", 200, "--resume", "--object-damping", "0")
+    record("push", 1, tmp_path / "undamped.npz", seed=0)
+    with pytest.raises(ValueError, match=re.escape(
+            "undamped.npz was recorded at 0.05 s per step, velocities per 0.05 s, weld 0.01 s, "
+            "and this run trains at 0.05 s per step, velocities per 0.05 s, weld 0.01 s, "
+            "objects damped 0.01: its transitions are of other dynamics")):
+        _train(tmp_path / "refused", "sac", 100, "--object-damping", "0.01", "--demos",
+               str(tmp_path / "undamped.npz"))
+    del saved["object_damping"]
+    older = RunConfig.from_dict(saved)
+    assert older.object_damping == 0.0 and "object damping" not in older.variant
+    given_none = ["train", "--task", "push", "--algo", "sac", "--seed", "1", *TINY,
+                  "--expert-demos", "1"]
+    assert older.differing(run_config(cli.build_parser().parse_args(given_none))) == {}
+    for task, bad, message in (
+            ("push", "-1", "object_damping must be >= 0, got -1.0"),
+            ("reach", "0.01", "object_damping does not apply to reach: it has no object")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            cli.main(["train", "--task", task, "--algo", "sac", "--out",
+                      str(tmp_path / "refused"), "--object-damping", bad, *TINY])
+    assert not (tmp_path / "refused").exists()
+
+
 def test_the_weld_counts_only_under_mocap_control():
     """The weld's time constant is part of a mocap run's timing (its label, a resume's
     comparison); the osc and joints controllers have no weld, so a run of theirs recorded

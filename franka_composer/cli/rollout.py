@@ -43,7 +43,7 @@ def add_parser(subparsers) -> None:
                        "the timing the run trained at, and another is refused)")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="act with the policy trained in this run directory instead of "
-                             "the scripted expert")
+                             "the scripted expert, on objects damped as in its training")
     parser.add_argument("--action-noise", type=standard_deviation, default=0.0, metavar="STD",
                         help="Gaussian noise added to each action component (default: 0)")
     parser.add_argument("--reward-type", choices=("sparse", "dense"), default="sparse",
@@ -58,12 +58,15 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
-    run_timing = None
-    if args.policy is not None:
+    run_timing, run_objects = None, {}
+    if args.policy is not None:  # In the run's env: its timing unless another is given.
         from franka_composer.training.runs import RunDir
 
-        run_timing = RunDir(args.policy).read_config().timing_options
-    task_options = given_timing(args, run_timing)
+        trained = RunDir(args.policy).read_config()
+        run_timing = trained.timing_options
+        run_objects = {name: value for name, value in trained.dynamics_options.items()
+                       if name not in run_timing}
+    task_options = {**run_objects, **given_timing(args, run_timing)}
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,

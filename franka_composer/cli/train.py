@@ -22,7 +22,7 @@ from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
 #: The run's settings when their options are not given: filled in here, not by argparse, so
 #: that a --resume can tell an option given from one left out.
 RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, control="mocap", backend="sb3",
-                    precision="fp32", terminate_on_success=True)
+                    precision="fp32", terminate_on_success=True, object_damping=0.0)
 #: What a --resume may change; every other option describes the run, which keeps its own.
 RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
 #: Options named otherwise than the setting they give (`run_config`).
@@ -75,7 +75,8 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
     from franka_composer.training import demos
     from franka_composer.training.models import make_env
 
-    env = make_env(args.task, control=args.control, **timing_options(args))
+    env = make_env(args.task, control=args.control, object_damping=args.object_damping,
+                   **timing_options(args))
     try:
         episodes = demos.load_episodes(args.demos, env)
     finally:
@@ -108,6 +109,11 @@ def add_parser(subparsers) -> None:
                        "(default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
                        "its stated 0.05 s: the arm at rest after each action); --timing "
                        "reference is all of that code's timing")
+    parser.add_argument("--object-damping", type=number, default=None, metavar="DAMPING",
+                        help="damp the objects' free joints (N s/m and N m s/rad; default 0, "
+                             "undamped); 0.01 is the paper's code's block, which a push "
+                             "slides where an undamped one can tip over (docs/guide/"
+                             "physics.md)")
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
                              "(default: none); docs/guide/randomization.md")
@@ -270,7 +276,8 @@ def run_config(args: argparse.Namespace):
     return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
                      args.backend, args.control, args.precision, args.randomization,
                      str(args.demos.resolve()) if args.demos else None, args.demo_episodes,
-                     args.expert_demos, preset=args.preset, **timing_options(args))
+                     args.expert_demos, preset=args.preset, object_damping=args.object_damping,
+                     **timing_options(args))
 
 
 

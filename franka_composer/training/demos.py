@@ -82,35 +82,41 @@ def _check_recorded_as_trained(path, recorded: dict, env) -> None:
     if recorded["reward_type"] != "sparse":
         raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
                          f"the sparse {_SPARSE.tolist()} that training uses")
-    recorded_timing = _timing(_recorded_config(path, recorded))
-    if recorded_timing != _timing(config):
-        raise ValueError(f"{path} was recorded at {recorded_timing}, and this run trains at "
-                         f"{_timing(config)}: its transitions are of other dynamics")
+    recorded_dynamics = _dynamics(_recorded_config(path, recorded))
+    if recorded_dynamics != _dynamics(config):
+        raise ValueError(f"{path} was recorded at {recorded_dynamics}, and this run trains at "
+                         f"{_dynamics(config)}: its transitions are of other dynamics")
 
 
-#: The task options that say how long a step is and what it does (`tasks.config.TIMINGS`).
-_TIMING_OPTIONS = ("timing", "control_timestep", "velocity_timestep", "weld_time_constant")
+#: The task options that say how long a step is and what it does (`tasks.config.TIMINGS`),
+#: and how the objects move under it.
+_DYNAMICS_OPTIONS = ("timing", "control_timestep", "velocity_timestep", "weld_time_constant",
+                     "object_damping")
 
 
 def _recorded_config(path, recorded: dict):
-    """The task's config with the timing options the dataset was recorded with (under
+    """The task's config with the dynamics options the dataset was recorded with (under
     "options" in npz and RLDS metadata, beside the id in a Minari env spec); none given is
-    the task's own timing, as every dataset recorded before they existed had."""
+    the task's own, as every dataset recorded before they existed had."""
     given = (recorded["options"] if "options" in recorded else recorded) or {}
-    timing = {name: given[name] for name in _TIMING_OPTIONS if given.get(name) is not None}
+    dynamics = {name: given[name] for name in _DYNAMICS_OPTIONS if given.get(name) is not None}
     try:
-        return TASK_CONFIGS[recorded["task"]].replace(control=recorded["control"], **timing)
+        return TASK_CONFIGS[recorded["task"]].replace(control=recorded["control"], **dynamics)
     except ValueError as error:
-        raise ValueError(f"{path} says it was recorded with timing options {timing}, which "
-                         f"are not valid: {error}") from None
+        raise ValueError(f"{path} says it was recorded with options {dynamics}, which are not "
+                         f"valid: {error}") from None
 
 
-def _timing(config) -> str:
-    """The timing in words; the weld only under mocap (the other controllers have none)."""
+def _dynamics(config) -> str:
+    """The timing in words, the weld only under mocap (the other controllers have none),
+    and the objects' damping where they are damped."""
     words = (f"{config.control_timestep:g} s per step, velocities per "
              f"{config.velocity_period:g} s")
     if config.control.kind == "mocap":
         words += f", weld {config.control.weld_time_constant:g} s"
+    damped = sorted({spec.joint_damping for spec in config.objects} - {0.0})
+    if damped:
+        words += f", objects damped {', '.join(f'{value:g}' for value in damped)}"
     return words
 
 
@@ -212,14 +218,14 @@ def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
 
 def record_expert(path: pathlib.Path, config) -> pathlib.Path:
     """Records `config.expert_demos` episodes of its task's scripted expert in the run's
-    own environment (controller, timing, termination, randomisation), so that they are
+    own environment (controller, dynamics, termination, randomisation), so that they are
     transitions the run could have collected, to `path` (an npz, written whole; seeded
     from `RunConfig.expert_demo_seed`); returns `path`."""
     from franka_composer.datasets import record
     from franka_composer.training.run_files import replace_atomically
 
     options = {name: value for name, value in (
-        *config.timing_options.items(),
+        *config.dynamics_options.items(),
         ("terminate_on_success", config.terminate_on_success),
         ("randomization", config.randomization)) if value is not None}
     replace_atomically(path, lambda temporary: record(

@@ -49,8 +49,8 @@ def algorithm_class(algo: str, backend: str = "sb3"):
 def make_env(task: str, *, terminate_on_success: bool = True,
              control: str = "mocap", randomization: str | None = None,
              control_timestep: float | None = None, velocity_timestep: float | None = None,
-             weld_time_constant: float | None = None, environment: str | None = None,
-             **render_options) -> gym.Env:
+             weld_time_constant: float | None = None, object_damping: float = 0.0,
+             environment: str | None = None, **render_options) -> gym.Env:
     """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...), or, with
     `environment`, that suite's (`ENVIRONMENTS`).
 
@@ -59,7 +59,8 @@ def make_env(task: str, *, terminate_on_success: bool = True,
     `randomization`: a preset's name (`randomization.PRESETS`), or None.
     `control_timestep`: seconds per step, or None for the task's; `velocity_timestep`: the
     seconds velocities are multiplied by, or None for the control period;
-    `weld_time_constant`: the mocap weld's, or None for the task's. `render_options`
+    `weld_time_constant`: the mocap weld's, or None for the task's; `object_damping`: the
+    objects' free joints' (0: undamped, the task's). `render_options`
     (`render_mode`, `width`, `height`) go to `gym.make` as they are.
     """
     if environment is not None:
@@ -71,11 +72,12 @@ def make_env(task: str, *, terminate_on_success: bool = True,
             task, terminate_on_success=terminate_on_success, control=control,
             randomization=randomization, control_timestep=control_timestep,
             velocity_timestep=velocity_timestep, weld_time_constant=weld_time_constant,
-            **render_options)
+            object_damping=object_damping, **render_options)
     options = {name: value for name, value in (("randomization", randomization),
                                                ("control_timestep", control_timestep),
                                                ("velocity_timestep", velocity_timestep),
-                                               ("weld_time_constant", weld_time_constant))
+                                               ("weld_time_constant", weld_time_constant),
+                                               ("object_damping", object_damping or None))
                if value is not None}
     return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success,
                     **options, **render_options)

@@ -46,6 +46,9 @@ class RunConfig:
     s). The paper's code runs 0.5 s per step, multiplies by 0.05 s and welds with 0.02 s
     (`tasks.config.TIMINGS["reference"]`, `train --timing reference`).
 
+    `object_damping` damps the objects' free joints (the task option; 0: undamped, this
+    suite's default; 0.01 the reference code's block, `tasks.config.REFERENCE_OBJECT_DAMPING`).
+
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
     wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
     is how the networks' passes are computed while training; the weights are fp32 either
@@ -74,6 +77,7 @@ class RunConfig:
     control_timestep: float | None = None
     velocity_timestep: float | None = None
     weld_time_constant: float | None = None
+    object_damping: float = 0.0
     environment: str | None = None
 
     def __post_init__(self) -> None:
@@ -89,6 +93,10 @@ class RunConfig:
         object.__setattr__(self, "control_timestep", timing.control_timestep)
         object.__setattr__(self, "velocity_timestep", timing.velocity_timestep)
         object.__setattr__(self, "weld_time_constant", timing.control.weld_time_constant)
+        damping = self.object_damping  # Checked as the task checks it (reach has no object).
+        if isinstance(damping, bool) or damping != 0:
+            damping = task.replace(object_damping=damping).objects[0].joint_damping
+        object.__setattr__(self, "object_damping", float(damping))
         check_choice("algorithm", self.algo, ALGOS)
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
@@ -136,6 +144,7 @@ class RunConfig:
                 "control_timestep": self.control_timestep,
                 "velocity_timestep": self.velocity_timestep,
                 "weld_time_constant": self.weld_time_constant,
+                "object_damping": self.object_damping,
                 "environment": self.environment,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
@@ -165,6 +174,7 @@ class RunConfig:
             (self.environment is not None, f"{self.environment}'s env"),
             (self.control != "mocap", f"{self.control} control"),
             (self.timing_label != "", self.timing_label),
+            (self.object_damping != 0.0, f"object damping {self.object_damping:g}"),
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
@@ -245,11 +255,18 @@ class RunConfig:
         return EXPERT_DEMO_SEED + 100_000 * self.seed
 
     @property
+    def dynamics_options(self) -> dict:
+        """The task options its dynamics were set with: its timing's, and the objects'
+        damping where they are damped (the task's own where not given)."""
+        damping = {"object_damping": self.object_damping} if self.object_damping else {}
+        return {**self.timing_options, **damping}
+
+    @property
     def env_options(self) -> dict:
         """The options its environments are made with (`models.make_env`)."""
         return dict(terminate_on_success=self.terminate_on_success, control=self.control,
                     randomization=self.randomization, environment=self.environment,
-                    **self.timing_options)
+                    **self.dynamics_options)
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
@@ -258,7 +275,8 @@ class RunConfig:
         # mocap, fp32, not randomised; those before the control timestep option, the task's;
         # those before the velocity timestep, velocities per control period; those before the
         # weld's time constant, the default weld (the reference timing's runs included);
-        # those before other suites' envs, this package's.
+        # those before other suites' envs, this package's; those before object damping,
+        # undamped objects.
         return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
                    terminate_on_success=bool(data["terminate_on_success"]),
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
@@ -269,5 +287,6 @@ class RunConfig:
                    control_timestep=data.get("control_timestep"),
                    velocity_timestep=data.get("velocity_timestep"),
                    weld_time_constant=data.get("weld_time_constant"),
+                   object_damping=data.get("object_damping", 0.0),
                    environment=data.get("environment"),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
