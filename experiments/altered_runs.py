@@ -8,7 +8,10 @@ what keeps TQC from lifting at the reference timing:
   grasp-margin.md, "What narrows the reach");
 - `damped_block`: the block's free joint damped as the reference code's (0.01 on all six
   degrees of freedom): a turn of the 4 cm cube then dies out within milliseconds, so a push
-  slides it where here it tips it over (docs/experiments/push-tip.md).
+  slides it where here it tips it over (docs/experiments/push-tip.md). The package has
+  since had it as `train --object-damping 0.01`; the alteration stays for the run started
+  with it (frozen tree 42d36b4, which set the damping after each reset instead: the same
+  model, and a run stored the same transitions bit for bit both ways).
 
     python experiments/altered_runs.py ALTERATION train --task pick_and_place --algo tqc \
         --backend sbx --seed 0 --timing reference --out RUN_DIR [...] [--resume]
@@ -39,33 +42,6 @@ from franka_composer.training import models
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import random_exploration  # noqa: E402  (experiments/, not a package)
 
-#: The reference code's block's free-joint damping (the task option `object_damping` sets
-#: it in the package; set here at run time, as the damped-block cell was started).
-BLOCK_DAMPING = REFERENCE_OBJECT_DAMPING
-
-
-def damp_block(env) -> None:
-    """Damps the free joint of `env`'s object (this suite's env, its physics compiled) as
-    the reference code's block's."""
-    physics = env.unwrapped.composer_env.physics
-    model = physics.model
-    geom = int(physics.bind(env.unwrapped.task.prop.mjcf_model.find_all("geom")).element_id[0])
-    joint = model.body_jntadr[model.geom_bodyid[geom]]  # The free joint Composer attached.
-    if model.jnt_type[joint] != 0:  # mjJNT_FREE
-        raise ValueError("the object's body does not hang from a free joint")
-    start = model.jnt_dofadr[joint]
-    model.dof_damping[start:start + 6] = BLOCK_DAMPING
-
-
-class DampedBlock(gym.Wrapper):
-    """Damps the object's free joint as soon as a reset has built the physics (damping
-    changes no position, so the first state is the same either way)."""
-
-    def reset(self, **kwargs):
-        result = self.env.reset(**kwargs)
-        damp_block(self.env)
-        return result
-
 
 def unguarded(task: str, **options) -> gym.Env:
     random_exploration.let_guard_go()
@@ -73,7 +49,7 @@ def unguarded(task: str, **options) -> gym.Env:
 
 
 def damped_block(task: str, **options) -> gym.Env:
-    return DampedBlock(models.make_env(task, **options))
+    return models.make_env(task, **{**options, "object_damping": REFERENCE_OBJECT_DAMPING})
 
 
 #: name on the command line: (the environment's name in config.json, its builder).

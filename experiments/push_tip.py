@@ -25,9 +25,10 @@ import sys
 
 import numpy as np
 
+from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
+
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-import altered_runs  # noqa: E402  (experiments/, not a package)
-import grasp_reach  # noqa: E402
+import grasp_reach  # noqa: E402  (experiments/, not a package)
 import hand_on_top  # noqa: E402
 
 grasp_margin, random_exploration = grasp_reach.grasp_margin, grasp_reach.random_exploration
@@ -49,6 +50,19 @@ def reference_solver(env) -> None:
     option.noslip_iterations = 3
 
 
+def reference_block_damping(env) -> None:
+    """The reference code's block's free-joint damping, set in the compiled model (as the
+    task option `object_damping` sets it in the MJCF: the same model)."""
+    physics = env.unwrapped.composer_env.physics
+    model = physics.model
+    geom = int(physics.bind(env.unwrapped.task.prop.mjcf_model.find_all("geom")).element_id[0])
+    joint = model.body_jntadr[model.geom_bodyid[geom]]  # The free joint Composer attached.
+    if model.jnt_type[joint] != 0:  # mjJNT_FREE
+        raise ValueError("the object's body does not hang from a free joint")
+    start = model.jnt_dofadr[joint]
+    model.dof_damping[start:start + 6] = REFERENCE_OBJECT_DAMPING
+
+
 def reference_contacts(env) -> None:
     """The reference code's block and floor contacts, finger friction and solver."""
     grasp_reach.reference_block(env)
@@ -65,7 +79,7 @@ VARIANTS = {
                        (grasp_reach.reference_pads,)),
     "reference_solver": ("its solver", "ours_reference_timing", (reference_solver,)),
     "reference_block_damping": ("its block's joint damping", "ours_reference_timing",
-                                (altered_runs.damp_block,)),
+                                (reference_block_damping,)),
     "reference_contacts": ("its block contacts, finger friction and solver",
                            "ours_reference_timing", (reference_contacts,)),
     "default_timing": ("this suite's default timing", "ours", ()),
