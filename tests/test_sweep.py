@@ -218,6 +218,53 @@ def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_pat
     assert sorted(path.name for path in (tmp_path / "dot").iterdir()) == ["push-seed1"]
 
 
+def test_keep_and_sync_extend_what_is_kept_and_never_cut_it_back_or_replace_it(tmp_path):
+    """A run begun again from zero (its machine lost it) retraces its kept evaluations: it is
+    kept once it has passed them, and until then, or if it differs from them or is another
+    run, keeping is refused naming why, with nothing copied (the other runs given with it
+    neither)."""
+    runs, kept = tmp_path / "runs", tmp_path / "kept"
+    first = [(0, 1, 0.0), (2000, 2, 0.2), (4000, 3, 0.4)]
+    _write_run(runs, "push-sac-seed0", first)
+    assert cli.main(["keep", str(runs / "push-sac-seed0"), "--into", str(kept)]) == 0
+    copy = RunDir(kept / "push-sac-seed0")
+    before = copy.eval_csv.read_bytes()
+    again = _write_run(tmp_path / "again", "push-sac-seed0", [(0, 5, 0.0), (2000, 9, 0.2)])
+    other = _write_run(tmp_path / "again", "push-sac-seed1", [(0, 1, 0.0)], seed=1)
+    with pytest.raises(ValueError, match=re.escape(
+            f"{copy.eval_csv} holds evaluations up to step 4,000 and beyond, and {again.root} "
+            "has kept them only up to step 2,000 (begun again from zero?): keeping it now "
+            f"would drop them. Keep it once it has passed them, or move {copy.root} away")):
+        cli.main(["keep", str(other.root), str(again.root), "--into", str(kept)])
+    cells = ["sweep", "--out", str(tmp_path / "again"), "--tasks", "push", "--algos", "sac",
+             "--seeds", "0", "1", "--steps", "6000", "--sync", str(kept)]
+    with pytest.raises(ValueError, match="has kept them only up to step 2,000"):
+        cli.main(cells)
+    assert copy.eval_csv.read_bytes() == before
+    assert sorted(path.name for path in kept.iterdir()) == ["push-sac-seed0"]
+    # Past them, having retraced them (at its own pace), it is kept, and the other with it.
+    again = _write_run(tmp_path / "again", "push-sac-seed0",
+                       [(0, 5, 0.0), (2000, 9, 0.2), (4000, 12, 0.4), (6000, 15, 0.6)])
+    assert cli.main(cells) == 0
+    assert [(row["steps"], row["wall_time_s"]) for row in read_eval_rows(copy.eval_csv)] == [
+        (0, 5), (2000, 9), (4000, 12), (6000, 15)]
+    assert (kept / "push-sac-seed1" / "eval.csv").is_file()
+    # Not the run kept there: other evaluations, or other settings.
+    differs = _write_run(tmp_path / "differs", "push-sac-seed0",
+                         [(0, 1, 0.0), (2000, 2, 0.1), (4000, 3, 0.4), (6000, 4, 0.6)])
+    with pytest.raises(ValueError, match=re.escape(
+            f"{copy.eval_csv} is not {differs.root}'s evaluations: at step 2,000 it holds "
+            "success rate 0.2, mean reward -1, and the run success rate 0.1, mean reward -1. "
+            f"Move {copy.root} away to keep this run there")):
+        cli.main(["keep", str(differs.root), "--into", str(kept)])
+    precision = _write_run(tmp_path / "bf16", "push-sac-seed0", first, precision="bf16")
+    with pytest.raises(ValueError, match=re.escape(
+            f"{copy.config_path} is another run's than {precision.root}'s (precision: bf16, "
+            f"not fp32): move {copy.root} away to keep this run there")):
+        cli.main(["keep", str(precision.root), "--into", str(kept)])
+    assert [row["steps"] for row in read_eval_rows(copy.eval_csv)] == [0, 2000, 4000, 6000]
+
+
 def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
     for seed in (1, 0):
         _write_run(tmp_path / "sweep", f"push-sac-seed{seed}", [(0, 1, 0.0)], seed=seed)

@@ -17,7 +17,9 @@ def add_parser(subparsers) -> None:
                     "a resume keeps), and once it has finished outcome.json and policy.pt "
                     "(the actor alone). Run it again as the runs go on; a run taken on to a "
                     "larger budget loses its outcome and policy in DIR until it finishes "
-                    "again. `sweep --sync DIR` does this for a sweep's cells.")
+                    "again. What DIR holds is only extended by the same run: a copy of "
+                    "another run, or evaluations the run has not reached or has otherwise, "
+                    "are refused. `sweep --sync DIR` does this for a sweep's cells.")
     add_run_dirs(parser)
     parser.add_argument("--into", type=output_folder, required=True, metavar="DIR",
                         help="the folder to copy into (made if missing)")
@@ -36,8 +38,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"two runs named {', '.join(repeated)}: each is kept as --into "
                          "DIR/<its name>, so one would overwrite the other")
     check_kept_apart(runs, args.into, "--into")
-    kept = [files_to_keep(RunDir(root)) for root in runs]  # Every run checked first.
-    for root, files in zip(runs, kept):
-        keep_run(files, RunDir(args.into / root.name))
+    copies = [RunDir(args.into / root.name) for root in runs]
+    kept = [files_to_keep(RunDir(root), copy)  # Every run checked first.
+            for root, copy in zip(runs, copies)]
+    for files, copy in zip(kept, copies):
+        keep_run(files, copy)
     print(f"{args.into}: {', '.join(names)}")
     return 0

@@ -61,7 +61,8 @@ def add_parser(subparsers) -> None:
                         help="copy into DIR/<cell> what each cell has kept, small enough to "
                              "commit as the sweep goes on: config.json, eval.csv up to its "
                              "checkpoint, and once it has finished outcome.json and "
-                             "policy.pt; then exit")
+                             "policy.pt (what DIR holds is only extended by the same run, as "
+                             "`keep` does); then exit")
     parser.add_argument("train_args", nargs="*", metavar="-- TRAIN_OPTION",
                         help="options passed to every cell's `train`")
     parser.set_defaults(func=run)

@@ -1,7 +1,10 @@
 """What a run keeps that is small enough to commit while it goes on (`franka-composer keep`,
 `sweep --sync`): its config.json, the evaluations a resume keeps and, once it has finished,
 outcome.json and policy.pt, copied into KEPT/<run name>. Every run is read and checked whole
-before any file is copied, so a damaged one is named and nothing is left half-copied."""
+before any file is copied, so a damaged one is named and nothing is left half-copied; and
+what is kept already is only ever extended by the same run, never cut back or replaced (a
+run begun again from zero on a machine that lost it is kept once it has passed its kept
+evaluations, which it retraces)."""
 
 from __future__ import annotations
 
@@ -9,7 +12,8 @@ import dataclasses
 import pathlib
 import shutil
 
-from franka_composer.training.runs import RunDir, run_finished, write_eval_rows
+from franka_composer.training.runs import (RunDir, read_eval_rows, run_finished,
+                                           write_eval_rows)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -21,12 +25,50 @@ class KeptFiles:
     finished: bool
 
 
-def files_to_keep(run: RunDir, budget: int | None = None) -> KeptFiles:
-    """What `run` has kept: its evaluations that a resume keeps, and whether it has finished
-    (`run_finished` at `budget`); a damaged config.json, eval.csv or outcome.json is a
-    ValueError naming it."""
-    run.read_config()  # Copied as it is: checked here.
-    return KeptFiles(run, run.kept_evaluations(), run_finished(run, budget))
+def files_to_keep(run: RunDir, kept: RunDir, budget: int | None = None) -> KeptFiles:
+    """What `run` has kept, to be copied into `kept`: its evaluations that a resume keeps,
+    and whether it has finished (`run_finished` at `budget`). A damaged config.json,
+    eval.csv or outcome.json is a ValueError naming it, and so is a copy in `kept` that
+    keeping `run` would replace or cut back (`check_extends`)."""
+    files = KeptFiles(run, run.kept_evaluations(), run_finished(run, budget))
+    check_extends(files, kept)
+    return files
+
+
+def check_extends(files: KeptFiles, kept: RunDir) -> None:
+    """A ValueError unless `files` only extend what `kept` holds: the same run's settings
+    (its budget aside), and every kept evaluation among the run's, with the same success
+    rate and mean reward (its wall time aside: a run begun again from zero retraces them
+    bit for bit on the same machine, at its own pace)."""
+    config = files.run.read_config()  # Copied as it is: checked here.
+    if kept.config_path.is_file():
+        differences = config.differences(kept.read_config())
+        if differences:
+            raise ValueError(f"{kept.config_path} is another run's than {files.run.root}'s "
+                             f"({'; '.join(differences)}): move {kept.root} away to keep "
+                             "this run there")
+    ours = {row["steps"]: row for row in files.evaluations}
+    reached = max(ours, default=None)
+    for row in read_eval_rows(kept.eval_csv):
+        step = row["steps"]
+        if reached is None or step > reached:
+            raise ValueError(
+                f"{kept.eval_csv} holds evaluations up to step {step:,} and beyond, and "
+                f"{files.run.root} has kept them only up to "
+                f"{'none' if reached is None else f'step {reached:,}'} (begun again from "
+                f"zero?): keeping it now would drop them. Keep it once it has passed them, "
+                f"or move {kept.root} away")
+        mine = ours.get(step)
+        if mine is None or (mine["success_rate"], mine["mean_reward"]) != (
+                row["success_rate"], row["mean_reward"]):
+            theirs = ("no evaluation" if mine is None else
+                      f"success rate {mine['success_rate']:g}, mean reward "
+                      f"{mine['mean_reward']:g}")
+            raise ValueError(
+                f"{kept.eval_csv} is not {files.run.root}'s evaluations: at step {step:,} it "
+                f"holds success rate {row['success_rate']:g}, mean reward "
+                f"{row['mean_reward']:g}, and the run {theirs}. Move {kept.root} away to keep "
+                "this run there")
 
 
 def keep_run(files: KeptFiles, kept: RunDir) -> None:

@@ -196,8 +196,8 @@ def sync_cells(cells: list[Cell], root: pathlib.Path, kept: pathlib.Path) -> lis
     run."""
     check_kept_apart([root / cell.name for cell in cells], kept, "--sync")
     runs = {cell: RunDir(root / cell.name) for cell in cells}
-    files = {cell: files_to_keep(run, cell.steps) for cell, run in runs.items()
-             if run.config_path.is_file()}
+    files = {cell: files_to_keep(run, RunDir(kept / cell.name), cell.steps)
+             for cell, run in runs.items() if run.config_path.is_file()}
     for cell, kept_files in files.items():
         keep_run(kept_files, RunDir(kept / cell.name))
     return [cell.name for cell in files]
