@@ -632,6 +632,42 @@ def test_a_damped_block_run_damps_the_block_in_every_env_it_builds(monkeypatch):
     assert pushed[name]["slide_mm"] > 100
 
 
+def test_the_damped_block_check_trains_as_train_object_damping_does(tmp_path, monkeypatch):
+    """The damped-block cell began (frozen tree 42d36b4) with the damping set in the compiled
+    model after each reset, as push_tip.py still sets it; `train --object-damping 0.01`
+    builds it into the model: a run stores the same transitions both ways, bit for bit."""
+    import gymnasium as gym
+    from stable_baselines3.common.save_util import load_from_pkl
+
+    from franka_composer.training import models
+    from franka_composer.training.runs import RunDir
+
+    module = train_in_another_env(monkeypatch, "altered_runs.py")
+    push_tip = load_script(EXPERIMENTS / "push_tip.py")
+
+    class DampedAfterReset(gym.Wrapper):
+        def reset(self, **kwargs):
+            result = self.env.reset(**kwargs)
+            push_tip.reference_block_damping(self.env)
+            return result
+
+    name = module.ALTERATIONS["damped_block"][0]
+    monkeypatch.setitem(module.ALTERATIONS, "damped_block", (name, lambda task, **options: (
+        DampedAfterReset(models.make_env(task, **options)))))
+    common = ["--task", "pick_and_place", "--algo", "sac", "--timing", "reference",
+              "--total-steps", "300", "--checkpoint-every", "100", *TINY_TRAINING]
+    assert module.main(["damped_block", "train", "--out", str(tmp_path / "wrapped"),
+                        *common]) == 0
+    assert main(["train", "--out", str(tmp_path / "option"), "--object-damping", "0.01",
+                 *common]) == 0
+    wrapped, option = (load_from_pkl(RunDir(tmp_path / run).checkpoint_buffer)
+                       for run in ("wrapped", "option"))
+    assert wrapped.pos == option.pos == 300
+    for key in wrapped.observations:
+        np.testing.assert_array_equal(wrapped.observations[key], option.observations[key])
+    np.testing.assert_array_equal(wrapped.actions, option.actions)
+
+
 def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_path):
     # The reference env's reset keeps MuJoCo's solver warm start from the episode before;
     # a resume rebuilds the env by resets alone, so the checkpoint must give it back.
