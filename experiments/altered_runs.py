@@ -10,8 +10,8 @@ what keeps TQC from lifting at the reference timing:
   degrees of freedom): a turn of the 4 cm cube then dies out within milliseconds, so a push
   slides it where here it tips it over (docs/experiments/push-tip.md). The package has
   since had it as `train --object-damping 0.01`; the alteration stays for the run started
-  with it (frozen tree 42d36b4, which set the damping after each reset instead: the same
-  model, and a run stored the same transitions bit for bit both ways).
+  with it (frozen tree 42d36b4, which set the damping after each reset instead: a run
+  stores the same transitions bit for bit both ways, tests/test_experiments.py).
 
     python experiments/altered_runs.py ALTERATION train --task pick_and_place --algo tqc \
         --backend sbx --seed 0 --timing reference --out RUN_DIR [...] [--resume]
