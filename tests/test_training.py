@@ -1134,6 +1134,16 @@ def test_a_run_on_damped_objects_is_recorded_and_played_on_them(tmp_path):
             "objects damped 0.01: its transitions are of other dynamics")):
         _train(tmp_path / "refused", "sac", 100, "--object-damping", "0.01", "--demos",
                str(tmp_path / "undamped.npz"))
+    # `rollout --object-damping` records on other objects (the policy too), and such a
+    # dataset fills a damped run's buffer.
+    assert cli.main(["rollout", "--task", "push", "--policy", str(out), "--object-damping",
+                     "0", "--episodes", "1", "--out", str(tmp_path / "undamped-play.npz")]) == 0
+    assert "object_damping" not in Trajectories.load(
+        tmp_path / "undamped-play.npz").metadata["options"]
+    assert cli.main(["rollout", "--task", "push", "--object-damping", "0.01", "--episodes",
+                     "1", "--out", str(tmp_path / "damped.npz")]) == 0
+    assert _train(tmp_path / "on-demos", "sac", 100, "--object-damping", "0.01", "--demos",
+                  str(tmp_path / "damped.npz")) == 0
     del saved["object_damping"]
     older = RunConfig.from_dict(saved)
     assert older.object_damping == 0.0 and "object damping" not in older.variant

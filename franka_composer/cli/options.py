@@ -185,6 +185,16 @@ def add_timing(parser: argparse.ArgumentParser, control_timestep_help: str) -> N
                              "step, velocities multiplied by 0.05 s, its softer weld)")
 
 
+def add_object_damping(parser: argparse.ArgumentParser, default: str) -> None:
+    """--object-damping DAMPING: the task option `object_damping` (None when not given);
+    `default` says what is damped then."""
+    parser.add_argument("--object-damping", type=number, default=None, metavar="DAMPING",
+                        help=f"damp the objects' free joints (N s/m and N m s/rad; default: "
+                             f"{default}); 0.01 is the paper's code's block, which a push "
+                             "slides where an undamped one can tip over (docs/guide/"
+                             "physics.md)")
+
+
 def timing_options(args: argparse.Namespace) -> dict:
     """`control_timestep`, `velocity_timestep` and `weld_time_constant` from --timing or
     --control-timestep (None: the task's); both given is refused."""

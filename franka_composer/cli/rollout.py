@@ -15,8 +15,8 @@ import argparse
 import pathlib
 
 import franka_composer
-from franka_composer.cli.options import (add_timing, episode_seed, given_timing,
-                                         positive_int, standard_deviation)
+from franka_composer.cli.options import (add_object_damping, add_timing, episode_seed,
+                                         given_timing, positive_int, standard_deviation)
 from franka_composer.controllers import CONTROLS
 
 
@@ -41,9 +41,10 @@ def add_parser(subparsers) -> None:
                         help="the controller (default: mocap; the experts take mocap and osc)")
     add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "
                        "the timing the run trained at, and another is refused)")
+    add_object_damping(parser, "0, undamped; with --policy, as the run trained")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="act with the policy trained in this run directory instead of "
-                             "the scripted expert, on objects damped as in its training")
+                             "the scripted expert")
     parser.add_argument("--action-noise", type=standard_deviation, default=0.0, metavar="STD",
                         help="Gaussian noise added to each action component (default: 0)")
     parser.add_argument("--reward-type", choices=("sparse", "dense"), default="sparse",
@@ -58,15 +59,15 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
-    run_timing, run_objects = None, {}
-    if args.policy is not None:  # In the run's env: its timing unless another is given.
+    run_timing, damping = None, args.object_damping
+    if args.policy is not None:  # In the run's env unless told otherwise.
         from franka_composer.training.runs import RunDir
 
         trained = RunDir(args.policy).read_config()
         run_timing = trained.timing_options
-        run_objects = {name: value for name, value in trained.dynamics_options.items()
-                       if name not in run_timing}
-    task_options = {**run_objects, **given_timing(args, run_timing)}
+        damping = trained.object_damping if damping is None else damping
+    task_options = {**given_timing(args, run_timing),
+                    **({"object_damping": damping} if damping else {})}
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,

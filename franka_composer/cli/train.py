@@ -7,9 +7,9 @@ import contextlib
 import os
 import pathlib
 
-from franka_composer.cli.options import (add_timing, non_negative_int, number,
-                                         output_folder, positive_int, timing_options,
-                                         training_seed)
+from franka_composer.cli.options import (add_object_damping, add_timing, non_negative_int,
+                                         number, output_folder, positive_int,
+                                         timing_options, training_seed)
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
@@ -109,11 +109,7 @@ def add_parser(subparsers) -> None:
                        "(default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
                        "its stated 0.05 s: the arm at rest after each action); --timing "
                        "reference is all of that code's timing")
-    parser.add_argument("--object-damping", type=number, default=None, metavar="DAMPING",
-                        help="damp the objects' free joints (N s/m and N m s/rad; default 0, "
-                             "undamped); 0.01 is the paper's code's block, which a push "
-                             "slides where an undamped one can tip over (docs/guide/"
-                             "physics.md)")
+    add_object_damping(parser, "0, undamped")
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
                              "(default: none); docs/guide/randomization.md")
