@@ -10,8 +10,9 @@ block more gives it more to learn from.
 
 Further rows play this suite at 0.5 s per step with the default's stiff weld (the reference
 timing before it took the reference code's weld), at the reference timing with the
-fingers closed at reset, as the reference code's are, and at the reference timing with the
-surface guard let go, as the reference code has none (`SUITES`; `--only` plays some).
+fingers closed at reset, as the reference code's are, at the reference timing with the
+surface guard let go, as the reference code has none, and at the reference timing with the
+block's free joint damped as the reference code's (`SUITES`; `--only` plays some).
 DIR is a checkout of the reference code's repository (`panda_mujoco_gym`, not on PyPI;
 without it the reference is left out, saying so). Each suite runs in a process of its own
 (`benchmarks/peer_worker.py` imports it: the reference registers the same ids as this
@@ -39,7 +40,9 @@ import peer_worker  # noqa: E402  (benchmarks/, not a package)
 #: the title of its row. "stiff_weld" is the reference timing as it was before 2026-11-26
 #: (0.5 s per step, velocities per 0.05 s, the default's 0.01 s weld); "closed" starts with
 #: the fingers closed, as the reference code's do (this suite's start open); "no_guard" lets
-#: the hand's target go as deep as the action sends it (`let_guard_go`).
+#: the hand's target go as deep as the action sends it (`let_guard_go`); "damped" damps the
+#: block's free joint as the reference code's (`object_damping`, `REFERENCE_OBJECT_DAMPING`:
+#: not imported here, where a process may hold the reference code's ids).
 SUITES = {
     "ours": ({}, "this suite"),
     "stiff_weld": ({"control_timestep": 0.5, "velocity_timestep": 0.05,
@@ -50,6 +53,8 @@ SUITES = {
                'this suite, timing="reference", fingers closed at reset'),
     "no_guard": ({"timing": "reference"},
                  'this suite, timing="reference", the surface guard let go'),
+    "damped": ({"timing": "reference", "object_damping": 0.01},
+               'this suite, timing="reference", object_damping=0.01'),
     "reference": (None, "reference code"),
 }
 RESULT_PREFIX = peer_worker.RESULT_PREFIX
