@@ -232,14 +232,18 @@ def test_keep_and_sync_extend_what_is_kept_and_never_cut_it_back_or_replace_it(t
     again = _write_run(tmp_path / "again", "push-sac-seed0", [(0, 5, 0.0), (2000, 9, 0.2)])
     other = _write_run(tmp_path / "again", "push-sac-seed1", [(0, 1, 0.0)], seed=1)
     with pytest.raises(ValueError, match=re.escape(
-            f"{copy.eval_csv} holds evaluations up to step 4,000 and beyond, and {again.root} "
-            "has kept them only up to step 2,000 (begun again from zero?): keeping it now "
+            f"{copy.eval_csv} holds evaluations from step 4,000 on, which {again.root} has "
+            "not reached (its own end at step 2,000; begun again from zero?): keeping it now "
             f"would drop them. Keep it once it has passed them, or move {copy.root} away")):
         cli.main(["keep", str(other.root), str(again.root), "--into", str(kept)])
     cells = ["sweep", "--out", str(tmp_path / "again"), "--tasks", "push", "--algos", "sac",
              "--seeds", "0", "1", "--steps", "6000", "--sync", str(kept)]
-    with pytest.raises(ValueError, match="has kept them only up to step 2,000"):
+    with pytest.raises(ValueError, match="has not reached \\(its own end at step 2,000"):
         cli.main(cells)
+    empty = _write_run(tmp_path / "empty", "push-sac-seed0", [])
+    with pytest.raises(ValueError, match=re.escape(
+            f"from step 0 on, which {empty.root} has not reached (it has kept none;")):
+        cli.main(["keep", str(empty.root), "--into", str(kept)])
     assert copy.eval_csv.read_bytes() == before
     assert sorted(path.name for path in kept.iterdir()) == ["push-sac-seed0"]
     # Past them, having retraced them (at its own pace), it is kept, and the other with it.

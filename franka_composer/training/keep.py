@@ -52,12 +52,12 @@ def check_extends(files: KeptFiles, kept: RunDir) -> None:
     for row in read_eval_rows(kept.eval_csv):
         step = row["steps"]
         if reached is None or step > reached:
+            ends = "it has kept none" if reached is None else f"its own end at step {reached:,}"
             raise ValueError(
-                f"{kept.eval_csv} holds evaluations up to step {step:,} and beyond, and "
-                f"{files.run.root} has kept them only up to "
-                f"{'none' if reached is None else f'step {reached:,}'} (begun again from "
-                f"zero?): keeping it now would drop them. Keep it once it has passed them, "
-                f"or move {kept.root} away")
+                f"{kept.eval_csv} holds evaluations from step {step:,} on, which "
+                f"{files.run.root} has not reached ({ends}; begun again from zero?): keeping "
+                f"it now would drop them. Keep it once it has passed them, or move "
+                f"{kept.root} away")
         mine = ours.get(step)
         if mine is None or (mine["success_rate"], mine["mean_reward"]) != (
                 row["success_rate"], row["mean_reward"]):

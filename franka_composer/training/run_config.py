@@ -94,7 +94,7 @@ class RunConfig:
         object.__setattr__(self, "velocity_timestep", timing.velocity_timestep)
         object.__setattr__(self, "weld_time_constant", timing.control.weld_time_constant)
         damping = self.object_damping  # Checked as the task checks it (reach has no object).
-        if isinstance(damping, bool) or damping != 0:
+        if isinstance(damping, bool) or damping != 0:  # (False == 0: the task refuses it.)
             damping = task.replace(object_damping=damping).objects[0].joint_damping
         object.__setattr__(self, "object_damping", float(damping))
         check_choice("algorithm", self.algo, ALGOS)
