@@ -4,11 +4,13 @@ its success split by the goal's height above the block's resting height (on the 
 by lifting). A policy that pushes but has not learned to grasp scores on the first two only.
 
     python experiments/pick_and_place_goals.py RUN_DIR [RUN_DIR ...] [--episodes 200] [--seed 100]
+        [--object-damping D]
 
 Plays each run's policy through `measure_success`, the loop of `franka-composer evaluate
 --episodes N --seed S`, so on its episodes (the "all" row is evaluate's success), and prints a
 Markdown table: per goal band, episodes, success, and the episodes in which the block rose
-more than 1 cm above its resting height at some step.
+more than 1 cm above its resting height at some step. `--object-damping` plays it on a block
+damped so instead of as it trained (0.01: the reference code's block).
 """
 
 from __future__ import annotations
@@ -19,7 +21,8 @@ import pathlib
 import gymnasium as gym
 import numpy as np
 
-from franka_composer.cli.options import episode_seed, positive_int
+from franka_composer.cli.options import add_object_damping, episode_seed, positive_int
+from franka_composer.tasks import TASK_CONFIGS
 
 #: Goal heights above the resting height (m) that split the bands; the sparse reward's
 #: threshold, 0.05 m, is where pushing alone stops reaching the goal.
@@ -50,18 +53,27 @@ class GoalBands(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
 
-def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[int, np.ndarray]:
-    """(steps trained, rows of (goal height above rest, lifted, success)) per episode."""
+def episodes_of(run_root: pathlib.Path, episodes: int, seed: int,
+                object_damping: float | None = None) -> tuple[int, np.ndarray]:
+    """(steps trained, rows of (goal height above rest, lifted, success)) per episode, on
+    the run's env, its objects damped by `object_damping` where given."""
     from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.policy_file import trained_on_its_task
+    from franka_composer.training.models import make_env
+    from franka_composer.training.policy_file import load_trained
     from franka_composer.training.runs import RunDir
 
-    task = RunDir(run_root).read_config().task
-    if task != "pick_and_place":
-        raise SystemExit(f"{run_root}: a {task} run; this splits pick_and_place's goals")
-    with trained_on_its_task(run_root, device="cpu", wrap=GoalBands) as (_, env, model):
+    run = RunDir(run_root)
+    config = run.read_config()
+    if config.task != "pick_and_place":
+        raise SystemExit(f"{run_root}: a {config.task} run; this splits pick_and_place's goals")
+    damping = {} if object_damping is None else {"object_damping": object_damping}
+    env = GoalBands(make_env(config.task, **{**config.env_options, **damping}))
+    try:
+        model = load_trained(run, env, device="cpu")
         measure_success(model, env, episodes, seed=seed)
         return int(model.num_timesteps), np.array(env.rows, dtype=float)
+    finally:
+        env.close()
 
 
 def band_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:
@@ -78,13 +90,21 @@ def main() -> None:
     parser.add_argument("runs", nargs="+", type=pathlib.Path)
     parser.add_argument("--episodes", type=positive_int, default=200)
     parser.add_argument("--seed", type=episode_seed, default=100)
+    add_object_damping(parser, "as the run trained")
     args = parser.parse_args()
+    if args.object_damping is not None:  # Named before any policy is loaded.
+        try:
+            TASK_CONFIGS["pick_and_place"].replace(object_damping=args.object_damping)
+        except ValueError as error:
+            parser.error(str(error))
     print("| run | steps | goal | episodes | success | block rose > 1 cm |")
     print("|---|---|---|---|---|---|")
     for root in args.runs:
-        steps, rows = episodes_of(root, args.episodes, args.seed)
+        steps, rows = episodes_of(root, args.episodes, args.seed, args.object_damping)
+        label = root.name + ("" if args.object_damping is None
+                             else f", object_damping={args.object_damping:g}")
         for name, count, success, lifted in band_rows(rows):
-            print(f"| {root.name} | {steps:,} | {name} | {count} | {success:.1f} % "
+            print(f"| {label} | {steps:,} | {name} | {count} | {success:.1f} % "
                   f"| {lifted:.1f} % |")
 
 

@@ -141,9 +141,10 @@ def test_the_goal_bands_split_each_episode_by_its_goal_height():
 
 
 @pytest.mark.slow  # sbx's policies build a JAX model.
-def test_the_goal_bands_play_the_episodes_evaluate_plays(capsys):
+def test_the_goal_bands_play_the_episodes_evaluate_plays(capsys, monkeypatch):
     """Its "all" row is `franka-composer evaluate`'s success on the same episodes, and the
-    bands share those episodes out among them."""
+    bands share those episodes out among them; --object-damping plays them on a block
+    damped so."""
     module = load_script(EXPERIMENTS / "pick_and_place_goals.py")
     run = RESULTS / "table2" / "pick_and_place-tqc-seed1"
     steps, rows = module.episodes_of(run, 12, seed=100)
@@ -153,6 +154,21 @@ def test_the_goal_bands_play_the_episodes_evaluate_plays(capsys):
                  "--device", "cpu"]) == 0
     assert (f"{steps} steps: success {bands[-1][2]:.1f} % over 12 episodes"
             in capsys.readouterr().out)
+    # --object-damping: the same episodes, on a block damped so.
+    seen = []
+
+    class Watched(module.GoalBands):
+        def reset(self, **kwargs):
+            result = super().reset(**kwargs)
+            seen.append(self.env.unwrapped.composer_env.physics.model.dof_damping[-6:].copy())
+            return result
+
+    monkeypatch.setattr(module, "GoalBands", Watched)
+    _, damped = module.episodes_of(run, 2, seed=100, object_damping=0.01)
+    _, undamped = module.episodes_of(run, 2, seed=100)
+    assert [list(damping) for damping in seen] == [[0.01] * 6] * 2 + [[0.0] * 6] * 2
+    np.testing.assert_array_equal(undamped[:, 0], rows[:2, 0])  # The same goals.
+    np.testing.assert_array_equal(damped[:, 0], rows[:2, 0])
 
 
 def test_the_goal_bands_refuse_a_run_of_another_task():
@@ -164,6 +180,7 @@ def test_the_goal_bands_refuse_a_run_of_another_task():
 @pytest.mark.parametrize("args, message", [
     (["--episodes", "0"], "argument --episodes: must be a positive integer, got '0'"),
     (["--seed", "-1"], "argument --seed: must be an integer >= 0, got '-1'"),
+    (["--object-damping", "-1"], "error: object_damping must be >= 0, got -1.0"),
 ])
 def test_the_goal_bands_name_a_bad_option(args, message):
     completed = subprocess.run(
