@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import os
 import pickle
 import re
 import subprocess
@@ -711,3 +712,20 @@ def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_pa
     data.qacc_warmstart[:] = 0.0  # A restore that found the env changed keeps it as it is.
     assert module.restoring_carried_state(lambda model, path: None)(model, path) is None
     np.testing.assert_array_equal(data.qacc_warmstart, np.zeros(6))
+
+
+@pytest.mark.parametrize("args, message", [
+    ([], "experiments/pick_and_place_checks.sh run CHECK"),
+    (["run"], "experiments/pick_and_place_checks.sh run CHECK"),
+    (["start", "damped_block"], "experiments/pick_and_place_checks.sh run CHECK"),
+    (["run", "damped"], "CHECK must be damped_block, unguarded, reference_env or "
+                        "learning_starts, not damped"),
+])
+def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, message):
+    """Its usage, or the checks it knows, before anything is made or started."""
+    completed = subprocess.run(
+        ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), *args],
+        capture_output=True, text=True, check=False, env={**os.environ, "RUNS": str(tmp_path)})
+    assert completed.returncode == 2
+    assert message in completed.stdout + completed.stderr
+    assert list(tmp_path.iterdir()) == []
