@@ -6,8 +6,8 @@ figures drawn as the paper's are, and the goal bands split pick-and-place's epis
 from __future__ import annotations
 
 import json
-import pathlib
 import os
+import pathlib
 import pickle
 import re
 import subprocess
