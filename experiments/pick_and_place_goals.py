@@ -58,22 +58,17 @@ def episodes_of(run_root: pathlib.Path, episodes: int, seed: int,
     """(steps trained, rows of (goal height above rest, lifted, success)) per episode, on
     the run's env, its objects damped by `object_damping` where given."""
     from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.models import make_env
-    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.policy_file import trained_on_its_task
     from franka_composer.training.runs import RunDir
 
-    run = RunDir(run_root)
-    config = run.read_config()
-    if config.task != "pick_and_place":
-        raise SystemExit(f"{run_root}: a {config.task} run; this splits pick_and_place's goals")
+    task = RunDir(run_root).read_config().task
+    if task != "pick_and_place":
+        raise SystemExit(f"{run_root}: a {task} run; this splits pick_and_place's goals")
     damping = {} if object_damping is None else {"object_damping": object_damping}
-    env = GoalBands(make_env(config.task, **{**config.env_options, **damping}))
-    try:
-        model = load_trained(run, env, device="cpu")
+    with trained_on_its_task(run_root, device="cpu", wrap=GoalBands, **damping) as (
+            _, env, model):
         measure_success(model, env, episodes, seed=seed)
         return int(model.num_timesteps), np.array(env.rows, dtype=float)
-    finally:
-        env.close()
 
 
 def band_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:

@@ -149,13 +149,13 @@ def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
 
 
 @contextlib.contextmanager
-def trained_on_its_task(root: pathlib.Path, device: str = "auto", wrap=None):
+def trained_on_its_task(root: pathlib.Path, device: str = "auto", wrap=None, **options):
     """(config, env, policy): the run at `root`, its task's env made with the options it
-    trained with (wrapped by `wrap`, if given) and what it trained, acting on that env,
-    which is closed on leaving, whatever happens inside."""
+    trained with, less those `options` give instead (wrapped by `wrap`, if given), and what
+    it trained, acting on that env, which is closed on leaving, whatever happens inside."""
     run = RunDir(pathlib.Path(root))
     config = run.read_config()
-    env = make_env(config.task, **config.env_options)
+    env = make_env(config.task, **{**config.env_options, **options})
     try:
         if wrap is not None:
             env = wrap(env)
