@@ -6,6 +6,10 @@ what keeps TQC from lifting at the reference timing:
   (down to z = 0), as in the reference code: a finger landing on the block's top edge sinks
   into it and squeezes it between the fingers, a wider catch (docs/experiments/
   grasp-margin.md, "What narrows the reach");
+- `reference_physics`: every difference `env_differences.py` undoes, undone together (the
+  block damped, the fingers closed at reset, the guard let go, the reference code's finger
+  and block contacts, its solver): the env in which a policy trained in the reference
+  code's env succeeds as often as there (docs/experiments/cross-play.md);
 - `damped_block`: the block's free joint damped as the reference code's (0.01 on all six
   degrees of freedom): a turn of the 4 cm cube then dies out within milliseconds, so a push
   slides it where here it tips it over (docs/experiments/push-tip.md). The package has
@@ -40,7 +44,8 @@ from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
 from franka_composer.training import models
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-import random_exploration  # noqa: E402  (experiments/, not a package)
+import env_differences  # noqa: E402  (experiments/, not a package)
+import random_exploration  # noqa: E402
 
 
 def unguarded(task: str, **options) -> gym.Env:
@@ -52,10 +57,19 @@ def damped_block(task: str, **options) -> gym.Env:
     return models.make_env(task, **{**options, "object_damping": REFERENCE_OBJECT_DAMPING})
 
 
+def reference_physics(task: str, **options) -> gym.Env:
+    random_exploration.let_guard_go()
+    env = models.make_env(task, **{**options, "object_damping": REFERENCE_OBJECT_DAMPING})
+    env_differences.undo_on_env(env, set(env_differences.DIFFERENCES))
+    return env
+
+
 #: name on the command line: (the environment's name in config.json, its builder).
 ALTERATIONS = {
     "unguarded": ("unguarded franka_composer", unguarded),
     "damped_block": ("franka_composer with the reference code's block damping", damped_block),
+    "reference_physics": ("franka_composer with the reference code's physics",
+                          reference_physics),
 }
 
 

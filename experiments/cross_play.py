@@ -6,7 +6,7 @@ often in the reference env says the env is easier there. It costs minutes, where
 the reference env (`experiments/reference_env_runs.py`) costs CPU hours.
 
     python experiments/cross_play.py --reference-path DIR [RUN_DIR ...] [--expert]
-        [--episodes 200] [--seed 100]
+        [--episodes 200] [--seed 100] [--goal-bands] [--object-damping D]
 
 Each RUN_DIR's policy (its model.zip, else its latest checkpoint, else its policy.pt, as
 `franka-composer evaluate` takes it) plays `--episodes` deterministic episodes in each env,
@@ -18,7 +18,11 @@ issue's other metric can be read: success at the episode's last step, against an
 `--expert` adds this suite's scripted pick-and-place expert, built for the reference timing,
 as a policy that succeeds nearly always: what it reads from the observation has the same
 layout in both envs. Prints a Markdown table of success rates with their binomial standard
-errors.
+errors; `--goal-bands` adds, for the two envs that end on success, each policy's success
+and the episodes in which it raised the block, split by the goal's height
+(`pick_and_place_goals.py`'s bands): whether a policy that lifts in one env lifts in the
+other. `--object-damping` damps this suite's block so (0.01: as the reference code's is),
+to tell what its damping does for a policy from the rest of the two envs' differences.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ import sys
 
 import numpy as np
 
-from franka_composer.cli.options import episode_seed, positive_int
+from franka_composer.cli.options import add_object_damping, episode_seed, positive_int
 from franka_composer.policies import make_expert
+from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.models import make_env
 from franka_composer.training.policy_file import load_trained
@@ -39,6 +44,7 @@ from franka_composer.training.runs import RunDir
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import reference_env_runs  # noqa: E402  (experiments/, not a package)
+from pick_and_place_goals import GoalBands, band_rows  # noqa: E402
 
 #: The one task both envs have a policy for here (the reference code's push and slide have no
 #: runs at the reference timing).
@@ -83,6 +89,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", type=pathlib.Path, nargs="*", metavar="RUN_DIR")
     parser.add_argument("--expert", action="store_true",
                         help="also play the scripted expert (at the reference timing)")
+    parser.add_argument("--goal-bands", action="store_true",
+                        help="also split each policy's episodes by the goal's height")
+    add_object_damping(parser, "undamped, as this suite's task")
     parser.add_argument("--episodes", type=positive_int, default=200)
     parser.add_argument("--seed", type=episode_seed, default=100)
     args = parser.parse_args(argv)
@@ -91,6 +100,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(error)
     if not args.runs and not args.expert:
         parser.error("give a RUN_DIR, --expert or both")
+    ours = dict(TIMINGS["reference"])
+    if args.object_damping is not None:
+        try:
+            TASK_CONFIGS[TASK].replace(object_damping=args.object_damping)
+        except ValueError as bad:
+            parser.error(str(bad))
+        ours["object_damping"] = args.object_damping
     configs = {}
     for root in args.runs:
         try:
@@ -107,18 +123,21 @@ def main(argv: list[str] | None = None) -> int:
         error = math.sqrt(value * (1 - value) / args.episodes)
         return f"{100 * value:.1f} ± {100 * error:.1f}"
 
-    print(f"{args.episodes} deterministic episodes per env, first reset seed {args.seed}; "
-          "success rate % ± its standard error\n")
+    damped = ("" if args.object_damping is None
+              else f"; this suite's block damped by {args.object_damping:g}")
+    print(f"{args.episodes} deterministic episodes per env, first reset seed {args.seed}"
+          f"{damped}; success rate % ± its standard error\n")
     print("| run | trained in | steps | this suite, reference timing | reference code's env "
           "| reference − this suite | this suite, 50 steps: success at any step | "
           "at the last step |")
     print("|---|---|---|---|---|---|---|---|")
+    bands = []
     for root in [*args.runs, *([None] if args.expert else [])]:
-        envs = {"ours": make_env(TASK, **TIMINGS["reference"]),
+        envs = {"ours": GoalBands(make_env(TASK, **ours)),
                 # Its checker warns that `terminated` is a float32 (SB3 takes it as it is).
-                "reference": gym.make(specs[TASK], disable_env_checker=True),
+                "reference": GoalBands(gym.make(specs[TASK], disable_env_checker=True)),
                 "ours, 50 steps": make_env(TASK, terminate_on_success=False,
-                                           **TIMINGS["reference"])}
+                                           **ours)}
         try:
             # Loaded once: the same weights in every env, though the run goes on beside.
             policy = (load_trained(RunDir(root), envs["ours"], device="cpu") if root is not None
@@ -141,6 +160,16 @@ def main(argv: list[str] | None = None) -> int:
               f"{rate(rates['ours'][0])} | {rate(rates['reference'][0])} | {difference:+.1f} | "
               f"{rate(rates['ours, 50 steps'][0])} | {rate(rates['ours, 50 steps'][1])} |",
               flush=True)
+        bands += [(name, steps, where, np.array(envs[key].rows, dtype=float))
+                  for key, where in (("ours", "this suite, reference timing"),
+                                     ("reference", "reference code's env"))]
+    if args.goal_bands:
+        print("\n| run | steps | env | goal | episodes | success | block rose > 1 cm |")
+        print("|---|---|---|---|---|---|---|")
+        for name, steps, where, rows in bands:
+            for band, count, success, lifted in band_rows(rows):
+                print(f"| {name} | {steps} | {where} | {band} | {count} | {success:.1f} % "
+                      f"| {lifted:.1f} % |")
     return 0
 
 

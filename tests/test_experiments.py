@@ -333,8 +333,9 @@ def test_cross_play_counts_a_success_at_any_step_and_at_the_last():
                        seed=7) == (0.75, 0.75)
 
 
-def test_cross_play_prints_a_row_per_policy(monkeypatch, capsys):
-    # This suite's pick-and-place (0.05 s per step) stands in for the reference code's.
+def cross_play_on_a_stand_in(monkeypatch):
+    """cross_play.py with this suite's pick-and-place (0.05 s per step) standing in for the
+    reference code's."""
     import gymnasium as gym
 
     module = load_script(EXPERIMENTS / "cross_play.py")
@@ -342,6 +343,11 @@ def test_cross_play_prints_a_row_per_policy(monkeypatch, capsys):
                         lambda path: {"pick_and_place": gym.spec("FrankaPickAndPlaceSparse-v0")})
     monkeypatch.setattr(module.reference_env_runs.peer_worker, "reference_path_error",
                         lambda path: None)
+    return module
+
+
+def test_cross_play_prints_a_row_per_policy(monkeypatch, capsys):
+    module = cross_play_on_a_stand_in(monkeypatch)
     run = RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"
     assert module.main(["--reference-path", "unused", str(run), "--expert",
                         "--episodes", "2", "--seed", "3"]) == 0
@@ -354,12 +360,121 @@ def test_cross_play_prints_a_row_per_policy(monkeypatch, capsys):
     assert len(rows) == 3
 
 
+def test_cross_play_splits_each_env_by_the_goals_height(monkeypatch, capsys):
+    # The scripted expert lifts the block to every goal above the floor.
+    module = cross_play_on_a_stand_in(monkeypatch)
+    assert module.main(["--reference-path", "unused", "--expert", "--episodes", "6",
+                        "--seed", "3", "--goal-bands"]) == 0
+    out = capsys.readouterr().out
+    bands = [line for line in out.split("\n\n")[-1].splitlines() if line.startswith("| ")]
+    assert bands[0] == "| run | steps | env | goal | episodes | success | block rose > 1 cm |"
+    cells = [line.strip("| ").split(" | ") for line in bands[1:]]
+    assert [row[2] for row in cells if row[3] == "all"] == [
+        "this suite, reference timing", "reference code's env"]
+    assert all(row[:2] == ["scripted expert", "–"] and row[5] == "100.0 %" for row in cells)
+    assert [row[4] for row in cells if row[3] == "all"] == ["6", "6"]
+    high = [row for row in cells if row[3] == "5-20 cm up"]
+    assert high and all(row[6] == "100.0 %" for row in high)
+    assert sum(int(row[4]) for row in cells if row[3] != "all") == 12
+
+
+def test_env_differences_undo_what_they_name_and_nothing_else():
+    import mujoco
+
+    module = load_script(EXPERIMENTS / "env_differences.py")
+    plain = module.make_undone(set())
+    undone = module.make_undone(set(module.DIFFERENCES))
+    try:
+        before = plain.unwrapped.composer_env.physics.model
+        after = undone.unwrapped.composer_env.physics.model
+        fingers = module.contact_geoms(after, module.FINGERS)
+        block, floor = after.geom("block/geom").id, after.geom("floor").id
+        assert len(fingers) == 12
+        np.testing.assert_array_equal(after.geom_friction[fingers], 0.8)
+        assert set(after.geom_condim[fingers]) == {3} and after.geom_condim[block] == 6
+        np.testing.assert_array_equal(before.geom_friction[fingers], [[2.0, 0.005, 1e-4]] * 12)
+        for geom in (block, floor):
+            np.testing.assert_array_equal(after.geom_solref[geom], [0.02, 1.0])
+            np.testing.assert_array_equal(after.geom_solimp[geom], [0.9, 0.95, 0.001, 0.5, 2])
+            np.testing.assert_array_equal(before.geom_solref[geom], [0.004, 1.0])
+        assert (after.opt.integrator, after.opt.cone, after.opt.noslip_iterations) == (
+            mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtCone.mjCONE_PYRAMIDAL, 3)
+        assert (before.opt.integrator, before.opt.cone, before.opt.noslip_iterations) == (
+            mujoco.mjtIntegrator.mjINT_IMPLICITFAST, mujoco.mjtCone.mjCONE_ELLIPTIC, 0)
+        np.testing.assert_array_equal(after.dof_damping[-6:], 0.01)
+        np.testing.assert_array_equal(before.dof_damping[-6:], 0.0)
+        # The fingers start closed, and the model's changes hold through resets.
+        width = {name: env.reset(seed=1)[0]["observation"][6] for name, env in
+                 (("plain", plain), ("undone", undone))}
+        assert width["plain"] == pytest.approx(0.08, abs=1e-3)
+        assert width["undone"] == pytest.approx(0.0, abs=1e-3)
+        assert undone.unwrapped.composer_env.physics.model.geom_condim[block] == 6
+    finally:
+        plain.close()
+        undone.close()
+
+
+def test_env_differences_let_the_guard_go_for_their_row_only():
+    from franka_composer.surface_guard import BoundSurfaceGuard
+
+    module = load_script(EXPERIMENTS / "env_differences.py")
+    guard = BoundSurfaceGuard.guard
+    with module.guard_let_go({"closed_fingers"}):
+        assert BoundSurfaceGuard.guard is guard
+    with pytest.raises(KeyError):
+        with module.guard_let_go({"unguarded"}):
+            assert BoundSurfaceGuard.guard(None, None, np.array([0.1, 0.0, -0.3]), 1.0) == 0.0
+            raise KeyError("played")
+    assert BoundSurfaceGuard.guard is guard
+
+
+def test_env_differences_row_of_nothing_undone_is_what_evaluate_measures(capsys):
+    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.training.evaluation import measure_success
+    from franka_composer.training.models import make_env
+    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.runs import RunDir
+
+    module = load_script(EXPERIMENTS / "env_differences.py")
+    run = RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"
+    assert module.main([str(run), "--only", "closed_fingers", "--episodes", "10",
+                        "--seed", "100"]) == 0
+    rows = [line.strip("| ").split(" | ") for line in capsys.readouterr().out.splitlines()
+            if line.startswith("| ")]
+    assert rows[0] == ["undone", "steps", "success", "on the floor", "0-5 cm up", "5-20 cm up",
+                       "block rose > 1 cm"]
+    assert [row[0] for row in rows[1:]] == ["none (this suite)", "closed_fingers"]
+    env = make_env("pick_and_place", **TIMINGS["reference"])
+    try:
+        success = measure_success(load_trained(RunDir(run), env, device="cpu"), env, 10,
+                                  seed=100).success_rate
+    finally:
+        env.close()
+    assert rows[1][1] == "500,000" and rows[1][2] == f"{100 * success:.1f} % of 10"
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{tmp}/none"], "{tmp}/none does not exist"),
+    ([str(RESULTS / "table2" / "push-tqc-seed0")],
+     f"{RESULTS / 'table2' / 'push-tqc-seed0'} trained push; this plays pick_and_place"),
+    ([str(RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"), "--only", "friction"],
+     "argument --only: invalid choice: 'friction'")])
+def test_env_differences_name_a_bad_argument_before_they_play(args, message, tmp_path, capsys):
+    module = load_script(EXPERIMENTS / "env_differences.py")
+    with pytest.raises(SystemExit) as exit_:
+        module.main([arg.format(tmp=tmp_path) for arg in args])
+    assert exit_.value.code == 2
+    assert message.format(tmp=tmp_path) in capsys.readouterr().err.strip().splitlines()[-1]
+
+
 @pytest.mark.parametrize("args, message", [
     (["--episodes", "0"], "argument --episodes: must be a positive integer, got '0'"),
     ([], "give a RUN_DIR, --expert or both"),
     (["{tmp}/none"], "{tmp}/none does not exist"),
     ([str(RESULTS / "table2" / "push-tqc-seed0")],
      f"{RESULTS / 'table2' / 'push-tqc-seed0'} trained push; this compares pick_and_place"),
+    ([str(RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"), "--object-damping", "-1"],
+     "object_damping must be >= 0, got -1.0"),
     (["--expert"], "--reference-path {tmp}/none: no panda_mujoco_gym/__init__.py there; give "
                    "the folder of a checkout of the reference code's repository")])
 def test_cross_play_names_a_bad_argument_before_it_plays(args, message, tmp_path):
@@ -616,6 +731,40 @@ def test_an_unguarded_run_trains_with_the_guard_let_go_and_is_refused_elsewhere(
         env.step(np.array([0.5, 0.0, -1.0, 0.0], dtype=np.float32))
     assert env.unwrapped.task.controller.law._target[2] == pytest.approx(0.0072, abs=5e-4)
     env.close()
+
+
+@pytest.mark.slow
+def test_a_reference_physics_run_trains_with_every_difference_undone(tmp_path, monkeypatch):
+    from franka_composer.surface_guard import BoundSurfaceGuard
+    from franka_composer.training import models
+    from franka_composer.training.runs import RunDir
+
+    module = train_in_another_env(monkeypatch, "altered_runs.py")
+    differences = load_script(EXPERIMENTS / "env_differences.py")
+    name = module.ALTERATIONS["reference_physics"][0]
+    monkeypatch.setattr(BoundSurfaceGuard, "guard", BoundSurfaceGuard.guard)
+    out = tmp_path / "run"
+    assert module.main(["reference_physics", "train", "--task", "pick_and_place", "--algo",
+                        "sac", "--timing", "reference", "--out", str(out), "--total-steps",
+                        "200", *TINY_TRAINING]) == 0
+    assert RunDir(out).read_config().environment == name
+    env = models.make_env("pick_and_place", environment=name)
+    expected = differences.make_undone(set(differences.DIFFERENCES))
+    try:
+        model, undone = (each.unwrapped.composer_env.physics.model for each in (env, expected))
+        for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp",
+                      "dof_damping"):
+            np.testing.assert_array_equal(getattr(model, field), getattr(undone, field))
+        assert (model.opt.integrator, model.opt.cone, model.opt.noslip_iterations) == (
+            undone.opt.integrator, undone.opt.cone, 3)
+        assert env.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-3)
+        law = env.unwrapped.task.controller.law
+        for _ in range(5):  # The target as deep as the action sends it (the unguarded test).
+            env.step(np.array([0.5, 0.0, -1.0, 0.0], dtype=np.float32))
+        assert law._target[2] < 0.002
+    finally:
+        env.close()
+        expected.close()
 
 
 def test_a_damped_block_run_damps_the_block_in_every_env_it_builds(monkeypatch):
