@@ -11,7 +11,8 @@
 #   experiments/pick_and_place_checks.sh keep CHECK   what it has kept, into results/
 #
 # CHECK: damped_block (the reference code's block damping), unguarded (the surface guard
-# let go), reference_env (the reference code's own env: REFERENCE_PATH, default
+# let go), reference_physics (every difference experiments/env_differences.py undoes, undone
+# together), reference_env (the reference code's own env: REFERENCE_PATH, default
 # ~/franka_runs/reference-code, a checkout of panda_mujoco_gym at e9881d9), learning_starts
 # (1e5 random steps first). RUNS (default ~/franka_runs) holds the runs and the trees.
 set -uo pipefail
@@ -19,7 +20,7 @@ cd "$(dirname "$0")/.."
 ROOT=$PWD
 case "${1:-}:${2:-}" in
   run:?*|stop:?*|keep:?*) ;;
-  *) sed -n '2,16p' "$0"; exit 2 ;;
+  *) sed -n '2,17p' "$0"; exit 2 ;;
 esac
 RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs}")
 BIN=$(realpath -m "${BIN:-.venv/bin}")
@@ -33,12 +34,15 @@ case "$2" in
     train=(python experiments/altered_runs.py damped_block train --timing reference) ;;
   unguarded) tree=42d36b4 folder=unguarded
     train=(python experiments/altered_runs.py unguarded train --timing reference) ;;
+  reference_physics) tree=ee552b6 folder=reference-physics
+    train=(python experiments/altered_runs.py reference_physics train --timing reference) ;;
   reference_env) tree=369ca2c folder=reference-env
     train=(python experiments/reference_env_runs.py --reference-path
            "${REFERENCE_PATH:-$HOME/franka_runs/reference-code}" train) ;;
   learning_starts) tree=1816633 folder=learning-starts
     train=(python -m franka_composer train --timing reference --learning-starts 100000) ;;
-  *) echo "CHECK must be damped_block, unguarded, reference_env or learning_starts, not $2" >&2
+  *) echo "CHECK must be damped_block, unguarded, reference_physics, reference_env or" \
+          "learning_starts, not $2" >&2
      exit 2 ;;
 esac
 out=$RUNS/$folder/pick_and_place-tqc-seed0

@@ -867,8 +867,8 @@ def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_pa
     ([], "experiments/pick_and_place_checks.sh run CHECK"),
     (["run"], "experiments/pick_and_place_checks.sh run CHECK"),
     (["start", "damped_block"], "experiments/pick_and_place_checks.sh run CHECK"),
-    (["run", "damped"], "CHECK must be damped_block, unguarded, reference_env or "
-                        "learning_starts, not damped"),
+    (["run", "damped"], "CHECK must be damped_block, unguarded, reference_physics, "
+                        "reference_env or learning_starts, not damped"),
 ])
 def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, message):
     """Its usage, or the checks it knows, before anything is made or started."""
