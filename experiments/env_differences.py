@@ -8,15 +8,17 @@ bands). Each difference that closes part of the gap is one a learner here meets 
 paper's did not; what stays after all of them is in what cannot be undone on a built model
 (the robot's XML and the arm's drive).
 
-    python experiments/env_differences.py RUN_DIR [--only NAME ...] [--episodes 200]
-        [--seed 100]
+    python experiments/env_differences.py RUN_DIR [--only NAME ...] [--leave-one-out]
+        [--episodes 200] [--seed 100]
 
 RUN_DIR is any pick-and-place run whose policy `franka-composer evaluate` takes (its
 model.zip, else its latest checkpoint, else its policy.pt). The differences, read from the
 reference code's `panda_mujoco_gym/assets/pick_and_place.xml` and `panda_mocap.xml` at
 e9881d9 (docs/guide/physics.md): the contacts are changed on the compiled model after the
 env is made (they hold through resets: no option rebuilds it), the guard on its class for
-the play of its row only. Prints a Markdown table.
+the play of its row only. `--leave-one-out` plays, after the rows of none and all undone, a row
+per difference with all the others undone instead of it alone: what the rest cannot stand
+in for. Prints a Markdown table.
 """
 
 from __future__ import annotations
@@ -139,6 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("run", type=pathlib.Path, metavar="RUN_DIR")
     parser.add_argument("--only", nargs="+", choices=tuple(DIFFERENCES), metavar="NAME",
                         help="these differences alone, and together (default: each)")
+    parser.add_argument("--leave-one-out", action="store_true",
+                        help="each with all the others undone, instead of alone")
     parser.add_argument("--episodes", type=positive_int, default=200)
     parser.add_argument("--seed", type=episode_seed, default=100)
     args = parser.parse_args(argv)
@@ -149,9 +153,16 @@ def main(argv: list[str] | None = None) -> int:
     if config.task != TASK:
         parser.error(f"{args.run} trained {config.task}; this plays {TASK}")
     names = args.only or list(DIFFERENCES)
-    rows = [("none (this suite)", set())] + [(name, {name}) for name in names]
-    if len(names) > 1:
-        rows.append(("all of the above", set(names)))
+    rows = [("none (this suite)", set())]
+    if args.leave_one_out:
+        if len(names) < 2:
+            parser.error("--leave-one-out needs two differences or more")
+        rows += [("all of them", set(names))]
+        rows += [(f"all but {name}", set(names) - {name}) for name in names]
+    else:
+        rows += [(name, {name}) for name in names]
+        if len(names) > 1:
+            rows.append(("all of the above", set(names)))
     print(f"{args.run.name}, {args.episodes} deterministic episodes per row, first reset "
           f"seed {args.seed}; this suite at the reference timing with the reference code's "
           "difference undone\n")

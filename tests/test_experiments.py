@@ -451,6 +451,11 @@ def test_env_differences_row_of_nothing_undone_is_what_evaluate_measures(capsys)
     finally:
         env.close()
     assert rows[1][1] == "500,000" and rows[1][2] == f"{100 * success:.1f} % of 10"
+    assert module.main([str(run), "--only", "closed_fingers", "solver", "--leave-one-out",
+                        "--episodes", "1"]) == 0
+    assert [line.split(" | ")[0] for line in capsys.readouterr().out.splitlines()
+            if line.startswith("| ")][1:] == [
+        "| none (this suite)", "| all of them", "| all but closed_fingers", "| all but solver"]
 
 
 @pytest.mark.parametrize("args, message", [
@@ -458,7 +463,9 @@ def test_env_differences_row_of_nothing_undone_is_what_evaluate_measures(capsys)
     ([str(RESULTS / "table2" / "push-tqc-seed0")],
      f"{RESULTS / 'table2' / 'push-tqc-seed0'} trained push; this plays pick_and_place"),
     ([str(RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"), "--only", "friction"],
-     "argument --only: invalid choice: 'friction'")])
+     "argument --only: invalid choice: 'friction'"),
+    ([str(RESULTS / "reference-timing" / "pick_and_place-tqc-seed0"), "--only", "solver",
+      "--leave-one-out"], "--leave-one-out needs two differences or more")])
 def test_env_differences_name_a_bad_argument_before_they_play(args, message, tmp_path, capsys):
     module = load_script(EXPERIMENTS / "env_differences.py")
     with pytest.raises(SystemExit) as exit_:

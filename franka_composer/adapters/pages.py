@@ -38,6 +38,8 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     options = [f"{name} = {value!r}" for name, value in config.options.items()
                if name != "reward_type"]  # The id fixes it.
     default, reference = TIMINGS["default"], TIMINGS["reference"]
+    reset_fingers = ("the fingers open at reset (closed there), "
+                     if control.actuated_gripper else "")
     sections = [
         ("Action space", [
             "Box(-1, 1, (n,), float32), by controller (the control option; the ids with Osc "
@@ -91,8 +93,10 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             "law and the "
             "observation layout are those above at either timing; what differs from the "
             "reference code at both is Menagerie's Panda (no arm servos holding the neutral "
-            "pose, other finger pads), the guard that keeps the hand's target out of the "
-            "floor, the contact parameters, and the object's free joint, undamped here "
+            f"pose, other finger pads), {reset_fingers}the guard "
+            "that keeps the hand's target out of surfaces, the contact parameters, the "
+            "solver's settings (an elliptic friction cone here, a pyramidal one there), "
+            "and the object's free joint, undamped here "
             "where the reference code's block's is damped, which keeps it from tipping over "
             f"when pushed (object_damping={REFERENCE_OBJECT_DAMPING:g} damps it so)."]),
         ("Arguments", [
