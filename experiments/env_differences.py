@@ -16,9 +16,9 @@ model.zip, else its latest checkpoint, else its policy.pt). The differences, rea
 reference code's `panda_mujoco_gym/assets/pick_and_place.xml` and `panda_mocap.xml` at
 e9881d9 (docs/guide/physics.md): the contacts are changed on the compiled model after the
 env is made (they hold through resets: no option rebuilds it), the guard on its class for
-the play of its row only. `--leave-one-out` plays, after the rows of none and all undone, a row
-per difference with all the others undone instead of it alone: what the rest cannot stand
-in for. Prints a Markdown table.
+the play of its row only. `--leave-one-out` plays, after the rows of none and all undone,
+a row per difference with all the others undone instead of it alone: what the rest cannot
+stand in for. Prints a Markdown table.
 """
 
 from __future__ import annotations
@@ -170,10 +170,10 @@ def main(argv: list[str] | None = None) -> int:
           "| block rose > 1 cm |")
     print("|---|---|---|---|---|---|---|")
     for label, undone in rows:
-        steps, episodes = play(args.run, undone, args.episodes, args.seed)
+        steps, played = play(args.run, undone, args.episodes, args.seed)
         bands = {band: f"{success:.1f} % of {count}"
-                 for band, count, success, _ in band_rows(episodes)}
-        lifted = 100 * episodes[:, 1].mean()
+                 for band, count, success, _ in band_rows(played)}
+        lifted = 100 * played[:, 1].mean()
         print(f"| {label} | {steps:,} | {bands.pop('all')} | "
               + " | ".join(bands.get(band, "–") for band in BAND_NAMES)
               + f" | {lifted:.1f} % |", flush=True)
