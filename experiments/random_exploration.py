@@ -9,10 +9,10 @@ block more gives it more to learn from.
         [--episodes 200] [--seed 0]
 
 Further rows play this suite at 0.5 s per step with the default's stiff weld (the reference
-timing before it took the reference code's weld), at the reference timing with the
-fingers closed at reset, as the reference code's are, at the reference timing with the
-surface guard let go, as the reference code has none, and at the reference timing with the
-block's free joint damped as the reference code's (`SUITES`; `--only` plays some).
+timing before it took the reference code's weld), and at the reference timing with one
+thing as the reference code has it: the fingers closed at reset, the surface guard let go
+(it has none), the block's free joint damped, or every difference `env_differences.py`
+undoes (`SUITES`; `--only` plays some).
 DIR is a checkout of the reference code's repository (`panda_mujoco_gym`, not on PyPI;
 without it the reference is left out, saying so). Each suite runs in a process of its own
 (`benchmarks/peer_worker.py` imports it: the reference registers the same ids as this
@@ -55,6 +55,9 @@ SUITES = {
                  'this suite, timing="reference", the surface guard let go'),
     "damped": ({"timing": "reference", "object_damping": 0.01},
                'this suite, timing="reference", object_damping=0.01'),
+    "reference_physics": ({"timing": "reference", "object_damping": 0.01},
+                          'this suite, timing="reference", the reference code\'s physics '
+                          "(env_differences.py's six differences undone)"),
     "reference": (None, "reference code"),
 }
 RESULT_PREFIX = peer_worker.RESULT_PREFIX
@@ -108,6 +111,11 @@ def make_env(suite: str, task: str, reference_path: pathlib.Path | None = None,
     if suite == "closed":  # The reference code's reset: the fingers closed.
         env.unwrapped.task._initial_finger_width = 0.0
     if suite == "no_guard":
+        let_guard_go()
+    if suite == "reference_physics":  # Its own process: the model's and the guard's changes.
+        import env_differences
+
+        env_differences.undo_on_env(env, set(env_differences.DIFFERENCES))
         let_guard_go()
     return env
 

@@ -257,6 +257,32 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     closed.close()
 
 
+def test_random_exploration_plays_the_reference_physics_as_the_training_check_does(
+        monkeypatch):
+    from franka_composer.surface_guard import BoundSurfaceGuard
+
+    monkeypatch.setattr(BoundSurfaceGuard, "guard", BoundSurfaceGuard.guard)
+    module = load_script(EXPERIMENTS / "random_exploration.py")
+    differences = load_script(EXPERIMENTS / "env_differences.py")
+    env = module.make_env("reference_physics", "pick_and_place")
+    expected = differences.make_undone(set(differences.DIFFERENCES))
+    try:
+        model, undone = (each.unwrapped.composer_env.physics.model for each in (env, expected))
+        for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp",
+                      "dof_damping", "opt.integrator", "opt.cone", "opt.noslip_iterations"):
+            parts = field.split(".")
+            ours, theirs = model, undone
+            for part in parts:
+                ours, theirs = getattr(ours, part), getattr(theirs, part)
+            np.testing.assert_array_equal(ours, theirs)
+        assert model.opt.noslip_iterations == 3 and model.dof_damping[-1] == 0.01
+        assert env.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-12)
+        assert BoundSurfaceGuard.guard(None, None, np.array([0.1, 0.0, -0.3]), 1.0) == 0.0
+    finally:
+        env.close()
+        expected.close()
+
+
 def test_goal_sampling_draws_each_reset_from_its_seed_and_compares_alike_draws():
     module = load_script(EXPERIMENTS / "goal_sampling.py")
     env = load_script(EXPERIMENTS / "random_exploration.py").make_env("ours", "pick_and_place")
