@@ -45,7 +45,7 @@ from pick_and_place_goals import BANDS, GoalBands, band_rows  # noqa: E402
 TASK = "pick_and_place"
 BAND_NAMES = [name for name, _, _ in BANDS]
 FINGERS = ("panda/left_finger", "panda/right_finger")
-#: MuJoCo's default contact softness, the reference code's for the block and the floor.
+#: MuJoCo's default contact softness, the reference code's everywhere.
 DEFAULT_SOLREF = (0.02, 1.0)
 DEFAULT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 
@@ -73,14 +73,13 @@ def contact_geoms(model: mujoco.MjModel, bodies: tuple[str, ...]) -> list[int]:
 
 def undo_on_model(model: mujoco.MjModel, undone: set[str]) -> None:
     """The differences of `undone` that live in the compiled model, undone on it."""
-    block = [model.geom("block/geom").id]
     if "finger_contact" in undone:
         for geom in contact_geoms(model, FINGERS):
             model.geom_friction[geom] = 0.8
             model.geom_condim[geom] = 3
-        model.geom_condim[block] = 6
+        model.geom_condim[model.geom("block/geom").id] = 6
     if "soft_contacts" in undone:
-        for geom in [*block, model.geom("floor").id]:
+        for geom in (model.geom("block/geom").id, model.geom("floor").id):
             model.geom_solref[geom] = DEFAULT_SOLREF
             model.geom_solimp[geom] = DEFAULT_SOLIMP
     if "solver" in undone:

@@ -33,14 +33,12 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import grasp_margin  # noqa: E402  (experiments/, not a package)
+from env_differences import DEFAULT_SOLIMP, DEFAULT_SOLREF  # noqa: E402
 
 random_exploration = grasp_margin.random_exploration
 #: Offsets (m) off the block's centre, (x, y); y is the fingers' closing axis.
 OFFSETS = ((0.0, 0.0), (0.0, 0.015), (0.0, 0.02), (0.0, 0.025), (0.0, 0.03), (0.02, 0.0),
            (0.025, 0.0))
-#: MuJoCo's default contact softness, the reference code's everywhere.
-DEFAULT_SOLREF = (0.02, 1.0)
-DEFAULT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 
 
 def let_guard_go(env) -> None:

@@ -108,14 +108,13 @@ def make_env(suite: str, task: str, reference_path: pathlib.Path | None = None,
                                  reference_path)
     env = gym.make(ids[task], **({} if suite_options is None
                                  else {**suite_options, **options}))
-    if suite == "closed":  # The reference code's reset: the fingers closed.
-        env.unwrapped.task._initial_finger_width = 0.0
-    if suite == "no_guard":
-        let_guard_go()
-    if suite == "reference_physics":  # Its own process: the model's and the guard's changes.
+    if suite in ("closed", "reference_physics"):  # Imported here: it imports this module.
+        sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
         import env_differences
 
-        env_differences.undo_on_env(env, set(env_differences.DIFFERENCES))
+        env_differences.undo_on_env(env, {"closed_fingers"} if suite == "closed"
+                                    else set(env_differences.DIFFERENCES))
+    if suite in ("no_guard", "reference_physics"):  # Its own process: the guard's class.
         let_guard_go()
     return env
 
