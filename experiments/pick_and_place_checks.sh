@@ -9,6 +9,8 @@
 #   experiments/pick_and_place_checks.sh run CHECK    train (or resume) it in the background
 #   experiments/pick_and_place_checks.sh stop CHECK   checkpoint it and stop (waits)
 #   experiments/pick_and_place_checks.sh keep CHECK   what it has kept, into results/
+#   experiments/pick_and_place_checks.sh status CHECK whether it runs, its checkpoint, its
+#                                                     last evaluation
 #
 # CHECK: damped_block (the reference code's block damping), unguarded (the surface guard
 # let go), reference_physics (every difference experiments/env_differences.py undoes, undone
@@ -19,8 +21,8 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 case "${1:-}:${2:-}" in
-  run:?*|stop:?*|keep:?*) ;;
-  *) sed -n '2,17p' "$0"; exit 2 ;;
+  run:?*|stop:?*|keep:?*|status:?*) ;;
+  *) sed -n '2,19p' "$0"; exit 2 ;;
 esac
 RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs}")
 BIN=$(realpath -m "${BIN:-.venv/bin}")
@@ -70,4 +72,14 @@ case "$1" in
     cat "$out/checkpoint/state.json"; echo
     ;;
   keep) "$BIN/franka-composer" keep "$out" --into "$ROOT/results/$folder" ;;
+  status)
+    if [ ! -d "$out" ]; then echo "$2: not started ($out)"; exit 0; fi
+    state=stopped; pgrep -f -- "--out $out( |$)" >/dev/null && state=running
+    steps=none
+    [ -f "$out/checkpoint/state.json" ] && steps=$(sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' \
+      "$out/checkpoint/state.json")
+    last=$(tail -n 1 "$out/eval.csv" 2>/dev/null | cut -d, -f1,3)
+    echo "$2: $state; checkpoint at step ${steps:-none}; last evaluation (step,success):" \
+         "${last:-none}"
+    ;;
 esac

@@ -896,6 +896,29 @@ def test_a_reference_env_checkpoint_keeps_the_warm_start_its_reset_leaves(tmp_pa
     np.testing.assert_array_equal(data.qacc_warmstart, np.zeros(6))
 
 
+def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
+    """Not started, or stopped with its checkpoint's step and its last evaluation; nothing
+    made."""
+    def status():
+        completed = subprocess.run(
+            ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status", "unguarded"],
+            capture_output=True, text=True, check=True,
+            env={**os.environ, "RUNS": str(tmp_path)})
+        return completed.stdout.strip()
+
+    out = tmp_path / "unguarded" / "pick_and_place-tqc-seed0"
+    assert status() == f"unguarded: not started ({out})"
+    assert list(tmp_path.iterdir()) == []
+    (out / "checkpoint-2004-abc").mkdir(parents=True)
+    (out / "checkpoint-2004-abc" / "state.json").write_text(
+        json.dumps({"steps": 2004, "wall_time_s": 1.5, "exact": True}))
+    (out / "checkpoint").symlink_to("checkpoint-2004-abc")
+    (out / "eval.csv").write_text("steps,wall_time_s,success_rate,mean_reward\n"
+                                  "0,1.0,0.0,-50.0\n2000,9.5,0.2,-40.0\n")
+    assert status() == ("unguarded: stopped; checkpoint at step 2004; last evaluation "
+                        "(step,success): 2000,0.2")
+
+
 @pytest.mark.parametrize("args, message", [
     ([], "experiments/pick_and_place_checks.sh run CHECK"),
     (["run"], "experiments/pick_and_place_checks.sh run CHECK"),
