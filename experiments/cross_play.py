@@ -36,7 +36,6 @@ import numpy as np
 
 from franka_composer.cli.options import add_object_damping, episode_seed, positive_int
 from franka_composer.policies import make_expert
-from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import TIMINGS
 from franka_composer.training.models import make_env
 from franka_composer.training.policy_file import load_trained
@@ -44,7 +43,7 @@ from franka_composer.training.runs import RunDir
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import reference_env_runs  # noqa: E402  (experiments/, not a package)
-from pick_and_place_goals import GoalBands, band_rows  # noqa: E402
+from pick_and_place_goals import GoalBands, band_rows, check_object_damping  # noqa: E402
 
 #: The one task both envs have a policy for here (the reference code's push and slide have no
 #: runs at the reference timing).
@@ -100,12 +99,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(error)
     if not args.runs and not args.expert:
         parser.error("give a RUN_DIR, --expert or both")
+    check_object_damping(parser, args.object_damping)
     ours = dict(TIMINGS["reference"])
     if args.object_damping is not None:
-        try:
-            TASK_CONFIGS[TASK].replace(object_damping=args.object_damping)
-        except ValueError as bad:
-            parser.error(str(bad))
         ours["object_damping"] = args.object_damping
     configs = {}
     for root in args.runs:

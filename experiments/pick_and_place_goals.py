@@ -71,6 +71,16 @@ def episodes_of(run_root: pathlib.Path, episodes: int, seed: int,
         return int(model.num_timesteps), np.array(env.rows, dtype=float)
 
 
+def check_object_damping(parser: argparse.ArgumentParser, damping: float | None) -> None:
+    """--object-damping checked as pick-and-place's task checks it, before any policy is
+    loaded (a parser error naming it)."""
+    if damping is not None:
+        try:
+            TASK_CONFIGS["pick_and_place"].replace(object_damping=damping)
+        except ValueError as error:
+            parser.error(str(error))
+
+
 def band_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:
     """(band, episodes, success %, lifted %) for each band with episodes, then all."""
     height = rows[:, 0]  # Exactly 0 for a goal on the floor (the block starts at rest).
@@ -87,11 +97,7 @@ def main() -> None:
     parser.add_argument("--seed", type=episode_seed, default=100)
     add_object_damping(parser, "as the run trained")
     args = parser.parse_args()
-    if args.object_damping is not None:  # Named before any policy is loaded.
-        try:
-            TASK_CONFIGS["pick_and_place"].replace(object_damping=args.object_damping)
-        except ValueError as error:
-            parser.error(str(error))
+    check_object_damping(parser, args.object_damping)
     print("| run | steps | goal | episodes | success | block rose > 1 cm |")
     print("|---|---|---|---|---|---|")
     for root in args.runs:
