@@ -257,6 +257,14 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
     closed.close()
 
 
+def assert_same_reference_physics(model, undone) -> None:
+    """`model` has what env_differences.py undoes on `undone`: contacts, damping, solver."""
+    for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp", "dof_damping"):
+        np.testing.assert_array_equal(getattr(model, field), getattr(undone, field))
+    for field in ("integrator", "cone", "noslip_iterations"):
+        assert getattr(model.opt, field) == getattr(undone.opt, field)
+
+
 def test_random_exploration_plays_the_reference_physics_as_the_training_check_does(
         monkeypatch):
     from franka_composer.surface_guard import BoundSurfaceGuard
@@ -268,13 +276,7 @@ def test_random_exploration_plays_the_reference_physics_as_the_training_check_do
     expected = differences.make_undone(set(differences.DIFFERENCES))
     try:
         model, undone = (each.unwrapped.composer_env.physics.model for each in (env, expected))
-        for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp",
-                      "dof_damping", "opt.integrator", "opt.cone", "opt.noslip_iterations"):
-            parts = field.split(".")
-            ours, theirs = model, undone
-            for part in parts:
-                ours, theirs = getattr(ours, part), getattr(theirs, part)
-            np.testing.assert_array_equal(ours, theirs)
+        assert_same_reference_physics(model, undone)
         assert model.opt.noslip_iterations == 3 and model.dof_damping[-1] == 0.01
         assert env.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-12)
         assert BoundSurfaceGuard.guard(None, None, np.array([0.1, 0.0, -0.3]), 1.0) == 0.0
@@ -785,11 +787,8 @@ def test_a_reference_physics_run_trains_with_every_difference_undone(tmp_path, m
     expected = differences.make_undone(set(differences.DIFFERENCES))
     try:
         model, undone = (each.unwrapped.composer_env.physics.model for each in (env, expected))
-        for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp",
-                      "dof_damping"):
-            np.testing.assert_array_equal(getattr(model, field), getattr(undone, field))
-        assert (model.opt.integrator, model.opt.cone, model.opt.noslip_iterations) == (
-            undone.opt.integrator, undone.opt.cone, 3)
+        assert_same_reference_physics(model, undone)
+        assert model.opt.noslip_iterations == 3
         assert env.reset(seed=0)[0]["observation"][6] == pytest.approx(0.0, abs=1e-3)
         law = env.unwrapped.task.controller.law
         for _ in range(5):  # The target as deep as the action sends it (the unguarded test).
