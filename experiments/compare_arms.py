@@ -9,6 +9,12 @@ runs' eval.csv files:
 
 An arm is a name and a glob of run directories (one per seed). `--window A B` adds each
 run's mean success over its evaluations from A to B (a run counts once it has reached B).
+`--paper TASK ALGO` adds the paper's published curve for that cell as a last row (read off
+its figures by `experiments/paper_curves.py`: one line, the paper's mean over its seeds, so
+no spread), to set a run beside the curve it should follow:
+
+    python experiments/compare_arms.py --arm reference-env 'results/reference-env/*' \
+        --marks 200000 300000 400000 --window 380000 440000 --paper pick_and_place tqc
 """
 
 from __future__ import annotations
@@ -19,7 +25,11 @@ import pathlib
 
 import numpy as np
 
+from franka_composer.training.learning_report import read_paper_curves
 from franka_composer.training.runs import read_eval_rows
+
+#: The paper's curves as experiments/paper_curves.py wrote them.
+PAPER_CURVES = pathlib.Path(__file__).resolve().parents[1] / "results/paper-curves/curves.csv"
 
 
 def _percent(rates: list[float]) -> str:
@@ -41,8 +51,22 @@ def arm_row(runs: list[list[dict[str, float]]], marks: list[int],
     return cells
 
 
+def paper_row(curve: dict[int, float], marks: list[int],
+              window: tuple[int, int] | None) -> list[str]:
+    """The cells of the paper's curve: its point at each mark, then its mean over the window
+    ("–" where the figure has no point there)."""
+    def cell(rates: list[float]) -> str:
+        return f"{100 * np.mean(rates):.0f} %" if rates else "–"
+    cells = [cell([curve[mark]] if mark in curve else []) for mark in marks]
+    if window:
+        cells.append(cell([rate for step, rate in curve.items()
+                           if window[0] <= step <= window[1]]))
+    return cells
+
+
 def table(arms: list[tuple[str, str]], marks: list[int],
-          window: tuple[int, int] | None) -> str:
+          window: tuple[int, int] | None,
+          paper: tuple[str, str] | None = None) -> str:
     heads = [f"{mark // 1000}k" for mark in marks]
     if window:
         heads.append(f"mean {window[0] // 1000}k–{window[1] // 1000}k")
@@ -53,6 +77,14 @@ def table(arms: list[tuple[str, str]], marks: list[int],
             raise SystemExit(f"arm {name!r}: no run directory matches {pattern!r}")
         runs = [read_eval_rows(run / "eval.csv") for run in run_dirs]
         lines.append(f"| {name} | " + " | ".join(arm_row(runs, marks, window)) + " |")
+    if paper:
+        task, algo = paper
+        curves = read_paper_curves(PAPER_CURVES)
+        if (task, algo) not in curves:
+            raise SystemExit(f"--paper: {PAPER_CURVES} has no curve for {task} {algo} (it has "
+                             + ", ".join(" ".join(key) for key in sorted(curves)) + ")")
+        lines.append(f"| the paper's {task} {algo} | "
+                     + " | ".join(paper_row(curves[task, algo], marks, window)) + " |")
     return "\n".join(lines)
 
 
@@ -63,11 +95,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--marks", nargs="+", type=int,
                         default=[10_000, 20_000, 30_000, 40_000])
     parser.add_argument("--window", nargs=2, type=int, metavar=("START", "END"))
+    parser.add_argument("--paper", nargs=2, metavar=("TASK", "ALGO"),
+                        help="also the paper's published curve of this cell")
     args = parser.parse_args(argv)
     if args.window and args.window[0] > args.window[1]:
         parser.error(f"--window: start {args.window[0]} is after end {args.window[1]}")
     print(table([tuple(arm) for arm in args.arm], args.marks,
-                tuple(args.window) if args.window else None))
+                tuple(args.window) if args.window else None,
+                tuple(args.paper) if args.paper else None))
 
 
 if __name__ == "__main__":

@@ -218,9 +218,30 @@ def test_compare_arms_gives_mean_and_std_over_seeds_at_each_mark_and_over_a_wind
     ]
 
 
+def test_compare_arms_sets_the_papers_curve_beside_the_arms(tmp_path):
+    """The paper's row reads the digitised curve's point at each mark and its mean over the
+    window, from the committed curves.csv; a mark the figure has no point at reads "–"."""
+    _write_runs(tmp_path / "a", {"seed0": {200_000: 0.2, 400_000: 0.4}})
+    completed = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "compare_arms.py"), "--arm", "a", str(tmp_path / "a/*"),
+         "--marks", "200000", "400000", "400001", "--window", "440000", "444000",
+         "--paper", "pick_and_place", "tqc"], capture_output=True, text=True, check=True)
+    module = load_script(EXPERIMENTS / "compare_arms.py")
+    curve = module.read_paper_curves(module.PAPER_CURVES)["pick_and_place", "tqc"]
+    window = np.mean([curve[440_000], curve[442_000], curve[444_000]])
+    assert completed.stdout.splitlines()[-1] == (
+        f"| the paper's pick_and_place tqc | {100 * curve[200_000]:.0f} % | "
+        f"{100 * curve[400_000]:.0f} % | – | {100 * window:.0f} % |")
+    assert completed.stdout.splitlines()[-1] == (
+        "| the paper's pick_and_place tqc | 26 % | 75 % | – | 99 % |")
+
+
 @pytest.mark.parametrize("args, message", [
     (["--arm", "a", "/nowhere/*"], "arm 'a': no run directory matches '/nowhere/*'"),
     (["--arm", "a", "/nowhere/*", "--window", "5", "1"], "--window: start 5 is after end 1"),
+    (["--arm", "a", str(EXPERIMENTS.parent / "results/table2/*"), "--paper", "pick_and_place",
+      "ppo"],
+     "has no curve for pick_and_place ppo (it has pick_and_place ddpg,"),
 ])
 def test_compare_arms_names_what_was_wrong(args, message):
     completed = subprocess.run([sys.executable, str(EXPERIMENTS / "compare_arms.py"), *args],
