@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Issue 37's checks of what keeps TQC from lifting at the reference timing: each one run,
-# TQC (sbx) seed 0 with the reference-timing cell's settings and one thing changed, on the
+# TQC (sbx) seed 0 (or SEED) with the reference-timing cell's settings and one thing changed, on the
 # frozen tree it began on (a worktree beside its run), at low priority, in the background,
 # its run outside the work tree; resumed from its checkpoint where it has one, else begun
 # from zero (a run lost with its machine retraces its kept evaluations, and `keep` refuses
@@ -15,22 +15,28 @@
 # CHECK: damped_block (the reference code's block damping), unguarded (the surface guard
 # let go), reference_physics (every difference experiments/env_differences.py undoes, undone
 # together), reference_env (the reference code's own env: REFERENCE_PATH, default
-# ~/franka_runs/reference-code, a checkout of panda_mujoco_gym at e9881d9), learning_starts
-# (1e5 random steps first). RUNS (default ~/franka_runs) holds the runs and the trees.
+# ~/franka_runs/reference-code, a checkout of panda_mujoco_gym at e9881d9), reference_env_sb3
+# (the same on SB3 in fp32, the paper's computation, in place of sbx), learning_starts (1e5
+# random steps first). SEED (default 0) picks the seed; RUNS (default ~/franka_runs) holds
+# the runs and the trees.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 case "${1:-}:${2:-}" in
   run:?*|stop:?*|keep:?*|status:?*) ;;
-  *) sed -n '2,19p' "$0"; exit 2 ;;
+  *) sed -n '2,21p' "$0"; exit 2 ;;
 esac
+SEED=${SEED:-0}
+[[ $SEED =~ ^[0-9]+$ ]] || { echo "SEED must be a whole number, not $SEED" >&2; exit 2; }
 RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs}")
 BIN=$(realpath -m "${BIN:-.venv/bin}")
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
-cell=(--task pick_and_place --algo tqc --backend sbx --seed 0 --total-steps 500000
+cell=(--task pick_and_place --algo tqc --backend sbx --seed "$SEED" --total-steps 500000
       --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu
       --no-progress)
-# CHECK: its frozen tree, its folder under RUNS and results/, and the train command.
+# CHECK: its frozen tree, its folder under RUNS and results/, the train command, and what
+# it changes in the cell's options.
+changed=()
 case "$2" in
   damped_block) tree=42d36b4 folder=damped-block
     train=(python experiments/altered_runs.py damped_block train --timing reference) ;;
@@ -38,16 +44,19 @@ case "$2" in
     train=(python experiments/altered_runs.py unguarded train --timing reference) ;;
   reference_physics) tree=ee552b6 folder=reference-physics
     train=(python experiments/altered_runs.py reference_physics train --timing reference) ;;
-  reference_env) tree=369ca2c folder=reference-env
+  reference_env|reference_env_sb3) tree=369ca2c folder=reference-env
     train=(python experiments/reference_env_runs.py --reference-path
-           "${REFERENCE_PATH:-$HOME/franka_runs/reference-code}" train) ;;
+           "${REFERENCE_PATH:-$HOME/franka_runs/reference-code}" train)
+    # After the cell's options, so that they replace its backend.
+    [ "$2" = reference_env_sb3 ] && folder=reference-env-sb3 \
+      changed=(--backend sb3 --precision fp32) ;;
   learning_starts) tree=1816633 folder=learning-starts
     train=(python -m franka_composer train --timing reference --learning-starts 100000) ;;
-  *) echo "CHECK must be damped_block, unguarded, reference_physics, reference_env or" \
-          "learning_starts, not $2" >&2
+  *) echo "CHECK must be damped_block, unguarded, reference_physics, reference_env," \
+          "reference_env_sb3 or learning_starts, not $2" >&2
      exit 2 ;;
 esac
-out=$RUNS/$folder/pick_and_place-tqc-seed0
+out=$RUNS/$folder/pick_and_place-tqc-seed$SEED
 case "$1" in
   run)
     if pgrep -f -- "--out $out( |$)" >/dev/null; then echo "$2 is running already" >&2; exit 1; fi
@@ -58,9 +67,9 @@ case "$1" in
     # Its own session, whose autogroup's niceness leaves the machine to other work.
     (cd "$worktree" && PYTHONPATH=$worktree setsid nohup bash -c \
       'echo 19 > /proc/self/autogroup 2>/dev/null; exec nice -n 10 "$@"' run \
-      "$BIN/${train[0]}" "${train[@]:1}" "${cell[@]}" --out "$out" "${resume[@]}" \
-      >> "$RUNS/$folder/seed0.log" 2>&1 &)
-    echo "$2: training in the background into $out (log: $RUNS/$folder/seed0.log)"
+      "$BIN/${train[0]}" "${train[@]:1}" "${cell[@]}" "${changed[@]}" --out "$out" \
+      "${resume[@]}" >> "$RUNS/$folder/seed$SEED.log" 2>&1 &)
+    echo "$2: training in the background into $out (log: $RUNS/$folder/seed$SEED.log)"
     ;;
   stop)
     pkill -TERM -f -- "--out $out( |$)" || { echo "$2 is not running" >&2; exit 1; }

@@ -937,20 +937,30 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
                                   "0,1.0,0.0,-50.0\n2000,9.5,0.2,-40.0\n")
     assert status() == ("unguarded: stopped; checkpoint at step 2004; last evaluation "
                         "(step,success): 2000,0.2")
+    # SEED picks the run: seed 1 of the SB3 check lies in a folder of its own.
+    completed = subprocess.run(
+        ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status", "reference_env_sb3"],
+        capture_output=True, text=True, check=True,
+        env={**os.environ, "RUNS": str(tmp_path), "SEED": "1"})
+    assert completed.stdout.strip() == ("reference_env_sb3: not started "
+                                        f"({tmp_path}/reference-env-sb3/pick_and_place-tqc-seed1)")
 
 
-@pytest.mark.parametrize("args, message", [
-    ([], "experiments/pick_and_place_checks.sh run CHECK"),
-    (["run"], "experiments/pick_and_place_checks.sh run CHECK"),
-    (["start", "damped_block"], "experiments/pick_and_place_checks.sh run CHECK"),
-    (["run", "damped"], "CHECK must be damped_block, unguarded, reference_physics, "
-                        "reference_env or learning_starts, not damped"),
+@pytest.mark.parametrize("args, seed, message", [
+    ([], "0", "experiments/pick_and_place_checks.sh run CHECK"),
+    (["run"], "0", "experiments/pick_and_place_checks.sh run CHECK"),
+    (["start", "damped_block"], "0", "experiments/pick_and_place_checks.sh run CHECK"),
+    (["run", "damped"], "0", "CHECK must be damped_block, unguarded, reference_physics, "
+                             "reference_env, reference_env_sb3 or learning_starts, not damped"),
+    (["run", "reference_env"], "one", "SEED must be a whole number, not one"),
 ])
-def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, message):
-    """Its usage, or the checks it knows, before anything is made or started."""
+def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, seed, message):
+    """Its usage, the checks it knows, or a seed that is not one, before anything is made
+    or started."""
     completed = subprocess.run(
         ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), *args],
-        capture_output=True, text=True, check=False, env={**os.environ, "RUNS": str(tmp_path)})
+        capture_output=True, text=True, check=False,
+        env={**os.environ, "RUNS": str(tmp_path), "SEED": seed})
     assert completed.returncode == 2
     assert message in completed.stdout + completed.stderr
     assert list(tmp_path.iterdir()) == []
