@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # Issue 37's checks of what keeps TQC from lifting at the reference timing: each one run,
-# TQC (sbx) seed 0 (or SEED) with the reference-timing cell's settings and one thing changed, on the
-# frozen tree it began on (a worktree beside its run), at low priority, in the background,
-# its run outside the work tree; resumed from its checkpoint where it has one, else begun
-# from zero (a run lost with its machine retraces its kept evaluations, and `keep` refuses
-# it until it has passed them).
+# TQC (sbx) seed 0 (or SEED) with the reference-timing cell's settings and one thing
+# changed, on the frozen tree it began on (a worktree beside its run), at low priority, in
+# the background, its run outside the work tree; resumed from its checkpoint where it has
+# one, else begun from zero (a run lost with its machine retraces its kept evaluations,
+# and `keep` refuses it until it has passed them).
 #
 #   experiments/pick_and_place_checks.sh run CHECK    train (or resume) it in the background
 #   experiments/pick_and_place_checks.sh stop CHECK   checkpoint it and stop (waits)
