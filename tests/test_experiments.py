@@ -10,6 +10,7 @@ import os
 import pathlib
 import pickle
 import re
+import shutil
 import subprocess
 import sys
 
@@ -964,3 +965,58 @@ def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, se
     assert completed.returncode == 2
     assert message in completed.stdout + completed.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_actor_saturation_reads_the_gaussian_each_backend_acts_on(tmp_path):
+    """tanh of the pre-tanh mean it reads is the deterministic action, on SB3 and on sbx, for
+    a full model and for a policy file; the coefficient is the learnt one, None in a policy
+    file; the two corrections agree where they should and part by the figures its docstring
+    gives."""
+    module = load_script(EXPERIMENTS / "actor_saturation.py")
+    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.runs import RunDir
+
+    for backend in ("sb3", "sbx"):
+        out = tmp_path / backend
+        assert main(["train", "--task", "push", "--algo", "tqc", "--backend", backend,
+                     "--out", str(out), "--total-steps", "150", *TINY_TRAINING]) == 0
+        env = module.make_env("push")
+        observation, _ = env.reset(seed=3)
+        model = load_trained(RunDir(out), env, device="cpu")
+        mean, std = module.gaussian_parameters(model, observation)
+        action, _ = model.predict(observation, deterministic=True)
+        assert mean.shape == std.shape == env.action_space.shape and np.all(std > 0)
+        np.testing.assert_allclose(np.tanh(mean), action, rtol=0, atol=1e-6)
+        assert 0 < module.entropy_coefficient(model) < 1  # From 1.0, after 50 updates.
+        # The run as committed: its policy file alone, no model.zip, no checkpoint.
+        (out / "model.zip").unlink()
+        for checkpoint in sorted(out.glob("checkpoint*"), key=pathlib.Path.is_symlink,
+                                 reverse=True):
+            if checkpoint.is_symlink():
+                checkpoint.unlink()
+            else:
+                shutil.rmtree(checkpoint)
+        policy_only = load_trained(RunDir(out), env, device="cpu")
+        np.testing.assert_allclose(module.gaussian_parameters(policy_only, observation)[0],
+                                   mean, rtol=0, atol=1e-5)
+        assert module.entropy_coefficient(policy_only) is None
+        env.close()
+    u = np.array([2.0, 3.0, 6.0, 10.0])
+    np.testing.assert_allclose(module.exact_correction(u[:1]), np.log(1 - np.tanh(2.0) ** 2),
+                               rtol=1e-12)
+    gap = module.sb3_correction(u) - module.exact_correction(u)
+    assert gap[1] < 1e-3 and gap[2] < 0.04 and gap[3] == pytest.approx(4.8, abs=0.01)
+
+
+@pytest.mark.parametrize("change, message", [
+    ({}, "trained in the reference code's env: give --reference-path"),
+    ({"algo": "ddpg"}, "trained ddpg; only SAC and TQC squash a Gaussian"),
+])
+def test_actor_saturation_names_what_it_cannot_play(tmp_path, change, message):
+    config = json.loads((EXPERIMENTS.parent / "results/reference-env/pick_and_place-tqc-seed0"
+                         / "config.json").read_text())
+    (tmp_path / "config.json").write_text(json.dumps({**config, **change}))
+    completed = subprocess.run([sys.executable, str(EXPERIMENTS / "actor_saturation.py"),
+                                str(tmp_path)], capture_output=True, text=True, check=False)
+    assert completed.returncode == 2
+    assert message in completed.stderr
