@@ -27,8 +27,7 @@ import sys
 import numpy as np
 
 from franka_composer.cli.options import episode_seed, positive_int
-from franka_composer.training.models import make_env
-from franka_composer.training.policy_file import load_trained
+from franka_composer.training.policy_file import trained_on_its_task
 from franka_composer.training.runs import RunDir
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
@@ -131,13 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         if error:
             parser.error(error)
         reference_env_runs.install(reference_env_runs.reference_specs(args.reference_path))
-    env = make_env(config.task, **config.env_options)
-    try:
-        model = load_trained(RunDir(args.run), env, device="cpu")
+    with trained_on_its_task(args.run, device="cpu") as (_, env, model):
         means, stds = play(model, env, args.episodes, args.seed)
         coefficient = entropy_coefficient(model)
-    finally:
-        env.close()
     coefficient = ("not in a policy file" if coefficient is None
                    else f"{coefficient:.3g}")
     print(f"{args.run}: {config.algo} on {config.backend}, {model.num_timesteps:,} steps; "

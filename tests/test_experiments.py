@@ -973,6 +973,7 @@ def test_actor_saturation_reads_the_gaussian_each_backend_acts_on(tmp_path):
     file; the two corrections agree where they should and part by the figures its docstring
     gives."""
     module = load_script(EXPERIMENTS / "actor_saturation.py")
+    from franka_composer.training.models import make_env
     from franka_composer.training.policy_file import load_trained
     from franka_composer.training.runs import RunDir
 
@@ -980,7 +981,7 @@ def test_actor_saturation_reads_the_gaussian_each_backend_acts_on(tmp_path):
         out = tmp_path / backend
         assert main(["train", "--task", "push", "--algo", "tqc", "--backend", backend,
                      "--out", str(out), "--total-steps", "150", *TINY_TRAINING]) == 0
-        env = module.make_env("push")
+        env = make_env("push")
         observation, _ = env.reset(seed=3)
         model = load_trained(RunDir(out), env, device="cpu")
         mean, std = module.gaussian_parameters(model, observation)
