@@ -26,7 +26,7 @@ import sys
 
 import numpy as np
 
-from franka_composer.cli.options import episode_seed, positive_int
+from franka_composer.cli.options import episode_seed, positive_int, positive_number
 from franka_composer.training.policy_file import trained_on_its_task
 from franka_composer.training.runs import RunDir
 
@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")
     parser.add_argument("--episodes", type=positive_int, default=20)
     parser.add_argument("--seed", type=episode_seed, default=100)
-    parser.add_argument("--threshold", type=float, default=6.0,
+    parser.add_argument("--threshold", type=positive_number, default=6.0,
                         help="|u| beyond which the two corrections part (default 6)")
     args = parser.parse_args(argv)
     try:

@@ -1021,3 +1021,12 @@ def test_actor_saturation_names_what_it_cannot_play(tmp_path, change, message):
                                 str(tmp_path)], capture_output=True, text=True, check=False)
     assert completed.returncode == 2
     assert message in completed.stderr
+
+
+@pytest.mark.parametrize("threshold", ["0", "-1", "nan", "inf", "six"])
+def test_actor_saturation_refuses_a_threshold_that_is_not_a_positive_number(tmp_path, threshold):
+    completed = subprocess.run([sys.executable, str(EXPERIMENTS / "actor_saturation.py"),
+                                str(tmp_path), "--threshold", threshold],
+                               capture_output=True, text=True, check=False)
+    assert completed.returncode == 2
+    assert f"argument --threshold: must be a number > 0, got '{threshold}'" in completed.stderr

@@ -108,6 +108,14 @@ def training_seed(text: str) -> int:
     return value
 
 
+def positive_number(text: str) -> float:
+    """A finite number > 0."""
+    value = number(text)
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}")
+    return value
+
+
 def positive_seconds(text: str) -> float:
     """A finite number of seconds > 0."""
     value = number(text)
