@@ -683,6 +683,47 @@ def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
     assert evaluated == sorted(set(evaluated)) and evaluated[-1] == steps + 100
 
 
+@pytest.mark.parametrize("algo, backend", [("tqc", "sbx"), ("sac", "sb3")])
+def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
+        tmp_path, algo, backend):
+    """SIGKILL (the kernel's out-of-memory killer, a preempted job) leaves no last
+    checkpoint: the run goes on from the last one it wrote on its way, which must hold
+    everything the run went on from after writing it."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    options = ["--backend", backend, "--checkpoint-every", "100"]
+    assert _train(tmp_path / "whole", algo, 500, *options) == 0
+    killed = tmp_path / "killed"
+    command = [sys.executable, "-m", "franka_composer", "train", "--task", "push", "--algo",
+               algo, "--seed", "1", "--out", str(killed), "--total-steps", "500", *TINY,
+               *options]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    while not any(r["steps"] >= 300 for r in read_eval_rows(RunDir(killed).eval_csv)):
+        assert time.monotonic() < deadline and process.poll() is None
+        time.sleep(0.05)
+    process.send_signal(signal.SIGKILL)
+    assert process.wait(timeout=60) == -signal.SIGKILL
+    steps = RunDir(killed).read_state()["steps"]
+    assert 100 <= steps < 500  # Written on the way, before the end.
+    assert _train(killed, algo, 500, "--resume") == 0
+    whole = _trained_state(tmp_path / "whole", algo, backend)
+    resumed = _trained_state(killed, algo, backend)
+    for row in (*whole[0], *resumed[0]):
+        del row["wall_time_s"]
+    assert [r["steps"] for r in whole[0]] == [0, 100, 200, 300, 400, 500]
+    assert resumed[0] == whole[0]
+    assert len(resumed[1]) == len(whole[1]) > 0
+    for a, b in zip(resumed[1], whole[1]):
+        np.testing.assert_array_equal(a, b)
+    assert resumed[2].keys() == whole[2].keys()
+    for name in whole[2]:
+        np.testing.assert_array_equal(resumed[2][name], whole[2][name])
+
+
 def test_a_first_stop_signal_asks_and_a_second_interrupts():
     import signal
 
