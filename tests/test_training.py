@@ -342,6 +342,7 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, mon
     ended = {"step": 400, "episode": 401}[schedule]
     assert [r["steps"] for r in whole[0]] == sorted({0, 100, 200, 300, 400, ended})
     assert resumed[0] == whole[0]
+    assert RunDir(tmp_path / "stopped").read_outcome()["fresh_streams"] == []
     assert len(resumed[1]) == len(whole[1]) > 0
     for a, b in zip(resumed[1], whole[1]):
         np.testing.assert_array_equal(a, b)
@@ -401,11 +402,24 @@ def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, mon
                       lambda count, backend: threads.append(count) or limit_threads(count,
                                                                                   backend))
         # Without --threads: the run's own (TINY's 1), which its checkpoint recorded.
-        assert cli.main(["train", "--resume", "--out", str(out), "--total-steps", "200",
-                         "--no-progress", "--device", "cpu"]) == 0
+        with pytest.warns(RuntimeWarning, match=re.escape(
+                "its checkpoint at step 130 was not written where a resume goes on exactly "
+                "(an episode's end, with the random generators saved); the run goes on with "
+                "a fresh episode stream and from here is not the run an uninterrupted one "
+                "would be")):
+            assert cli.main(["train", "--resume", "--out", str(out), "--total-steps", "200",
+                             "--no-progress", "--device", "cpu"]) == 0
     assert seeds[-1] == 1 + 130  # The run's seed and step.
     assert threads == [1] and RunDir(out).read_state()["threads"] == 1
     assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
+    # Where it left the uninterrupted run's course, in its last checkpoint and its outcome.
+    assert RunDir(out).read_state()["fresh_streams"] == [130]
+    assert RunDir(out).read_outcome()["fresh_streams"] == [130]
+    # Carried on by a later resume, which adds its own: the run ended at its budget, 200,
+    # inside an episode, so the raised budget goes on with a fresh stream there too.
+    assert not RunDir(out).read_state()["exact"]
+    assert _train(out, "sac", 300, "--resume") == 0
+    assert RunDir(out).read_outcome()["fresh_streams"] == [130, 200]
 
 
 def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_path,
@@ -423,10 +437,11 @@ def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_pa
     state["stream"]["seed"] = 99
     generators.write_bytes(pickle.dumps(state))
     steps = RunDir(out).read_state()["steps"]
-    with pytest.warns(RuntimeWarning, match="did not come back as its checkpoint saw it: the "
+    with pytest.warns(RuntimeWarning, match="did not come back as its checkpoint saw it; the "
                                             "run goes on with a fresh episode stream"):
         assert _train(out, "sac", steps + 50, "--resume") == 0
     assert RunDir(out).read_outcome()["steps"] == steps + 50
+    assert RunDir(out).read_outcome()["fresh_streams"] == [steps]
 
 
 def test_cpu_time_stays_unknown_after_a_checkpoint_that_did_not_record_it(tmp_path):
@@ -688,19 +703,23 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
         tmp_path, algo, backend):
     """SIGKILL (the kernel's out-of-memory killer, a preempted job) leaves no last
     checkpoint: the run goes on from the last one it wrote on its way, which must hold
-    everything the run went on from after writing it."""
+    everything the run went on from after writing it. Each run in a process of its own,
+    as a user's are: JAX sizes its threads once per process (`--threads`), and this one's
+    may have been sized by another test."""
     import signal
     import subprocess
     import sys
     import time
 
-    options = ["--backend", backend, "--checkpoint-every", "100"]
-    assert _train(tmp_path / "whole", algo, 500, *options) == 0
+    def train(out, *extra):
+        return subprocess.Popen([sys.executable, "-m", "franka_composer", "train", "--out",
+                                 str(out), *extra], stdout=subprocess.DEVNULL)
+
+    options = ["--task", "push", "--algo", algo, "--seed", "1", "--total-steps", "500",
+               *TINY, "--backend", backend, "--checkpoint-every", "100"]
+    assert train(tmp_path / "whole", *options).wait(timeout=300) == 0
     killed = tmp_path / "killed"
-    command = [sys.executable, "-m", "franka_composer", "train", "--task", "push", "--algo",
-               algo, "--seed", "1", "--out", str(killed), "--total-steps", "500", *TINY,
-               *options]
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL)
+    process = train(killed, *options)
     deadline = time.monotonic() + 120
     while not any(r["steps"] >= 300 for r in read_eval_rows(RunDir(killed).eval_csv)):
         assert time.monotonic() < deadline and process.poll() is None
@@ -709,13 +728,14 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
     assert process.wait(timeout=60) == -signal.SIGKILL
     steps = RunDir(killed).read_state()["steps"]
     assert 100 <= steps < 500  # Written on the way, before the end.
-    assert _train(killed, algo, 500, "--resume") == 0
+    assert train(killed, "--resume", "--no-progress").wait(timeout=300) == 0
     whole = _trained_state(tmp_path / "whole", algo, backend)
     resumed = _trained_state(killed, algo, backend)
     for row in (*whole[0], *resumed[0]):
         del row["wall_time_s"]
     assert [r["steps"] for r in whole[0]] == [0, 100, 200, 300, 400, 500]
     assert resumed[0] == whole[0]
+    assert RunDir(killed).read_outcome()["fresh_streams"] == []
     assert len(resumed[1]) == len(whole[1]) > 0
     for a, b in zip(resumed[1], whole[1]):
         np.testing.assert_array_equal(a, b)

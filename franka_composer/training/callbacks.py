@@ -134,13 +134,16 @@ class LatestCheckpoint(CheckpointCallback):
     set, which then stops the run (`StoppedAtCheckpoint`): there, with the step's transition
     stored and its gradient steps done, a resume goes on exactly (`exact_resume`). The
     episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop;
-    `threads`, the CPU threads the networks are computed with, recorded for a resume."""
+    `threads`, the CPU threads the networks are computed with, recorded for a resume;
+    `fresh_streams`, the steps at which the run went on with a fresh episode stream, carried
+    on (`RunDir.read_state`)."""
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, fresh_streams: list[int] = ()) -> None:
         super().__init__(every, str(run.root), name_prefix="model", save_replay_buffer=True)
         self._writing = run.checkpoint  # The folder a checkpoint is being written into.
         self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
+        self._fresh_streams = list(fresh_streams)
         self.stop_requested = False
         self.episode_ended = False  # Whether the latest step ended an episode.
 
@@ -185,5 +188,6 @@ class LatestCheckpoint(CheckpointCallback):
         (self._writing / run.checkpoint_state.name).write_text(json.dumps(
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
              "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
-             "exact": exact, "threads": self._threads}) + "\n")
+             "exact": exact, "threads": self._threads,
+             "fresh_streams": self._fresh_streams}) + "\n")
         run.publish_checkpoint(self._writing)

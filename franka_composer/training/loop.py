@@ -54,23 +54,28 @@ def _stop_signals() -> list[int]:
 def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
     """The model and the training env's episode stream at the run's checkpoint: exactly as
     the run left them where the checkpoint allows (`exact_resume`), else with a fresh
-    episode stream, seeded by the run's seed and step."""
+    episode stream, seeded by the run's seed and step, said with a warning; and whether the
+    stream is fresh."""
     exact = bool(state.get("exact")) and run.checkpoint_generators.is_file()
     model = load_model(config.algo, checked_model(run.checkpoint_model), env=env,
                        device=device, backend=config.backend, force_reset=not exact)
     with unpickling(run.checkpoint_buffer):
         model.load_replay_buffer(run.checkpoint_buffer)
     stream = exact_resume.restore(model, run.checkpoint_generators) if exact else None
-    if stream is None:
-        if exact:
-            warnings.warn(f"{run.root}'s training env did not come back as its checkpoint "
-                          "saw it: the run goes on with a fresh episode stream",
-                          RuntimeWarning, stacklevel=2)
+    fresh = stream is None
+    if fresh:
+        why = ("its training env did not come back as its checkpoint saw it" if exact else
+               f"its checkpoint at step {state['steps']:,} was not written where a resume "
+               "goes on exactly (an episode's end, with the random generators saved)")
+        warnings.warn(f"{run.root}: {why}; the run goes on with a fresh episode stream and "
+                      "from here is not the run an uninterrupted one would be (recorded as "
+                      "fresh_streams in its checkpoint's state.json and its outcome.json)",
+                      RuntimeWarning, stacklevel=2)
         model._last_obs = None  # SB3 resets the env, with the new stream's seed.
         stream = exact_resume.EpisodeStream(config.seed + int(state["steps"]),
                                             model._episode_num)
         model.set_random_seed(stream.seed)
-    return model, stream
+    return model, stream, fresh
 
 
 def start(root: pathlib.Path, config: RunConfig) -> RunDir:
@@ -145,7 +150,10 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
                              "checkpoint would be lost; put it back to resume")
         # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
         clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
-        model, stream = _resume(run, config, state, env, device)
+        model, stream, fresh = _resume(run, config, state, env, device)
+        # Where the run left the uninterrupted run's course, carried from checkpoint to
+        # checkpoint into outcome.json.
+        fresh_streams = [*state.get("fresh_streams", []), *([state["steps"]] if fresh else [])]
         rows = run.kept_evaluations()
         write_eval_rows(run.eval_csv, rows)
         # The evaluations go on with the episodes an uninterrupted run would see next.
@@ -163,6 +171,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             dataset = demos.record_expert(run.expert_demos, config)
             demos.prefill(model, demos.load_episodes(dataset, env), hp.total_steps)
         stream = exact_resume.EpisodeStream(config.seed)  # SB3 seeds the env's first reset.
+        fresh_streams = []
     if hp.clip_q_targets:
         clip_target_critic(model, hp.gamma)
     if tensorboard:
@@ -175,7 +184,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         checkpoint_every = state.get("checkpoint_every", DEFAULT_CHECKPOINT_EVERY) if resume \
             else DEFAULT_CHECKPOINT_EVERY
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream,
-                                  threads=threads)
+                                  threads=threads, fresh_streams=fresh_streams)
     precision = GradientStepPrecision(config.precision)
     # The loop's own bar, not learn(progress_bar=True)'s: an interrupt skips SB3's closing
     # of it, and a bar left open is closed at interpreter shutdown, where rich fails.
@@ -212,5 +221,6 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     replace_atomically(run.final_model, model.save)
     replace_atomically(run.policy_file, lambda path: save_policy(model, path))
     stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
-    run.write_outcome(int(model.num_timesteps), stopped_early, clock(), clock.cpu())
+    run.write_outcome(int(model.num_timesteps), stopped_early, clock(), clock.cpu(),
+                      fresh_streams)
     return model

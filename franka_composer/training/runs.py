@@ -60,8 +60,10 @@ class RunDir:
         return self.root / "outcome.json"
 
     def read_outcome(self) -> dict:
-        """{"steps", "stopped_early", "wall_time_s", "cpu_time_s"} of a finished run (CPU
-        time None or absent where it was not recorded throughout); {} before it ends."""
+        """{"steps", "stopped_early", "wall_time_s", "cpu_time_s", "fresh_streams"} of a
+        finished run (CPU time None or absent where it was not recorded throughout;
+        fresh_streams, the steps at which a resume went on with a fresh episode stream, absent
+        in runs that ended before it was recorded); {} before it ends."""
         if not self.outcome_path.is_file():
             return {}
         outcome = read_json(self.outcome_path, "a run's outcome")
@@ -72,11 +74,12 @@ class RunDir:
         return outcome
 
     def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
-                      cpu_time_s: float | None = None) -> None:
+                      cpu_time_s: float | None = None, fresh_streams: list[int] = ()) -> None:
         replace_atomically(self.outcome_path, lambda path: path.write_text(json.dumps(
             {"steps": steps, "stopped_early": stopped_early,
              "wall_time_s": round(wall_time_s, 2),
-             "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2)}) + "\n"))
+             "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2),
+             "fresh_streams": list(fresh_streams)}) + "\n"))
 
     @property
     def expert_demos(self) -> pathlib.Path:
@@ -234,8 +237,9 @@ class RunDir:
 
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
-        "exact", "threads"} (no CPU time in checkpoints written before it was recorded, no
-        "exact" or "threads" in those written before resumes could be exact); {} without a
+        "exact", "threads", "fresh_streams"} (no CPU time in checkpoints written before it
+        was recorded, no "exact" or "threads" in those written before resumes could be
+        exact, no "fresh_streams" in those written before it was recorded); {} without a
         checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
