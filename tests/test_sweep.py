@@ -135,6 +135,15 @@ def test_the_status_of_each_cell_is_read_from_its_directory(tmp_path):
     assert table[0] == "| cell | state | steps | budget | steps/s | latest success |"
     assert table[2] == "| push-sac-seed0 | done | 4,000 | 4,000 | 20.0 | 60 % |"
     assert table[5] == "| push-sac-seed3 | waiting | 0 | 4,000 | – | – |"
+    # A run that went on with a fresh episode stream says where, finished or not.
+    _write_run(tmp_path, "push-sac-seed0", [(0, 1, 0.0), (4000, 201, 0.6)],
+               (4000, False, 201, 201, [2004]))
+    assert cell_status(cells[0], tmp_path).state == "done (fresh episode stream from 2,004)"
+    run = RunDir(tmp_path / "push-sac-seed2")
+    run.checkpoint.mkdir()
+    run.checkpoint_state.write_text(json.dumps({"steps": 2050, "fresh_streams": [1010, 2050]}))
+    assert (cell_status(cells[2], tmp_path).state
+            == "unfinished (fresh episode stream from 1,010, 2,050)")
 
 
 def test_the_evaluations_a_resume_keeps_end_at_the_checkpoint_until_the_run_ends(tmp_path):

@@ -216,7 +216,8 @@ class CellStatus:
     name: str
     #: "done", "stopped early", "running" (in this sweep, or training elsewhere: its lock is
     #: held), "queued" (waiting for a CPU), "failed" (this sweep's), "unfinished" (started,
-    #: not training now) or "waiting" (not started).
+    #: not training now) or "waiting" (not started); followed by the steps where it went on
+    #: with a fresh episode stream, if it did (`RunDir.read_outcome`'s fresh_streams).
     state: str
     steps: int
     budget: int
@@ -235,10 +236,14 @@ def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
                 / (rows[-1]["wall_time_s"] - rows[-2]["wall_time_s"]))
     if cell_finished(run, cell):
         state = "stopped early" if run.read_outcome()["stopped_early"] else "done"
+        fresh = run.read_outcome().get("fresh_streams")
     else:
         running = running or run.trainer() is not None  # Also another sweep's, or a train.
         state = ("failed" if failed else "running" if running else "queued" if queued
                  else "unfinished" if run.config_path.exists() else "waiting")
+        fresh = run.read_state().get("fresh_streams")
+    if fresh:  # Not the run an uninterrupted one would be, from there: said where it shows.
+        state += f" (fresh episode stream from {', '.join(f'{s:,}' for s in fresh)})"
     return CellStatus(cell.name, state, steps, cell.steps, rate,
                       rows[-1]["success_rate"] if rows else None)
 
