@@ -456,6 +456,21 @@ def test_cpu_time_stays_unknown_after_a_checkpoint_that_did_not_record_it(tmp_pa
     assert RunDir(out).read_state()["cpu_time_s"] is None
 
 
+def test_fresh_streams_stay_unknown_after_a_checkpoint_that_did_not_record_them(tmp_path):
+    """A run resumed from a checkpoint written before fresh streams were recorded may have
+    left its course before: its outcome says unknown (null), not [] (the uninterrupted
+    run)."""
+    out = tmp_path / "run"
+    assert _train(out, "ddpg", 100, "--checkpoint-every", "100") == 0
+    state = RunDir(out).read_state()
+    assert state["fresh_streams"] == [] and RunDir(out).read_outcome()["fresh_streams"] == []
+    del state["fresh_streams"]
+    RunDir(out).checkpoint_state.write_text(json.dumps(state))
+    assert _train(out, "ddpg", 200, "--resume") == 0
+    assert RunDir(out).read_outcome()["fresh_streams"] is None
+    assert RunDir(out).read_state()["fresh_streams"] is None
+
+
 def test_a_run_stopped_while_writing_a_checkpoint_resumes_from_the_one_before(tmp_path,
                                                                             monkeypatch):
     """The second checkpoint fails halfway (a full disk): the first stays whole, and the

@@ -136,14 +136,14 @@ class LatestCheckpoint(CheckpointCallback):
     episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop;
     `threads`, the CPU threads the networks are computed with, recorded for a resume;
     `fresh_streams`, the steps at which the run went on with a fresh episode stream, carried
-    on (`RunDir.read_state`)."""
+    on (`RunDir.read_state`; None where unknown)."""
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
-                 threads: int | None = None, fresh_streams: list[int] = ()) -> None:
+                 threads: int | None = None, fresh_streams: list[int] | None = None) -> None:
         super().__init__(every, str(run.root), name_prefix="model", save_replay_buffer=True)
         self._writing = run.checkpoint  # The folder a checkpoint is being written into.
         self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
-        self._fresh_streams = list(fresh_streams)
+        self._fresh_streams = fresh_streams
         self.stop_requested = False
         self.episode_ended = False  # Whether the latest step ended an episode.
 

@@ -152,8 +152,11 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
         model, stream, fresh = _resume(run, config, state, env, device)
         # Where the run left the uninterrupted run's course, carried from checkpoint to
-        # checkpoint into outcome.json.
-        fresh_streams = [*state.get("fresh_streams", []), *([state["steps"]] if fresh else [])]
+        # checkpoint into outcome.json; unknown (None) for a run whose checkpoints began
+        # before it was recorded.
+        fresh_streams = state.get("fresh_streams")
+        if fresh_streams is not None:
+            fresh_streams = [*fresh_streams, *([state["steps"]] if fresh else [])]
         rows = run.kept_evaluations()
         write_eval_rows(run.eval_csv, rows)
         # The evaluations go on with the episodes an uninterrupted run would see next.

@@ -62,8 +62,8 @@ class RunDir:
     def read_outcome(self) -> dict:
         """{"steps", "stopped_early", "wall_time_s", "cpu_time_s", "fresh_streams"} of a
         finished run (CPU time None or absent where it was not recorded throughout;
-        fresh_streams, the steps at which a resume went on with a fresh episode stream, absent
-        in runs that ended before it was recorded); {} before it ends."""
+        fresh_streams, the steps at which a resume went on with a fresh episode stream, None
+        or absent for runs begun before it was recorded); {} before it ends."""
         if not self.outcome_path.is_file():
             return {}
         outcome = read_json(self.outcome_path, "a run's outcome")
@@ -74,12 +74,13 @@ class RunDir:
         return outcome
 
     def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
-                      cpu_time_s: float | None = None, fresh_streams: list[int] = ()) -> None:
+                      cpu_time_s: float | None = None,
+                      fresh_streams: list[int] | None = None) -> None:
         replace_atomically(self.outcome_path, lambda path: path.write_text(json.dumps(
             {"steps": steps, "stopped_early": stopped_early,
              "wall_time_s": round(wall_time_s, 2),
              "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2),
-             "fresh_streams": list(fresh_streams)}) + "\n"))
+             "fresh_streams": fresh_streams}) + "\n"))
 
     @property
     def expert_demos(self) -> pathlib.Path:
