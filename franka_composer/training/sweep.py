@@ -235,8 +235,9 @@ def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
         rate = ((rows[-1]["steps"] - rows[-2]["steps"])
                 / (rows[-1]["wall_time_s"] - rows[-2]["wall_time_s"]))
     if cell_finished(run, cell):
-        state = "stopped early" if run.read_outcome()["stopped_early"] else "done"
-        fresh = run.read_outcome().get("fresh_streams")
+        outcome = run.read_outcome()
+        state = "stopped early" if outcome["stopped_early"] else "done"
+        fresh = outcome.get("fresh_streams")
     else:
         running = running or run.trainer() is not None  # Also another sweep's, or a train.
         state = ("failed" if failed else "running" if running else "queued" if queued
