@@ -317,6 +317,24 @@ def _trained_state(out, algo, backend):
     return read_eval_rows(RunDir(out).eval_csv), parameters, stored
 
 
+def _assert_trained_alike(whole, resumed, algo, backend):
+    """The resumed run trained, evaluated and stored what the uninterrupted run did, to the
+    bit, and its outcome says it is that run (no fresh episode stream); returns the whole
+    run's `_trained_state`."""
+    whole, resumed_state = (_trained_state(out, algo, backend) for out in (whole, resumed))
+    for row in (*whole[0], *resumed_state[0]):
+        del row["wall_time_s"]
+    assert resumed_state[0] == whole[0]
+    assert RunDir(resumed).read_outcome()["fresh_streams"] == []
+    assert len(resumed_state[1]) == len(whole[1]) > 0
+    for a, b in zip(resumed_state[1], whole[1]):
+        np.testing.assert_array_equal(a, b)
+    assert resumed_state[2].keys() == whole[2].keys()
+    for name in whole[2]:
+        np.testing.assert_array_equal(resumed_state[2][name], whole[2][name])
+    return whole
+
+
 @pytest.mark.parametrize("algo, backend, schedule", [
     *((algo, backend, "step") for backend in ("sb3", "sbx") for algo in ALGOS),
     ("sac", "sb3", "episode")])
@@ -334,21 +352,11 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, mon
     assert state["exact"] and 160 < state["steps"] <= 200
     assert RunDir(tmp_path / "stopped").checkpoint_generators.is_file()
     assert _train(tmp_path / "stopped", algo, 400, "--resume") == 0
-    whole = _trained_state(tmp_path / "whole", algo, backend)
-    resumed = _trained_state(tmp_path / "stopped", algo, backend)
-    for row in (*whole[0], *resumed[0]):
-        del row["wall_time_s"]
+    whole = _assert_trained_alike(tmp_path / "whole", tmp_path / "stopped", algo, backend)
     # The episode schedule trains on whole episodes: its run ends with its episode, at 401.
     ended = {"step": 400, "episode": 401}[schedule]
     assert [r["steps"] for r in whole[0]] == sorted({0, 100, 200, 300, 400, ended})
-    assert resumed[0] == whole[0]
-    assert RunDir(tmp_path / "stopped").read_outcome()["fresh_streams"] == []
-    assert len(resumed[1]) == len(whole[1]) > 0
-    for a, b in zip(resumed[1], whole[1]):
-        np.testing.assert_array_equal(a, b)
-    assert resumed[2].keys() == whole[2].keys() and len(whole[2]["actions"]) == ended
-    for name in whole[2]:
-        np.testing.assert_array_equal(resumed[2][name], whole[2][name])
+    assert len(whole[2]["actions"]) == ended
 
 
 def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
@@ -689,20 +697,27 @@ def test_plot_draws_one_line_per_algorithm(runs, tmp_path, monkeypatch, capsys):
     assert np.ptp(image[..., :3]) > 0.5  # Not blank.
 
 
+def _wait_for_evaluation(out, steps, process, timeout_s=120):
+    """Until the run training in `process` into `out` has logged its evaluation at `steps`
+    or later; fails if the process ends first or the time runs out."""
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    while not any(r["steps"] >= steps for r in read_eval_rows(RunDir(out).eval_csv)):
+        assert time.monotonic() < deadline and process.poll() is None
+        time.sleep(0.05)
+
+
 def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
     import signal
     import subprocess
     import sys
-    import time
 
     out = tmp_path / "interrupted"
     command = [sys.executable, "-m", "franka_composer", "train", "--task", "push", "--algo",
                "ddpg", "--seed", "1", "--out", str(out), "--total-steps", "100000", *TINY]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while not any(r["steps"] >= 200 for r in read_eval_rows(RunDir(out).eval_csv)):
-        assert time.monotonic() < deadline and process.poll() is None
-        time.sleep(0.2)
+    _wait_for_evaluation(out, 200, process, timeout_s=60)
     process.send_signal(signal.SIGTERM)
     stdout, _ = process.communicate(timeout=60)
     assert process.returncode == 130 and "--resume" in stdout
@@ -724,7 +739,6 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
     import signal
     import subprocess
     import sys
-    import time
 
     def train(out, *extra):
         return subprocess.Popen([sys.executable, "-m", "franka_composer", "train", "--out",
@@ -735,28 +749,14 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
     assert train(tmp_path / "whole", *options).wait(timeout=300) == 0
     killed = tmp_path / "killed"
     process = train(killed, *options)
-    deadline = time.monotonic() + 120
-    while not any(r["steps"] >= 300 for r in read_eval_rows(RunDir(killed).eval_csv)):
-        assert time.monotonic() < deadline and process.poll() is None
-        time.sleep(0.05)
+    _wait_for_evaluation(killed, 300, process)
     process.send_signal(signal.SIGKILL)
     assert process.wait(timeout=60) == -signal.SIGKILL
     steps = RunDir(killed).read_state()["steps"]
     assert 100 <= steps < 500  # Written on the way, before the end.
     assert train(killed, "--resume", "--no-progress").wait(timeout=300) == 0
-    whole = _trained_state(tmp_path / "whole", algo, backend)
-    resumed = _trained_state(killed, algo, backend)
-    for row in (*whole[0], *resumed[0]):
-        del row["wall_time_s"]
+    whole = _assert_trained_alike(tmp_path / "whole", killed, algo, backend)
     assert [r["steps"] for r in whole[0]] == [0, 100, 200, 300, 400, 500]
-    assert resumed[0] == whole[0]
-    assert RunDir(killed).read_outcome()["fresh_streams"] == []
-    assert len(resumed[1]) == len(whole[1]) > 0
-    for a, b in zip(resumed[1], whole[1]):
-        np.testing.assert_array_equal(a, b)
-    assert resumed[2].keys() == whole[2].keys()
-    for name in whole[2]:
-        np.testing.assert_array_equal(resumed[2][name], whole[2][name])
 
 
 def test_a_first_stop_signal_asks_and_a_second_interrupts():
