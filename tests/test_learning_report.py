@@ -193,6 +193,37 @@ def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
         read_paper_curves(other)
 
 
+def test_the_thresholds_are_chosen_in_percent(tmp_path, capsys):
+    """A cell that stays below 80 % is read at 50 %: smoothed, this seed reaches 0.6 at
+    16,000 steps and 0.76 at 20,000; the paper's curve 0.84 from 8,000."""
+    runs = tmp_path / "runs"
+    _write_run(runs, "push", "tqc", 0, [0.0] * 4 + [0.6] * 5 + [1.0] * 2, (False, 3600.0))
+    paper = tmp_path / "curves.csv"
+    paper.write_text("task,algo,steps,success\n" + "".join(
+        f"push,tqc,{2000 * i},{rate}\n" for i, rate in enumerate([0.6, 0.8, 1.0, 0.8, 1.0, 0.6])))
+    assert cli.main(["report", str(runs), "--paper-curves", str(paper), "--wall-clock",
+                     "--thresholds", "90", "50", "80", "50"]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    assert rows[0] == ("| task | algorithm | seeds | steps reached | stopped early | "
+                       "steps to 50 % | steps to 80 % | steps to 90 % | minutes to 50 % | "
+                       "minutes to 80 % | minutes to 90 % | paper: steps to 50 % | "
+                       "paper: steps to 80 % | paper: steps to 90 % | wall h | CPU h |")
+    assert rows[1] == "|---|---|---|---|---|" + "---|" * 9 + "---|---|"
+    assert rows[2] == ("| push | TQC | 0 | 20,000 | 0 of 1 | 16,000 | – | – | 1.3 | – | – | "
+                       "8,000 | 8,000 | – | 0.0 | 1.0 |")
+    assert cli.main(["report", str(runs), "--thresholds", "57.5"]) == 0
+    assert "| steps to 57.5 % | wall h |" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("given", ["0", "-50", "100.5", "0.8x", "nan"])
+def test_a_threshold_outside_0_to_100_percent_is_refused(tmp_path, capsys, given):
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["report", str(tmp_path), "--thresholds", "80", given])
+    assert exit_info.value.code == 2
+    assert (f"argument --thresholds: must be a success rate in percent, 0 < x <= 100, "
+            f"got {given!r}") in capsys.readouterr().err
+
+
 def test_a_report_written_to_a_new_folder_makes_it(tmp_path, capsys):
     runs = tmp_path / "runs"
     _write_run(runs, "push", "tqc", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))

@@ -116,6 +116,15 @@ def positive_number(text: str) -> float:
     return value
 
 
+def success_percent(text: str) -> float:
+    """A success rate in percent, 0 < x <= 100, as the fraction the curves hold."""
+    value = number(text)
+    if not 0.0 < value <= 100.0:
+        raise argparse.ArgumentTypeError(
+            f"must be a success rate in percent, 0 < x <= 100, got {text!r}")
+    return value / 100.0
+
+
 def positive_seconds(text: str) -> float:
     """A finite number of seconds > 0."""
     value = number(text)

@@ -6,26 +6,31 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs, output_file
+from franka_composer.cli.options import add_run_dirs, output_file, success_percent
 
 
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
-        "report", help="steps to 80 %% / 90 %% success and wall / CPU hours per cell",
+        "report", help="steps to success thresholds (80 %% / 90 %%) and wall / CPU hours per "
+                       "cell",
         description="Read each run's eval.csv and outcome.json and print, per cell (task, "
                     "algorithm and setup), a Markdown table of the steps each seed "
                     "reached, how many stopped early, the steps at which the median over "
                     "seeds of the success curves (a trailing mean over 5 evaluations) "
-                    "first reaches 80 % and 90 %, and the runs' wall-clock and CPU hours; "
-                    "then the total.")
+                    "first reaches each threshold (80 % and 90 % unless --thresholds), and "
+                    "the runs' wall-clock and CPU hours; then the total.")
     add_run_dirs(parser)
     parser.add_argument("--paper-curves", type=pathlib.Path, default=None, metavar="CSV",
                         help="the paper's published curves (results/paper-curves/curves.csv, "
-                             "from experiments/paper_curves.py): its steps to 80 %% and 90 %% "
+                             "from experiments/paper_curves.py): its steps to each threshold "
                              "beside each cell's")
+    parser.add_argument("--thresholds", type=success_percent, nargs="+", default=None,
+                        metavar="PERCENT",
+                        help="the success rates whose first crossing is reported, in percent "
+                             "(default: 80 90; e.g. 50 80 90 for a cell that stays below 80)")
     parser.add_argument("--wall-clock", action="store_true",
                         help="also the minutes at which the median seed's smoothed curve "
-                             "first reaches 80 %% and 90 %% (each seed's own wall-clock): "
+                             "first reaches each threshold (each seed's own wall-clock): "
                              "how recipes whose steps cost differently compare")
     parser.add_argument("--out", type=output_file, default=None,
                         help="also write the Markdown table here")
@@ -33,15 +38,16 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training.learning_report import (markdown_table, read_paper_curves,
-                                                          read_run)
+    from franka_composer.training.learning_report import (THRESHOLDS, markdown_table,
+                                                          read_paper_curves, read_run)
     from franka_composer.training.sweep import run_directories
 
     if args.paper_curves is not None and not args.paper_curves.is_file():
         raise ValueError(f"--paper-curves: {args.paper_curves} is not a file")
     paper = read_paper_curves(args.paper_curves) if args.paper_curves else None
+    thresholds = tuple(sorted(set(args.thresholds))) if args.thresholds else THRESHOLDS
     table = markdown_table([read_run(root) for root in run_directories(args.runs)], paper,
-                           wall_clock=args.wall_clock)
+                           wall_clock=args.wall_clock, thresholds=thresholds)
     print(table, end="")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -24,7 +24,8 @@ from franka_composer.training.runs import RunDir, success_curve
 
 #: Evaluations in the trailing mean of a seed's curve.
 SMOOTHING = 5
-#: Success rates whose first crossing is reported (the paper's curves are read at these).
+#: Success rates whose first crossing is reported by default (the paper's curves are read at
+#: these).
 THRESHOLDS = (0.8, 0.9)
 
 
@@ -135,18 +136,18 @@ def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, flo
 
 def markdown_table(runs: list[RunRecord],
                    paper: dict[tuple[str, str], dict[int, float]] | None = None,
-                   wall_clock: bool = False) -> str:
+                   wall_clock: bool = False,
+                   thresholds: tuple[float, ...] = THRESHOLDS) -> str:
     """One row per cell, in the paper's order, and a line with what all of them cost. With
     the paper's curves (`read_paper_curves`), its steps to each threshold beside ours, read
     the same way off its curve ("–": never reached; blank: no curve for the cell). With
     `wall_clock`, the median seed's minutes to each threshold too (`minutes_to`)."""
     cells = group_by_cell(sorted(runs, key=lambda r: r.seed))
-    thresholds = [f"{100 * t:.0f} %" for t in THRESHOLDS]
-    columns = [f"steps to {t}" for t in thresholds]
+    columns = [f"steps to {t * 100:g} %" for t in thresholds]
     if wall_clock:
-        columns += [f"minutes to {t}" for t in thresholds]
+        columns += [f"minutes to {t * 100:g} %" for t in thresholds]
     if paper is not None:
-        columns += [f"paper: steps to {t}" for t in thresholds]
+        columns += [f"paper: steps to {t * 100:g} %" for t in thresholds]
     lines = ["| task | algorithm | seeds | steps reached | stopped early | "
              + " | ".join(columns) + " | wall h | CPU h |",
              "|---|---|---|---|---|" + "---|" * len(columns) + "---|---|"]
@@ -154,13 +155,13 @@ def markdown_table(runs: list[RunRecord],
         cell = cells[(task, variant, algo)]
         reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
                             for run in cell)
-        crossings = [steps_text(steps_to(cell, t)) for t in THRESHOLDS]
+        crossings = [steps_text(steps_to(cell, t)) for t in thresholds]
         if wall_clock:
-            crossings += [minutes_text(minutes_to(cell, t)) for t in THRESHOLDS]
+            crossings += [minutes_text(minutes_to(cell, t)) for t in thresholds]
         if paper is not None:
             curve = paper.get((task, algo))
             crossings += [steps_text(first_reaching(smoothed(curve), t)) if curve else ""
-                          for t in THRESHOLDS]
+                          for t in thresholds]
         lines.append(
             f"| {with_variant(task, variant)} | {algo.upper()} | "
             f"{', '.join(str(r.seed) for r in cell)} | {reached} | "
