@@ -51,9 +51,10 @@ stop_sweep() {
   fi
 }
 
-# background_sweep ACTION KEPT: run, stop, status or sync (into KEPT) the cells of the
-# array `sweep` (`franka-composer sweep --out "$RUNS" ...`'s arguments), each trained with
-# the array `train_options`; run starts on FROZEN's tree if set, at low priority.
+# background_sweep ACTION KEPT: run, stop, status or sync (into $KEPT if set, else KEPT) the
+# cells of the array `sweep` (`franka-composer sweep --out "$RUNS" ...`'s arguments), each
+# trained with the array `train_options`; run starts on FROZEN's tree if set, at low
+# priority.
 background_sweep() {
   case "$1" in
     run)
@@ -67,7 +68,7 @@ background_sweep() {
       "$BIN/franka-composer" "${sweep[@]}" --status
       ;;
     status) "$BIN/franka-composer" "${sweep[@]}" --status ;;
-    sync) "$BIN/franka-composer" "${sweep[@]}" --sync "$2" ;;
+    sync) "$BIN/franka-composer" "${sweep[@]}" --sync "${KEPT:-$2}" ;;
     *) return 2 ;;
   esac
 }

@@ -7,12 +7,13 @@
 #                                       (default 1); FROZEN=COMMIT runs that commit's code
 #   benchmarks/learnability.sh stop     checkpoint the running runs and stop
 #   benchmarks/learnability.sh status   the table of runs
-#   benchmarks/learnability.sh sync     what they kept, into results/learnability/
+#   benchmarks/learnability.sh sync     what they kept, into $KEPT
 #
-# TASKS (default "stack flip"), SEEDS (default 0); RUNS (default ~/franka_runs/learnability).
+# TASKS (default "stack flip"), SEEDS (default 0); RUNS (default ~/franka_runs/learnability),
+# KEPT (default results/learnability).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-case "${1:-}" in run|stop|status|sync) ;; *) sed -n '2,12p' "$0"; exit 2 ;; esac
+case "${1:-}" in run|stop|status|sync) ;; *) sed -n '2,13p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/learnability"
 read -ra tasks <<< "${TASKS:-stack flip}"

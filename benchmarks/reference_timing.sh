@@ -9,13 +9,20 @@
 #                                           code (a worktree beside $RUNS)
 #   benchmarks/reference_timing.sh stop     checkpoint the running cells and stop
 #   benchmarks/reference_timing.sh status   the table of cells
-#   benchmarks/reference_timing.sh sync     what the cells kept, into results/reference-timing/
+#   benchmarks/reference_timing.sh sync     what the cells kept, into $KEPT
+#   benchmarks/reference_timing.sh report   from what sync kept in $KEPT, once every cell there
+#                                           has finished: the test over 20 episodes
+#                                           (table.md) and 200 others (seed 100,
+#                                           table-200-episodes.md), the curves (curves.png)
+#                                           and the steps to 50/80/90 % beside the paper's with
+#                                           the costs (report.md), into $KEPT; PARTIAL=1
+#                                           makes them of the finished cells
 #
 # ALGO (default tqc) and SEEDS (default "0 1 2") pick the cells; RUNS (default
-# ~/franka_runs/reference-timing).
+# ~/franka_runs/reference-timing), KEPT (default results/reference-timing).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-case "${1:-}" in run|stop|status|sync) ;; *) sed -n '2,16p' "$0"; exit 2 ;; esac
+case "${1:-}" in run|stop|status|sync|report) ;; *) sed -n '2,23p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/reference-timing"
 read -ra seeds <<< "${SEEDS:-0 1 2}"
@@ -32,4 +39,24 @@ sweep=(sweep --out "$RUNS" --tasks pick_and_place --algos "$ALGO" --seeds "${see
 train_options=(${computation[@]+"${computation[@]}"} --timing reference
                --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1
                --device cpu)
-background_sweep "$1" results/reference-timing
+KEPT=${KEPT:-results/reference-timing}
+if [ "$1" = report ]; then
+  finished=() unfinished=()
+  for run in "$KEPT"/*/; do
+    [ -f "$run/config.json" ] || continue
+    if [ -f "$run/outcome.json" ]; then finished+=("${run%/}"); else unfinished+=("${run%/}"); fi
+  done
+  if [ ${#unfinished[@]} -gt 0 ] && [ "${PARTIAL:-0}" != 1 ]; then
+    echo "not finished (PARTIAL=1 reports the rest): ${unfinished[*]##*/}" >&2
+    exit 1
+  fi
+  [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished in $KEPT" >&2; exit 1; }
+  "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 20 --device cpu \
+    --out "$KEPT/table.md" || exit 1
+  "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 200 --seed 100 --device cpu \
+    --out "$KEPT/table-200-episodes.md" || exit 1
+  "$BIN/franka-composer" plot "${finished[@]}" --out "$KEPT/curves.png" || exit 1
+  exec "$BIN/franka-composer" report "${finished[@]}" --thresholds 50 80 90 \
+    --paper-curves results/paper-curves/curves.csv --out "$KEPT/report.md"
+fi
+background_sweep "$1" "$KEPT"

@@ -604,6 +604,8 @@ def test_background_campaigns_train_their_cells_with_their_options(
         f"--refresh 600 -- {options} --stop-at-success 0.95 --stop-after 5 "
         "--checkpoint-every 10000 --threads 1 --device cpu\n")
     synced = _benchmark_sh(tmp_path, script, "sync", **env)
+    assert synced.stdout.endswith(f"--sync {tmp_path}/kept\n")  # KEPT, where given.
+    synced = _benchmark_sh(tmp_path, script, "sync", **env, KEPT="")
     assert synced.stdout.endswith(f"--sync results/{script[:-3].replace('_', '-')}\n")
     usage = _benchmark_sh(tmp_path, script, "train", **env)
     assert usage.returncode == 2 and usage.stdout.startswith("# ")
@@ -613,6 +615,32 @@ def test_reference_timing_sh_refuses_an_unknown_algorithm(tmp_path):
     refused = _benchmark_sh(tmp_path, "reference_timing.sh", "run", ALGO="td3")
     assert (refused.returncode, refused.stdout) == (2, "")
     assert refused.stderr == "ALGO must be tqc, sac or ddpg, not td3\n"
+
+
+def test_reference_timing_sh_reports_once_every_kept_cell_has_finished(tmp_path):
+    """`report`: the tests over 20 and 200 episodes, the curves and the steps to 50/80/90 %
+    of the cells sync kept, refused while one has not finished unless PARTIAL=1."""
+    kept = tmp_path / "kept"
+    reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
+    assert (reported.returncode, reported.stdout) == (1, "")
+    assert reported.stderr == f"no cell has finished in {kept}\n"
+    _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0)], (500000, False, 2))
+    _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0)])
+    (kept / "notes").mkdir()  # Not a run: no config.json.
+    reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
+    assert (reported.returncode, reported.stdout) == (1, "")
+    assert reported.stderr == ("not finished (PARTIAL=1 reports the rest): "
+                               "pick_and_place-tqc-seed1\n")
+    partial = _benchmark_sh(tmp_path, "reference_timing.sh", "report", PARTIAL="1")
+    assert partial.returncode == 0, partial.stderr
+    finished = f"{kept}/pick_and_place-tqc-seed0"
+    assert partial.stdout.splitlines() == [
+        f"franka-composer evaluate {finished} --episodes 20 --device cpu --out {kept}/table.md",
+        f"franka-composer evaluate {finished} --episodes 200 --seed 100 --device cpu --out "
+        f"{kept}/table-200-episodes.md",
+        f"franka-composer plot {finished} --out {kept}/curves.png",
+        f"franka-composer report {finished} --thresholds 50 80 90 --paper-curves "
+        f"results/paper-curves/curves.csv --out {kept}/report.md"]
 
 
 def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_path):
