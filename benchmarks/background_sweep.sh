@@ -72,3 +72,21 @@ background_sweep() {
     *) return 2 ;;
   esac
 }
+
+# report_cells KEPT NAME THRESHOLDS RUN...: the finished RUNs' test over 20 episodes
+# (KEPT/NAME.md) and over 200 others (seed 100, KEPT/NAME-200-episodes.md: the 20 are one
+# fixed set, +-5-9 points per model); from every run kept in KEPT, the curves
+# (KEPT/curves.png) and the steps to THRESHOLDS (percent, e.g. "80 90") beside the paper's
+# with the costs (KEPT/report.md).
+report_cells() {
+  local kept=$1 name=$2 thresholds
+  read -ra thresholds <<< "$3"
+  shift 3
+  "$BIN/franka-composer" evaluate "$@" --episodes 20 --device cpu --out "$kept/$name.md" \
+    || return 1
+  "$BIN/franka-composer" evaluate "$@" --episodes 200 --seed 100 --device cpu \
+    --out "$kept/$name-200-episodes.md" || return 1
+  "$BIN/franka-composer" plot "$kept" --out "$kept/curves.png" || return 1
+  "$BIN/franka-composer" report "$kept" --thresholds "${thresholds[@]}" \
+    --paper-curves results/paper-curves/curves.csv --out "$kept/report.md"
+}

@@ -16,7 +16,8 @@
 #                                           table-200-episodes.md), the curves (curves.png)
 #                                           and the steps to 50/80/90 % beside the paper's with
 #                                           the costs (report.md), into $KEPT; PARTIAL=1
-#                                           makes them of the finished cells
+#                                           makes the tables of the finished cells and
+#                                           the rest of every cell's evaluations so far
 #
 # ALGO (default tqc) and SEEDS (default "0 1 2") pick the cells; RUNS (default
 # ~/franka_runs/reference-timing), KEPT (default results/reference-timing).
@@ -51,12 +52,7 @@ if [ "$1" = report ]; then
     exit 1
   fi
   [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished in $KEPT" >&2; exit 1; }
-  "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 20 --device cpu \
-    --out "$KEPT/table.md" || exit 1
-  "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 200 --seed 100 --device cpu \
-    --out "$KEPT/table-200-episodes.md" || exit 1
-  "$BIN/franka-composer" plot "${finished[@]}" --out "$KEPT/curves.png" || exit 1
-  exec "$BIN/franka-composer" report "${finished[@]}" --thresholds 50 80 90 \
-    --paper-curves results/paper-curves/curves.csv --out "$KEPT/report.md"
+  report_cells "$KEPT" table "50 80 90" "${finished[@]}"
+  exit
 fi
 background_sweep "$1" "$KEPT"

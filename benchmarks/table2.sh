@@ -81,14 +81,7 @@ case "${1:-}" in
     read -ra finished <<< "$finished"
     finished=("${finished[@]/#/$KEPT/}")
     [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished" >&2; exit 1; }
-    "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 20 --device cpu \
-      --out "$KEPT/table2.md" || exit 1
-    # Beside the paper's 20 episodes (one fixed set, +-5-9 points per model), 200 others.
-    "$BIN/franka-composer" evaluate "${finished[@]}" --episodes 200 --seed 100 --device cpu \
-      --out "$KEPT/table2-200-episodes.md" || exit 1
-    "$BIN/franka-composer" plot "$KEPT" --out "$KEPT/curves.png" || exit 1
-    "$BIN/franka-composer" report "$KEPT" --paper-curves results/paper-curves/curves.csv \
-      --out "$KEPT/report.md"
+    report_cells "$KEPT" table2 "80 90" "${finished[@]}"
     ;;
   *) sed -n '2,32p' "$0"; exit 2 ;;
 esac
