@@ -5,8 +5,9 @@
 # or DDPG (SB3 fp32), seeds 0, 1, 2, at low priority, runs outside the work tree.
 #
 #   benchmarks/reference_timing.sh run      train (or resume) the cells, WORKERS at a time
-#                                           (default 1); FROZEN=COMMIT runs that commit's
-#                                           code (a worktree beside $RUNS)
+#                                           (default 1), but those sync kept as finished;
+#                                           FROZEN=COMMIT runs that commit's code (a
+#                                           worktree beside $RUNS)
 #   benchmarks/reference_timing.sh stop     checkpoint the running cells and stop
 #   benchmarks/reference_timing.sh status   the table of cells
 #   benchmarks/reference_timing.sh sync     what the cells kept, into $KEPT
@@ -23,11 +24,12 @@
 # ~/franka_runs/reference-timing), KEPT (default results/reference-timing).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-case "${1:-}" in run|stop|status|sync|report) ;; *) sed -n '2,23p' "$0"; exit 2 ;; esac
+case "${1:-}" in run|stop|status|sync|report) ;; *) sed -n '2,24p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/reference-timing"
 read -ra seeds <<< "${SEEDS:-0 1 2}"
 ALGO=${ALGO:-tqc}
+KEPT=${KEPT:-results/reference-timing}
 # Each algorithm on the computation Table II's cells validated.
 case "$ALGO" in
   tqc) computation=(--backend sbx) ;;
@@ -35,12 +37,19 @@ case "$ALGO" in
   ddpg) computation=() ;;
   *) echo "ALGO must be tqc, sac or ddpg, not $ALGO" >&2; exit 2 ;;
 esac
+if [ "$1" = run ]; then  # A cell sync kept as finished is done (its runs may be gone).
+  unfinished=()
+  for seed in "${seeds[@]}"; do
+    [ -f "$KEPT/pick_and_place-$ALGO-seed$seed/outcome.json" ] || unfinished+=("$seed")
+  done
+  [ ${#unfinished[@]} -gt 0 ] || { echo "every cell has finished ($KEPT)"; exit 0; }
+  seeds=("${unfinished[@]}")
+fi
 sweep=(sweep --out "$RUNS" --tasks pick_and_place --algos "$ALGO" --seeds "${seeds[@]}"
        --steps 500000)
 train_options=(${computation[@]+"${computation[@]}"} --timing reference
                --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1
                --device cpu)
-KEPT=${KEPT:-results/reference-timing}
 if [ "$1" = report ]; then
   finished=() unfinished=()
   for run in "$KEPT"/*/; do

@@ -622,6 +622,25 @@ def test_reference_timing_sh_refuses_an_unknown_algorithm(tmp_path):
     assert refused.stderr == "ALGO must be tqc, sac or ddpg, not td3\n"
 
 
+def test_reference_timing_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path):
+    """A machine handed back bare has lost the finished cells' runs: sync kept them, and a
+    `run` does not train them again from zero."""
+    kept = tmp_path / "kept"
+    _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0)], (500000, False, 2))
+    _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)])  # Kept, not finished.
+    ran = _benchmark_sh(tmp_path, "reference_timing.sh", "run")
+    assert ran.returncode == 0, ran.stderr
+    assert "--algos tqc --seeds 0 2 --steps 500000" in ran.stdout
+    other = _benchmark_sh(tmp_path, "reference_timing.sh", "run", ALGO="sac")
+    assert "--algos sac --seeds 0 1 2 --steps 500000" in other.stdout
+    _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0)], (500000, False, 2))
+    _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)], (500000, False, 2))
+    done = _benchmark_sh(tmp_path, "reference_timing.sh", "run")
+    assert (done.returncode, done.stdout) == (0, f"every cell has finished ({kept})\n")
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")  # Status shows all.
+    assert "--seeds 0 1 2 --steps 500000" in status.stdout
+
+
 def test_reference_timing_sh_reports_once_every_kept_cell_has_finished(tmp_path):
     """`report`: the tests over 20 and 200 episodes, the curves and the steps to 50/80/90 %
     of the cells sync kept, refused while one has not finished unless PARTIAL=1."""
