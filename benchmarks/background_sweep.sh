@@ -73,6 +73,22 @@ background_sweep() {
   esac
 }
 
+# kept_runs finished|unfinished BUDGET: the runs sync kept in $KEPT (folders with a
+# config.json), by name, that have (not) finished at BUDGET steps: reached it, or stopped
+# early by the campaign's rule (`run_finished`; a run kept at a lower budget has not). This
+# checkout's code reads them (before use_frozen_tree).
+kept_runs() {
+  "$BIN/python" - "$KEPT" "$1" "$2" <<'PY'
+import pathlib
+import sys
+from franka_composer.training.runs import RunDir, run_finished
+kept, which, budget = pathlib.Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])
+runs = sorted(path for path in kept.glob("*/") if (path / "config.json").is_file())
+print(" ".join(path.name for path in runs
+               if run_finished(RunDir(path), budget) == (which == "finished")))
+PY
+}
+
 # report_cells KEPT NAME THRESHOLDS RUN...: the finished RUNs' test over 20 episodes
 # (KEPT/NAME.md) and over 200 others (seed 100, KEPT/NAME-200-episodes.md: the 20 are one
 # fixed set, +-5-9 points per model); from every run kept in KEPT, the curves

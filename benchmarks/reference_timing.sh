@@ -37,30 +37,31 @@ case "$ALGO" in
   ddpg) computation=() ;;
   *) echo "ALGO must be tqc, sac or ddpg, not $ALGO" >&2; exit 2 ;;
 esac
+BUDGET=500000
 if [ "$1" = run ]; then  # A cell sync kept as finished is done (its runs may be gone).
+  finished=$(kept_runs finished "$BUDGET") || exit 1
   unfinished=()
   for seed in "${seeds[@]}"; do
-    [ -f "$KEPT/pick_and_place-$ALGO-seed$seed/outcome.json" ] || unfinished+=("$seed")
+    [[ " $finished " == *" pick_and_place-$ALGO-seed$seed "* ]] || unfinished+=("$seed")
   done
   [ ${#unfinished[@]} -gt 0 ] || { echo "every cell has finished ($KEPT)"; exit 0; }
   seeds=("${unfinished[@]}")
 fi
 sweep=(sweep --out "$RUNS" --tasks pick_and_place --algos "$ALGO" --seeds "${seeds[@]}"
-       --steps 500000)
+       --steps "$BUDGET")
 train_options=(${computation[@]+"${computation[@]}"} --timing reference
                --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1
                --device cpu)
 if [ "$1" = report ]; then
-  finished=() unfinished=()
-  for run in "$KEPT"/*/; do
-    [ -f "$run/config.json" ] || continue
-    if [ -f "$run/outcome.json" ]; then finished+=("${run%/}"); else unfinished+=("${run%/}"); fi
-  done
-  if [ ${#unfinished[@]} -gt 0 ] && [ "${PARTIAL:-0}" != 1 ]; then
-    echo "not finished (PARTIAL=1 reports the rest): ${unfinished[*]##*/}" >&2
+  unfinished=$(kept_runs unfinished "$BUDGET") && finished=$(kept_runs finished "$BUDGET") \
+    || exit 1
+  if [ -n "$unfinished" ] && [ "${PARTIAL:-0}" != 1 ]; then
+    echo "not finished (PARTIAL=1 reports the rest): ${unfinished// /, }" >&2
     exit 1
   fi
+  read -ra finished <<< "$finished"
   [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished in $KEPT" >&2; exit 1; }
+  finished=("${finished[@]/#/$KEPT/}")
   report_cells "$KEPT" table "50 80 90" "${finished[@]}"
   exit
 fi

@@ -631,6 +631,14 @@ def test_reference_timing_sh_trains_only_the_cells_sync_has_not_kept_as_finished
     ran = _benchmark_sh(tmp_path, "reference_timing.sh", "run")
     assert ran.returncode == 0, ran.stderr
     assert "--algos tqc --seeds 0 2 --steps 500000" in ran.stdout
+    # Ended at a lower budget (an outcome, short of 5e5, not stopped early): it goes on.
+    _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0)], (400000, False, 2))
+    ran = _benchmark_sh(tmp_path, "reference_timing.sh", "run")
+    assert "--algos tqc --seeds 0 2 --steps 500000" in ran.stdout
+    # Stopped early by the campaign's rule: finished.
+    _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)], (120000, True, 2))
+    ran = _benchmark_sh(tmp_path, "reference_timing.sh", "run")
+    assert "--algos tqc --seeds 0 --steps 500000" in ran.stdout
     other = _benchmark_sh(tmp_path, "reference_timing.sh", "run", ALGO="sac")
     assert "--algos sac --seeds 0 1 2 --steps 500000" in other.stdout
     _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0)], (500000, False, 2))
@@ -650,11 +658,12 @@ def test_reference_timing_sh_reports_once_every_kept_cell_has_finished(tmp_path)
     assert reported.stderr == f"no cell has finished in {kept}\n"
     _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0)], (500000, False, 2))
     _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0)])
+    _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)], (400000, False, 2))
     (kept / "notes").mkdir()  # Not a run: no config.json.
     reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
     assert (reported.returncode, reported.stdout) == (1, "")
     assert reported.stderr == ("not finished (PARTIAL=1 reports the rest): "
-                               "pick_and_place-tqc-seed1\n")
+                               "pick_and_place-tqc-seed1, pick_and_place-tqc-seed2\n")
     partial = _benchmark_sh(tmp_path, "reference_timing.sh", "report", PARTIAL="1")
     assert partial.returncode == 0, partial.stderr
     finished = f"{kept}/pick_and_place-tqc-seed0"
