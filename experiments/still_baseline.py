@@ -2,6 +2,7 @@
 learning curve must rise above.
 
     python experiments/still_baseline.py --task push [--control osc] [--seed 0] [--evaluations 50]
+    python experiments/still_baseline.py --run RUN_DIR   # a run's evaluations beside its floor
 
 `train` evaluates 15 episodes every 2000 steps on an env seeded from the run's seed, and
 which episodes an evaluation sees does not depend on the policy (goals and objects are
@@ -12,13 +13,16 @@ with the episodes an uninterrupted one would see; on trees before commit 6cabf21
 env started its stream again: compare such a run's evaluations after a resume with this
 list from its beginning, computed with that tree on PYTHONPATH). The same seed draws the
 same episodes with domain randomisation (`randomization`) as without, so this is also the
-floor of a randomised run. Prints one JSON list, a rate per evaluation.
+floor of a randomised run. Prints one JSON list, a rate per evaluation; with `--run`, the
+floor of that run's own evaluations (its task, env options, seed and cadence) beside them,
+per 5e4 steps: whether a curve has left its floor, evaluation by evaluation.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import pathlib
 
 import numpy as np
 
@@ -37,15 +41,16 @@ class StillPolicy:
         return np.zeros((len(observation["desired_goal"]), self._size), np.float32), None
 
 
-def still_rates(task: str, control: str, seed: int, evaluations: int,
-                episodes: int = 15) -> list[float]:
+def still_rates(task: str, control: str = "mocap", seed: int = 0, evaluations: int = 50,
+                episodes: int = 15, **env_options) -> list[float]:
+    """`evaluations` rates of `episodes` each; `env_options` as `make_env` takes them."""
     from stable_baselines3.common.evaluation import evaluate_policy
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     from franka_composer.training.loop import EVAL_SEED_OFFSET
     from franka_composer.training.models import make_env
 
-    env = DummyVecEnv([lambda: make_env(task, control=control)])
+    env = DummyVecEnv([lambda: make_env(task, control=control, **env_options)])
     env.seed(seed + EVAL_SEED_OFFSET)  # As `train` seeds its evaluation env.
     policy = StillPolicy(env.action_space.shape[0])
     rates = []
@@ -63,13 +68,57 @@ def still_rates(task: str, control: str, seed: int, evaluations: int,
     return rates
 
 
+def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:
+    """A markdown table of `run_dir`'s evaluations beside the still policy's on the same
+    episodes, per `window` steps (evaluations in (a, a + window]), and over all of them."""
+    from franka_composer.training.runs import RunDir, read_eval_rows
+
+    run = RunDir(run_dir)
+    try:
+        config = run.read_config()
+        rows = read_eval_rows(run.eval_csv)
+    except ValueError as error:  # Named, with the file: not a run, or a damaged one.
+        raise SystemExit(str(error)) from None
+    if not rows:
+        raise SystemExit(f"{run.eval_csv}: no evaluations yet")
+    every = config.hyperparameters.eval_every
+    steps = np.array([row["steps"] for row in rows])
+    if not np.array_equal(steps, every * np.arange(len(rows))):
+        raise SystemExit(f"{run.eval_csv}: evaluations are not every {every} steps from 0")
+    rates = np.array([row["success_rate"] for row in rows])
+    options = {key: value for key, value in config.env_options.items() if key != "control"}
+    still = np.array(still_rates(config.task, config.env_options.get("control", "mocap"),
+                                 config.seed, len(rows),
+                                 config.hyperparameters.eval_episodes, **options))
+    lines = ["| steps | evaluations | run | still policy | above / equal / below it |",
+             "|---|---|---|---|---|"]
+
+    def line(label: str, chosen: np.ndarray) -> str:
+        run_rates, floor = rates[chosen], still[chosen]
+        return (f"| {label} | {chosen.sum()} | {100 * run_rates.mean():.1f} % | "
+                f"{100 * floor.mean():.1f} % | {(run_rates > floor).sum()} / "
+                f"{(run_rates == floor).sum()} / {(run_rates < floor).sum()} |")
+
+    for start in range(0, int(steps[-1]), window):
+        chosen = (steps > start) & (steps <= start + window)
+        lines.append(line(f"{start:,}–{min(start + window, int(steps[-1])):,}", chosen))
+    lines.append(line(f"0–{int(steps[-1]):,}", steps >= 0))
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="push", choices=ALL_TASKS)
     parser.add_argument("--control", default="mocap", choices=CONTROLS)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--evaluations", type=positive_int, default=50)
+    parser.add_argument("--run", type=pathlib.Path, metavar="RUN_DIR",
+                        help="a run directory: its evaluations beside its own floor, per "
+                             "5e4 steps (the other options are the run's)")
     args = parser.parse_args(argv)
+    if args.run:
+        print(run_beside_floor(args.run))
+        return 0
     print(json.dumps(still_rates(args.task, args.control, args.seed, args.evaluations)))
     return 0
 

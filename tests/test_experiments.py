@@ -70,6 +70,35 @@ def test_a_resumed_run_evaluates_the_episodes_an_uninterrupted_run_would(tmp_pat
     assert still[4:] != still[1:4]  # Evaluating the first episodes again would show.
 
 
+@pytest.mark.slow
+def test_a_run_is_set_beside_its_own_floor_evaluation_by_evaluation(tmp_path):
+    """`still_baseline.py --run`: the still policy on the run's own episodes (its task,
+    options, seed and cadence), per window and over all, counting the evaluations above,
+    at and below it."""
+    module = load_script(EXPERIMENTS / "still_baseline.py")
+    from franka_composer.training.hyperparams import hyperparameters
+    from franka_composer.training.runs import RunConfig, RunDir
+
+    still = module.still_rates("push", "osc", seed=3, evaluations=4, episodes=15)
+    assert still == [0.0, 1 / 15, 1 / 15, 1 / 15]  # Seed 3's (seed 0's: 0, 1/15, 2/15, ...).
+    run = RunDir(tmp_path / "run")
+    run.write_config(RunConfig("push", "sac", 3, hyperparameters("push", "sac"),
+                               control="osc"))
+    rates = [still[0], still[1] + 0.2, still[2], 0.0]
+    run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
+        f"{2000 * i},{i + 1},{rate},-1\n" for i, rate in enumerate(rates)))
+    assert module.run_beside_floor(run.root, window=4000).splitlines()[2:] == [
+        "| 0–4,000 | 2 | 16.7 % | 6.7 % | 1 / 1 / 0 |",
+        "| 4,000–6,000 | 1 | 0.0 % | 6.7 % | 0 / 0 / 1 |",
+        "| 0–6,000 | 4 | 8.3 % | 5.0 % | 1 / 2 / 1 |"]
+    run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n0,1,0.0,-1\n"
+                            "4000,2,0.0,-1\n")
+    with pytest.raises(SystemExit, match="evaluations are not every 2000 steps from 0"):
+        module.run_beside_floor(run.root)
+    with pytest.raises(SystemExit, match="is not a training run"):
+        module.run_beside_floor(tmp_path)
+
+
 def test_the_paper_curves_are_read_back_from_a_figure_drawn_as_its_are(tmp_path):
     """A figure drawn as the paper's are (seaborn's grey axes, white grid, deep colours,
     shaded spreads, the legend top left, a later line over an earlier one, saved as JPEG)
