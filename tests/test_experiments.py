@@ -99,6 +99,100 @@ def test_a_run_is_set_beside_its_own_floor_evaluation_by_evaluation(tmp_path):
         module.run_beside_floor(tmp_path)
 
 
+@pytest.mark.slow
+def test_the_edge_flick_the_physics_page_records_happens_at_the_default_timing_only():
+    """docs/guide/physics.md's limit of the guard, as `edge_flick.py` measures it: a finger
+    resting on the block's top edge, a full sideways command off it; the block's speed is
+    read after every physics step (a step's displacement would average it away)."""
+    import gymnasium as gym
+
+    module = load_script(EXPERIMENTS / "edge_flick.py")
+    worst, push = ((0, (-0.025, -0.03), 0.0, (1, -1, 1)), (0, (-0.035, 0.0), 0.0, (1, 0, -1)))
+    outcomes = {}
+    for timing in ("default", "reference"):
+        env = gym.make("FrankaPickAndPlaceSparse-v0", max_episode_steps=400, timing=timing,
+                       terminate_on_success=False)
+        outcomes[timing] = [module.trial(env, *case) for case in (worst, push)]
+        env.close()
+    (speed, rise), (push_speed, push_rise) = outcomes["default"]
+    assert speed == pytest.approx(4.57, abs=0.01) and rise == pytest.approx(0.256, abs=0.001)
+    assert push_speed == pytest.approx(1.86, abs=0.01) and push_rise < 0.001  # Shoved, flat.
+    (speed, rise), _ = outcomes["reference"]
+    assert speed == pytest.approx(1.83, abs=0.01) and rise < 0.001
+
+
+def test_training_episodes_reads_what_each_flip_learner_episode_reached():
+    """`training_episodes.py` on flip: which face is up from the quaternion, a tip, and
+    success over the goals that need a tip and those that need none; a table per window."""
+    import types
+
+    module = load_script(EXPERIMENTS / "training_episodes.py")
+    upright, turned = [1.0, 0.0, 0.0, 0.0], [np.cos(0.1), 0.0, 0.0, np.sin(0.1)]
+    on_y, upside_down = [np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]
+    assert module.face_up(np.array([upright, turned, on_y, upside_down])).tolist() == [2, 2, 1, 5]
+    # Two episodes: steps 0-2 tip the cube onto its +y face, the goal, and succeed; steps 3-4
+    # leave it upright, short of a goal turned about z.
+    before = [upright, upright, on_y, upright, upright]
+    after = [upright, on_y, on_y, upright, upright]
+    goals = [on_y] * 3 + [turned] * 2
+
+    def stored(achieved):
+        return {"observation": np.zeros((5, 1, 20)), "achieved_goal": np.array(achieved)[:, None],
+                "desired_goal": np.array(goals)[:, None]}
+
+    buffer = types.SimpleNamespace(
+        n_envs=1, full=False, pos=5, observations=stored(before),
+        next_observations=stored(after), actions=np.zeros((5, 1, 4)),
+        ep_start=np.array([0, 0, 0, 3, 3])[:, None],
+        rewards=np.array([-1.0, 0.0, 0.0, -1.0, -1.0])[:, None])
+    steps = module.Steps(buffer)
+    measures = module.flip_measures(steps)
+    assert [(title, holds.tolist(), None if among is None else among.tolist())
+            for title, holds, among in measures] == [
+        ("cube tipped onto another face", [True, False], None),
+        ("succeeded", [True, False], None),
+        ("succeeded, goals that need a tip", [True, False], [True, False]),
+        ("succeeded, goals that need none", [True, False], [False, True])]
+    assert module.table(steps.first_step, measures, window=3) == [
+        "| training steps | episodes | cube tipped onto another face | succeeded | succeeded, "
+        "goals that need a tip | succeeded, goals that need none |",
+        "|---|---|---|---|---|---|",
+        "| 0–3 | 1 | 100.0 % | 100.0 % | 100.0 % of 1 | – of 0 |",
+        "| 3–6 | 1 | 0.0 % | 0.0 % | – of 0 | 0.0 % of 1 |"]
+
+
+def test_training_episodes_tells_a_stacked_block_from_a_flung_one():
+    """stack: a block resting on the other is 4 cm above it and within 2 cm across; a block
+    5 cm up and above the hand was flung, not carried."""
+    import types
+
+    module = load_script(EXPERIMENTS / "training_episodes.py")
+    floor = [0.6, 0.0, 0.02, 0.7, 0.0, 0.02]
+    stacked = [0.6, 0.0, 0.02, 0.61, 0.0, 0.06]
+    carried, flung = [0.6, 0.0, 0.02, 0.7, 0.0, 0.09], [0.6, 0.0, 0.02, 0.9, 0.0, 0.12]
+    after = [stacked, carried, flung]
+    tcp = [0.61, 0.7, 0.7]  # The hand's x; its height 0.08 m, with the carried block.
+    observation = np.zeros((3, 1, 31))
+    observation[:, 0, 0], observation[:, 0, 2] = tcp, 0.08
+
+    def stored(achieved):
+        return {"observation": observation, "achieved_goal": np.array(achieved)[:, None],
+                "desired_goal": np.array([[0.6, 0.0, 0.02, 0.6, 0.0, 0.06]] * 3)[:, None]}
+
+    buffer = types.SimpleNamespace(
+        n_envs=1, full=False, pos=3, observations=stored([floor] * 3),
+        next_observations=stored(after), actions=np.zeros((3, 1, 4)),
+        ep_start=np.array([0, 1, 2])[:, None], rewards=np.array([0.0, -1.0, -1.0])[:, None])
+    measures = {title: holds.tolist()
+                for title, holds, _ in module.stack_measures(module.Steps(buffer))}
+    assert measures == {"a block pushed > 2 cm": [True, False, True],
+                        "a block lifted > 2 cm": [True, True, True],
+                        "block 1 within 5 cm of its goal": [True, True, True],
+                        "a block resting on the other": [True, False, False],
+                        "succeeded": [True, False, False],
+                        "a block flung > 5 cm up": [False, False, True]}
+
+
 def test_the_paper_curves_are_read_back_from_a_figure_drawn_as_its_are(tmp_path):
     """A figure drawn as the paper's are (seaborn's grey axes, white grid, deep colours,
     shaded spreads, the legend top left, a later line over an earlier one, saved as JPEG)

@@ -1,0 +1,122 @@
+"""Can the hand flick a block away by sliding off its top? The contact tests press straight
+down (`tests/test_contacts.py`: neither sinks nor launches); a stack learner found another
+way: resting the hand's fingers on a block's top edge, pressing down with the arm's force, and
+moving sideways at full command, which sent blocks up to 60 cm high (1.9 % of its first 1.3k
+training episodes; `training_episodes.py` reads such buffers).
+
+Each trial: reset with a seed, bring the open hand (or narrowed by one width command) 6 cm
+above a point beside the block, lower it with full -z for 10 steps (it comes to rest on the
+block's top where a finger overlaps it, on the floor where none does), then two steps of a
+full sideways command (x, y each -1, 0 or +1, not both 0) with -z and the fingers closing or
+opening, and two steps still. Prints the trials whose block flew fastest (peak speed over a
+step, m/s, and its rise, cm) and counts over all.
+
+    python experiments/edge_flick.py [--task pick_and_place] [--timing default|reference]
+        [--seeds 0 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+
+import numpy as np
+
+#: Where the hand comes down, from the block's centre (m): beside it, or with a finger over
+#: its edge.
+OFFSETS = [(x, y) for x in (-0.035, -0.03, -0.025, -0.02, 0.0) for y in (-0.03, 0.0, 0.03)
+           if (x, y) != (0.0, 0.0)]
+#: The finger command of the last lowering step: none (open, 8 cm), or narrowing the hand.
+WIDTH_COMMANDS = (0.0, -0.2, -0.3)
+
+
+class BlockSpeed:
+    """The block's highest speed (m/s) over the physics steps since `reset_peak`, read after
+    each of them: a step's displacement would average it away at the reference timing's
+    0.5 s."""
+
+    def __init__(self, physics) -> None:
+        import mujoco
+
+        free = np.flatnonzero(physics.model.jnt_type == mujoco.mjtJoint.mjJNT_FREE)
+        if len(free) != 1:
+            raise SystemExit(f"{len(free)} free joints: this reads a task with one block")
+        self._velocity = slice(physics.model.jnt_dofadr[free[0]],
+                               physics.model.jnt_dofadr[free[0]] + 3)
+        self._physics, self._step, self.peak = physics, physics.step, 0.0
+        physics.step = self._stepped
+
+    def _stepped(self, nstep: int = 1) -> None:
+        for _ in range(nstep):
+            self._step()
+            speed = float(np.linalg.norm(self._physics.data.qvel[self._velocity]))
+            self.peak = max(self.peak, speed)
+
+
+def trial(env, seed: int, offset, width_command: float, move) -> tuple[float, float]:
+    """(the block's peak speed, m/s; its highest rise, m) for one trial."""
+    obs, _ = env.reset(seed=seed)
+    physics = env.unwrapped._env.physics
+    speed = physics.step.__self__ if isinstance(physics.step.__self__, BlockSpeed) else \
+        BlockSpeed(physics)
+
+    def tcp(observation):
+        return observation["observation"][:3]
+
+    block = obs["achieved_goal"][:3].copy()
+    target = np.array([block[0] + offset[0], block[1] + offset[1], 0.06])
+    for _ in range(25):
+        step = np.clip((target - tcp(obs)) / 0.05, -1, 1)
+        obs, *_ = env.step(np.r_[step, 1.0].astype(np.float32))
+    for i in range(10):
+        step = np.clip((target - tcp(obs)) / 0.05, -1, 1)
+        step[2] = -1.0
+        obs, *_ = env.step(np.r_[step, width_command if i == 9 else 0.0].astype(np.float32))
+    start, rise, speed.peak = obs["achieved_goal"][:3].copy(), 0.0, 0.0
+    for action in [(*move[:2], -1.0, move[2])] * 2 + [(0.0, 0.0, 0.0, 0.0)] * 2:
+        obs, _, terminated, truncated, _ = env.step(np.array(action, np.float32))
+        rise = max(rise, float(obs["achieved_goal"][2] - start[2]))
+        if terminated or truncated:
+            break
+    return speed.peak, rise
+
+
+def main(argv: list[str] | None = None) -> int:
+    import gymnasium as gym
+
+    import franka_composer  # noqa: F401  (registers the ids)
+    from franka_composer.tasks.config import TIMINGS
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--task", default="pick_and_place", choices=("pick_and_place", "push"))
+    parser.add_argument("--timing", default="default", choices=tuple(TIMINGS))
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    args = parser.parse_args(argv)
+    ids = {"pick_and_place": "FrankaPickAndPlaceSparse-v0", "push": "FrankaPushSparse-v0"}
+    env = gym.make(ids[args.task], max_episode_steps=400, timing=args.timing,
+                   terminate_on_success=False)
+    moves = [(dx, dy, fingers) for dx, dy, fingers in itertools.product((1, 0, -1), (1, 0, -1),
+                                                                          (-1, 1))
+             if (dx, dy) != (0, 0)]
+    trials = []
+    for seed, offset, width, move in itertools.product(args.seeds, OFFSETS, WIDTH_COMMANDS,
+                                                        moves):
+        trials.append((*trial(env, seed, offset, width, move), seed, offset, width, move))
+    trials.sort(key=lambda row: -row[0])
+    print(f"{args.task}, timing {args.timing}, seeds {args.seeds}: {len(trials)} trials\n")
+    print("| block's peak speed | its rise | seed | hand down at (from the block) | "
+          "finger command | move (x, y, fingers) |")
+    print("|---|---|---|---|---|---|")
+    for peak, rise, seed, offset, width, move in trials[:8]:
+        print(f"| {peak:.2f} m/s | {100 * rise:.1f} cm | {seed} | {offset} | {width} | {move} |")
+    speeds = np.array([row[0] for row in trials])
+    rises = np.array([row[1] for row in trials])
+    print(f"\nfaster than 1.5 m/s: {(speeds > 1.5).sum()}; faster than 2.5 m/s: {(speeds > 2.5).sum()}; risen more than 5 cm: "
+          f"{(rises > 0.05).sum()}; more than 10 cm: {(rises > 0.10).sum()}; the highest: "
+          f"{100 * rises.max():.1f} cm")
+    env.close()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
