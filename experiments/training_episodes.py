@@ -18,7 +18,9 @@ stage on the way to its task's goal, which the finished policy, one greedy path,
 
 Reads each run's latest checkpoint's replay buffer (SB3's HerReplayBuffer, one env; every
 transition since the start while fewer than its size were stored), and its config for the
-task. Prints a Markdown table per run; a share over some episodes only gives their count.
+task. A buffer holds the steps' ends: what happens within a step and is undone by its end
+(a block flung and landed within the reference timing's 0.5 s) is not seen. Prints a
+Markdown table per run; a share over some episodes only gives their count.
 """
 
 from __future__ import annotations

@@ -100,25 +100,31 @@ def test_a_run_is_set_beside_its_own_floor_evaluation_by_evaluation(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_edge_flick_the_physics_page_records_happens_at_the_default_timing_only():
+def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
     """docs/guide/physics.md's limit of the guard, as `edge_flick.py` measures it: a finger
-    resting on the block's top edge, a full sideways command off it; the block's speed is
-    read after every physics step (a step's displacement would average it away)."""
+    resting on the block's top edge, a full sideways command off it; the block's speed and
+    height are read after every physics step (the reference timing's step ends miss a
+    flight), and the hand's top speed in free space beside them."""
     import gymnasium as gym
 
     module = load_script(EXPERIMENTS / "edge_flick.py")
-    worst, push = ((0, (-0.025, -0.03), 0.0, (1, -1, 1)), (0, (-0.035, 0.0), 0.0, (1, 0, -1)))
-    outcomes = {}
-    for timing in ("default", "reference"):
+    cases = {"default": [(0, (-0.025, -0.03), 0.0, (1, -1, 1)),
+                         (0, (-0.035, 0.0), 0.0, (1, 0, -1))],
+             "reference": [(1, (-0.035, 0.03), 0.0, (1, 0, -1))]}
+    hand, outcomes = {}, {}
+    for timing, trials in cases.items():
         env = gym.make("FrankaPickAndPlaceSparse-v0", max_episode_steps=400, timing=timing,
                        terminate_on_success=False)
-        outcomes[timing] = [module.trial(env, *case) for case in (worst, push)]
+        hand[timing] = module.hand_top_speed(env)
+        outcomes[timing] = [module.trial(env, *case) for case in trials]
         env.close()
+    assert hand == {"default": pytest.approx(2.73, abs=0.01),
+                    "reference": pytest.approx(1.33, abs=0.01)}
     (speed, rise), (push_speed, push_rise) = outcomes["default"]
     assert speed == pytest.approx(4.57, abs=0.01) and rise == pytest.approx(0.256, abs=0.001)
-    assert push_speed == pytest.approx(1.86, abs=0.01) and push_rise < 0.001  # Shoved, flat.
-    (speed, rise), _ = outcomes["reference"]
-    assert speed == pytest.approx(1.83, abs=0.01) and rise < 0.001
+    assert push_speed == pytest.approx(1.86, abs=0.01) and push_rise < 0.002  # Shoved, flat.
+    [(speed, rise)] = outcomes["reference"]
+    assert speed == pytest.approx(4.08, abs=0.01) and rise == pytest.approx(0.151, abs=0.001)
 
 
 def test_training_episodes_reads_what_each_flip_learner_episode_reached():
