@@ -6,13 +6,13 @@ sideways at full command (`training_episodes.py` counts the flights in a learner
 Each trial: reset with a seed, bring the open hand (or narrowed by one width command) 6 cm
 above a point beside the block, lower it with full -z for 10 steps (it comes to rest on the
 block's top where a finger overlaps it, on the floor where none does), then two steps of a
-full sideways command (x, y each -1, 0 or +1, not both 0) with -z and the fingers closing or
-opening, and two steps still. Prints the hand's top speed in free space, the trials whose
+full sideways command (x, y each -1, 0 or +1, not both 0) with -z (or `--move-z`) and the
+fingers closing or opening, and two steps still. Prints the hand's top speed in free space, the trials whose
 block flew fastest (its peak speed, m/s, read after every physics step, and its rise, cm)
 and counts over all.
 
     python experiments/edge_flick.py [--task pick_and_place] [--timing default|reference]
-        [--seeds 0 1] [--weld-time-constant SECONDS]
+        [--seeds 0 1] [--weld-time-constant SECONDS] [--move-z Z]
 """
 
 from __future__ import annotations
@@ -82,8 +82,10 @@ def hand_top_speed(env) -> float:
     return peaks.hand
 
 
-def trial(env, seed: int, offset, width_command: float, move) -> tuple[float, float]:
-    """(the block's peak speed, m/s; its highest rise, m) for one trial."""
+def trial(env, seed: int, offset, width_command: float, move,
+          move_z: float = -1.0) -> tuple[float, float]:
+    """(the block's peak speed, m/s; its highest rise, m) for one trial; `move_z`: the z
+    command of the sideways steps (-1 goes on pressing, 0 stops)."""
     obs, _ = env.reset(seed=seed)
     peaks = Peaks.of(env)
 
@@ -100,7 +102,7 @@ def trial(env, seed: int, offset, width_command: float, move) -> tuple[float, fl
         step[2] = -1.0
         obs, *_ = env.step(np.r_[step, width_command if i == 9 else 0.0].astype(np.float32))
     resting, peaks.block, peaks.height = float(obs["achieved_goal"][2]), 0.0, 0.0
-    for action in [(*move[:2], -1.0, move[2])] * 2 + [(0.0, 0.0, 0.0, 0.0)] * 2:
+    for action in [(*move[:2], move_z, move[2])] * 2 + [(0.0, 0.0, 0.0, 0.0)] * 2:
         _, _, terminated, truncated, _ = env.step(np.array(action, np.float32))
         if terminated or truncated:
             break
@@ -120,7 +122,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--weld-time-constant", type=positive_number, metavar="SECONDS",
                         help="the mocap weld's (default: the timing's, 0.01 s or 0.02 s): "
                              "how fast the hand follows a full command")
+    parser.add_argument("--move-z", type=float, default=-1.0, metavar="Z",
+                        help="the z command of the sideways steps: -1 (default) goes on "
+                             "pressing, 0 lets the press go")
     args = parser.parse_args(argv)
+    if not -1.0 <= args.move_z <= 1.0:
+        parser.error(f"--move-z must be an action in [-1, 1], got {args.move_z:g}")
     ids = {"pick_and_place": "FrankaPickAndPlaceSparse-v0", "push": "FrankaPushSparse-v0"}
     options = {"timing": args.timing}
     if args.weld_time_constant:
@@ -133,9 +140,11 @@ def main(argv: list[str] | None = None) -> int:
     trials = []
     for seed, offset, width, move in itertools.product(args.seeds, OFFSETS, WIDTH_COMMANDS,
                                                         moves):
-        trials.append((*trial(env, seed, offset, width, move), seed, offset, width, move))
+        trials.append((*trial(env, seed, offset, width, move, args.move_z), seed, offset, width,
+                       move))
     trials.sort(key=lambda row: -row[0])
     weld = f", weld time constant {args.weld_time_constant:g} s" if args.weld_time_constant else ""
+    weld += f", sideways steps with z {args.move_z:g}" if args.move_z != -1.0 else ""
     print(f"{args.task}, timing {args.timing}{weld}, seeds {args.seeds}: {len(trials)} trials; "
           f"the hand's top speed (two full diagonal commands from rest): "
           f"{hand_top_speed(env):.2f} m/s\n")
