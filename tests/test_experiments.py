@@ -199,6 +199,68 @@ def test_training_episodes_tells_a_stacked_block_from_a_flung_one():
                         "a block flung > 5 cm up": [False, False, True]}
 
 
+def test_flip_goals_group_each_goal_by_the_tips_it_needs():
+    module = load_script(EXPERIMENTS / "flip_goals.py")
+    # face_up's numbering: +x, +y, +z, -x, -y, -z; upright is +z (2).
+    assert [module.tips_between(2, face) for face in range(6)] == [1, 1, 0, 1, 1, 2]
+    assert [module.tips_between(face, (face + 3) % 6) for face in range(6)] == [2] * 6
+    # (tips needed, tipped, success) per episode.
+    rows = np.array([[0, 0, 1], [0, 0, 0], [1, 1, 1], [1, 1, 0], [1, 0, 0], [2, 1, 0]])
+    groups = module.group_rows(rows)
+    assert [group[:2] for group in groups] == [("no tip", 2), ("one tip", 3), ("two tips", 1),
+                                               ("all", 6)]
+    assert [group[2:] for group in groups] == [(50.0, 0.0), pytest.approx((100 / 3, 200 / 3)),
+                                               (0.0, 100.0), pytest.approx((100 / 3, 50.0))]
+    assert [group[0] for group in module.group_rows(rows[:2])] == ["no tip", "all"]
+
+
+@pytest.mark.slow
+def test_flip_goals_record_what_each_played_episode_needed_and_did():
+    """Played still (zero actions), the cube never tips, and an episode succeeds only where
+    it starts solved: one needing no tip, turned less than 0.2 rad; the tips are those from
+    the start's face up to the goal's. The expert tips it where, and only where, needed."""
+    module = load_script(EXPERIMENTS / "flip_goals.py")
+    from franka_composer.training.models import make_env
+
+    env = module.FlipGoals(make_env("flip", terminate_on_success=True))
+    needed = []
+    for seed in range(12):
+        obs, _ = env.reset(seed=seed)
+        needed.append(module.tips_between(int(module.face_up(obs["achieved_goal"])),
+                                          int(module.face_up(obs["desired_goal"]))))
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = env.step(np.zeros(4, np.float32))
+            done = terminated or truncated
+    rows = np.array(env.rows)
+    assert rows[:, 0].tolist() == needed and set(needed) == {0, 1, 2}
+    assert not rows[:, 1].any()
+    assert set(np.flatnonzero(rows[:, 2])) <= set(np.flatnonzero(rows[:, 0] == 0))
+    # The scripted expert tips the cube exactly where a goal needs it.
+    from franka_composer.policies import make_expert
+
+    env.rows.clear()
+    expert = make_expert(env)
+    for seed in range(12):
+        obs, _ = env.reset(seed=seed)
+        expert.reset()
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = env.step(expert(obs))
+            done = terminated or truncated
+    env.close()
+    played = np.array(env.rows)
+    assert played[:, 0].tolist() == needed
+    assert played[:, 1].tolist() == [tips > 0 for tips in needed]
+    assert np.flatnonzero(played[:, 2] == 0).tolist() == [6]  # 11 of 12 (>= 90 % over 100).
+
+
+def test_flip_goals_refuse_a_run_of_another_task():
+    module = load_script(EXPERIMENTS / "flip_goals.py")
+    with pytest.raises(SystemExit, match="a pick_and_place run; this splits flip's goals"):
+        module.episodes_of(RESULTS / "table2" / "pick_and_place-tqc-seed1", 1, seed=0)
+
+
 def test_the_paper_curves_are_read_back_from_a_figure_drawn_as_its_are(tmp_path):
     """A figure drawn as the paper's are (seaborn's grey axes, white grid, deep colours,
     shaded spreads, the legend top left, a later line over an earlier one, saved as JPEG)
