@@ -1,17 +1,18 @@
-"""Can the hand flick a block away by sliding off its top? The contact tests press straight
+"""Can the hand flick a block away by sweeping its top edge? The contact tests press straight
 down (`tests/test_contacts.py`: neither sinks nor launches); a stack learner found another
-way: resting a finger on a block's top edge, pressing down with the arm's force, and moving
-sideways at full command (`training_episodes.py` counts the flights in a learner's buffer).
+way: a finger resting on a block's top edge, then a full sideways command
+(`training_episodes.py` counts the flights in a learner's buffer).
 
-Each trial: reset with a seed, bring the open hand (or narrowed by one width command) 6 cm
-above a point beside the block, lower it with full -z for 10 steps (it comes to rest on the
+On pick-and-place (its block, and the fingers under command; push holds them closed). Each
+trial: reset with a seed, bring the open hand (or narrowed by one width command) 6 cm above
+a point beside the block, lower it with full -z for 10 steps (it comes to rest on the
 block's top where a finger overlaps it, on the floor where none does), then two steps of a
 full sideways command (x, y each -1, 0 or +1, not both 0) with -z (or `--move-z`) and the
-fingers closing or opening, and two steps still. Prints the hand's top speed in free space, the trials whose
-block flew fastest (its peak speed, m/s, read after every physics step, and its rise, cm)
-and counts over all.
+fingers closing or opening, and two steps still. Prints the hand's top speed in free space,
+the trials whose block flew fastest (its peak speed, m/s, read after every physics step,
+and its rise, cm) and counts over all.
 
-    python experiments/edge_flick.py [--task pick_and_place] [--timing default|reference]
+    python experiments/edge_flick.py [--timing default|reference]
         [--seeds 0 1] [--weld-time-constant SECONDS] [--move-z Z]
 """
 
@@ -116,7 +117,6 @@ def main(argv: list[str] | None = None) -> int:
     from franka_composer.tasks.config import TIMINGS, expand_timing
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--task", default="pick_and_place", choices=("pick_and_place", "push"))
     parser.add_argument("--timing", default="default", choices=tuple(TIMINGS))
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--weld-time-constant", type=positive_number, metavar="SECONDS",
@@ -128,12 +128,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not -1.0 <= args.move_z <= 1.0:
         parser.error(f"--move-z must be an action in [-1, 1], got {args.move_z:g}")
-    ids = {"pick_and_place": "FrankaPickAndPlaceSparse-v0", "push": "FrankaPushSparse-v0"}
     options = {"timing": args.timing}
     if args.weld_time_constant:
         options = {**expand_timing(options), "weld_time_constant": args.weld_time_constant}
-    env = gym.make(ids[args.task], max_episode_steps=400, terminate_on_success=False,
-                   **options)
+    env = gym.make("FrankaPickAndPlaceSparse-v0", max_episode_steps=400,
+                   terminate_on_success=False, **options)
     moves = [(dx, dy, fingers) for dx, dy, fingers in itertools.product((1, 0, -1), (1, 0, -1),
                                                                           (-1, 1))
              if (dx, dy) != (0, 0)]
@@ -145,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     trials.sort(key=lambda row: -row[0])
     weld = f", weld time constant {args.weld_time_constant:g} s" if args.weld_time_constant else ""
     weld += f", sideways steps with z {args.move_z:g}" if args.move_z != -1.0 else ""
-    print(f"{args.task}, timing {args.timing}{weld}, seeds {args.seeds}: {len(trials)} trials; "
+    print(f"pick_and_place, timing {args.timing}{weld}, seeds {args.seeds}: {len(trials)} trials; "
           f"the hand's top speed (two full diagonal commands from rest): "
           f"{hand_top_speed(env):.2f} m/s\n")
     print("| block's peak speed | its rise | seed | hand down at (from the block) | "
