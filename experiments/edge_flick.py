@@ -8,9 +8,9 @@ trial: reset with a seed, bring the open hand (or narrowed by one width command)
 a point beside the block, lower it with full -z for 10 steps (it comes to rest on the
 block's top where a finger overlaps it, on the floor where none does), then two steps of a
 full sideways command (x, y each -1, 0 or +1, not both 0) with -z (or `--move-z`) and the
-fingers closing or opening, and two steps still. Prints the hand's top speed in free space,
-the trials whose block flew fastest (its peak speed, m/s, read after every physics step,
-and its rise, cm) and counts over all.
+fingers closing or opening, and two steps still. Prints the hand's top speed in free space
+and how much of a full command it covers in a step, the trials whose block flew fastest
+(its peak speed, m/s, read after every physics step, and its rise, cm) and counts over all.
 
     python experiments/edge_flick.py [--timing default|reference]
         [--seeds 0 1] [--weld-time-constant SECONDS] [--move-z Z]
@@ -83,6 +83,17 @@ def hand_top_speed(env) -> float:
     return peaks.hand
 
 
+def tracking(env) -> float:
+    """The share of a full x command's 5 cm the hand covers in one step from rest: what a
+    softer weld costs in motion."""
+    obs, _ = env.reset(seed=0)
+    for _ in range(10):
+        obs, *_ = env.step(np.array([0.0, 0.0, 0.0, 0.0], np.float32))
+    start = obs["observation"][0]
+    obs, *_ = env.step(np.array([1.0, 0.0, 0.0, 0.0], np.float32))
+    return float(obs["observation"][0] - start) / 0.05
+
+
 def trial(env, seed: int, offset, width_command: float, move,
           move_z: float = -1.0) -> tuple[float, float]:
     """(the block's peak speed, m/s; its highest rise, m) for one trial; `move_z`: the z
@@ -146,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     weld += f", sideways steps with z {args.move_z:g}" if args.move_z != -1.0 else ""
     print(f"pick_and_place, timing {args.timing}{weld}, seeds {args.seeds}: {len(trials)} trials; "
           f"the hand's top speed (two full diagonal commands from rest): "
-          f"{hand_top_speed(env):.2f} m/s\n")
+          f"{hand_top_speed(env):.2f} m/s; one full x command from rest moves it "
+          f"{100 * tracking(env):.0f} % of its 5 cm\n")
     print("| block's peak speed | its rise | seed | hand down at (from the block) | "
           "finger command | move (x, y, fingers) |")
     print("|---|---|---|---|---|---|")
