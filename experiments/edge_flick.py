@@ -13,7 +13,7 @@ and how much of a full command it covers in a step, the trials whose block flew 
 (its peak speed, m/s, read after every physics step, and its rise, cm) and counts over all.
 
     python experiments/edge_flick.py [--timing default|reference]
-        [--seeds 0 1] [--weld-time-constant SECONDS] [--move-z Z]
+        [--seeds 0 1] [--weld-time-constant SECONDS] [--move-z Z] [--stiff-hand-contacts]
 """
 
 from __future__ import annotations
@@ -83,6 +83,17 @@ def hand_top_speed(env) -> float:
     return peaks.hand
 
 
+def stiffen_hand_contacts(env) -> None:
+    """Gives the block's stiff contact parameters the win in its contacts with the hand too:
+    MuJoCo mixes a contact's parameters by the geoms' `solmix` weights, and the block's
+    weight 0 leaves them to the hand (contacts.py); a weight far above the hand's 1 takes
+    them. The model is built once, so this holds over resets."""
+    env.reset(seed=0)
+    physics = env.unwrapped._env.physics
+    block = physics.model.name2id("block/geom", "geom")
+    physics.model.geom_solmix[block] = 1e6
+
+
 def tracking(env) -> float:
     """The share of a full x command's 5 cm the hand covers in one step from rest: what a
     softer weld costs in motion."""
@@ -136,6 +147,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--move-z", type=float, default=-1.0, metavar="Z",
                         help="the z command of the sideways steps: -1 (default) goes on "
                              "pressing, 0 lets the press go")
+    parser.add_argument("--stiff-hand-contacts", action="store_true",
+                        help="the block's stiff contact parameters (contacts.py) in its "
+                             "contacts with the hand too, in place of Menagerie's softer ones")
     args = parser.parse_args(argv)
     if not -1.0 <= args.move_z <= 1.0:
         parser.error(f"--move-z must be an action in [-1, 1], got {args.move_z:g}")
@@ -144,6 +158,8 @@ def main(argv: list[str] | None = None) -> int:
         options = {**expand_timing(options), "weld_time_constant": args.weld_time_constant}
     env = gym.make("FrankaPickAndPlaceSparse-v0", max_episode_steps=400,
                    terminate_on_success=False, **options)
+    if args.stiff_hand_contacts:
+        stiffen_hand_contacts(env)
     moves = [(dx, dy, fingers) for dx, dy, fingers in itertools.product((1, 0, -1), (1, 0, -1),
                                                                           (-1, 1))
              if (dx, dy) != (0, 0)]
@@ -155,6 +171,7 @@ def main(argv: list[str] | None = None) -> int:
     trials.sort(key=lambda row: -row[0])
     weld = f", weld time constant {args.weld_time_constant:g} s" if args.weld_time_constant else ""
     weld += f", sideways steps with z {args.move_z:g}" if args.move_z != -1.0 else ""
+    weld += ", stiff hand contacts" if args.stiff_hand_contacts else ""
     print(f"pick_and_place, timing {args.timing}{weld}, seeds {args.seeds}: {len(trials)} trials; "
           f"the hand's top speed (two full diagonal commands from rest): "
           f"{hand_top_speed(env):.2f} m/s; one full x command from rest moves it "

@@ -125,6 +125,13 @@ def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
     assert push_speed == pytest.approx(1.86, abs=0.01) and push_rise < 0.002  # Shoved, flat.
     [(speed, rise)] = outcomes["reference"]
     assert speed == pytest.approx(4.08, abs=0.01) and rise == pytest.approx(0.151, abs=0.001)
+    # --stiff-hand-contacts: the block's weight takes its contacts with the hand, over resets.
+    env = gym.make("FrankaPickAndPlaceSparse-v0", terminate_on_success=False)
+    module.stiffen_hand_contacts(env)
+    env.reset(seed=3)
+    model = env.unwrapped._env.physics.model
+    assert model.geom_solmix[model.name2id("block/geom", "geom")] == 1e6
+    env.close()
 
 
 def test_training_episodes_reads_what_each_flip_learner_episode_reached():
