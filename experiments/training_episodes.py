@@ -3,10 +3,10 @@ training steps, the share of its episodes (exploration noise and all) that reach
 stage on the way to its task's goal, which the finished policy, one greedy path, cannot show.
 
 - pick_and_place: the hand held on the block's top, came to the block's height, lifted the
-  block (more than 2 cm), tipped it; success; flung it (more than 5 cm up, above the
-  hand: `edge_flick.py`). Set side by side, runs in this suite and in
-  the reference code's env (`experiments/reference_env_runs.py`) show whether their
-  learners met the block alike on the way (`hand_on_top.py`'s measures).
+  block (more than 2 cm), tipped it; success; flung it (more than 5 cm up, above the hand:
+  `edge_flick.py`). Set side by side, runs in this suite and in the reference code's env
+  (`experiments/reference_env_runs.py`) show whether their learners met the block alike on
+  the way (`hand_on_top.py`'s measures).
 - stack: a block pushed (moved more than 2 cm across the floor), a block lifted (more than
   2 cm), block 1 within 5 cm of its goal, one block resting on the other; success; a block
   flung.
