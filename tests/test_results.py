@@ -120,3 +120,17 @@ def test_pick_and_place_at_the_reference_timing_is_reported_running_until_it_has
     else:  # Finished: the section gives the cell's result, no longer a running campaign.
         assert "**Running.**" not in section and "no result yet" not in section
         assert "%" in section
+
+
+def test_the_learnability_runs_are_reported_running_until_both_have_finished():
+    """Issue 40's stack and flip runs: while either has not finished (no outcome.json kept),
+    their page says they are running and gives no answer; once both have, it gives one."""
+    page = " ".join((RESULTS_MD.parent / "docs" / "experiments" / "learnability.md")
+                    .read_text().split())  # Words, across line ends.
+    kept = TABLE2.parent / "learnability"
+    finished = [name for name in ("stack-tqc-seed0", "flip-tqc-seed0")
+                if (kept / name / "outcome.json").is_file()]
+    if len(finished) < 2:
+        assert "**Running.**" in page and "no answer yet" in page and "not a result" in page
+    else:
+        assert "**Running.**" not in page and "no answer yet" not in page
