@@ -23,7 +23,7 @@ import itertools
 
 import numpy as np
 
-from franka_composer.cli.options import positive_number
+from franka_composer.cli.options import episode_seed, positive_number
 
 #: Where the hand comes down, from the block's centre (m): beside it, or with a finger over
 #: its edge.
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--timing", default="default", choices=tuple(TIMINGS))
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--seeds", type=episode_seed, nargs="+", default=[0, 1])
     parser.add_argument("--weld-time-constant", type=positive_number, metavar="SECONDS",
                         help="the mocap weld's (default: the timing's, 0.01 s or 0.02 s): "
                              "how fast the hand follows a full command")
@@ -169,11 +169,12 @@ def main(argv: list[str] | None = None) -> int:
         trials.append((*trial(env, seed, offset, width, move, args.move_z), seed, offset, width,
                        move))
     trials.sort(key=lambda row: -row[0])
-    weld = f", weld time constant {args.weld_time_constant:g} s" if args.weld_time_constant else ""
-    weld += f", sideways steps with z {args.move_z:g}" if args.move_z != -1.0 else ""
-    weld += ", stiff hand contacts" if args.stiff_hand_contacts else ""
-    print(f"pick_and_place, timing {args.timing}{weld}, seeds {args.seeds}: {len(trials)} trials; "
-          f"the hand's top speed (two full diagonal commands from rest): "
+    setting = (f", weld time constant {args.weld_time_constant:g} s"
+               if args.weld_time_constant else "")
+    setting += f", sideways steps with z {args.move_z:g}" if args.move_z != -1.0 else ""
+    setting += ", stiff hand contacts" if args.stiff_hand_contacts else ""
+    print(f"pick_and_place, timing {args.timing}{setting}, seeds {args.seeds}: "
+          f"{len(trials)} trials; the hand's top speed (two full diagonal commands from rest): "
           f"{hand_top_speed(env):.2f} m/s; one full x command from rest moves it "
           f"{100 * tracking(env):.0f} % of its 5 cm\n")
     print("| block's peak speed | its rise | seed | hand down at (from the block) | "
