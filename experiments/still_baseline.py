@@ -86,10 +86,9 @@ def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:
     if not np.array_equal(steps, every * np.arange(len(rows))):
         raise SystemExit(f"{run.eval_csv}: evaluations are not every {every} steps from 0")
     rates = np.array([row["success_rate"] for row in rows])
-    options = {key: value for key, value in config.env_options.items() if key != "control"}
-    still = np.array(still_rates(config.task, config.env_options.get("control", "mocap"),
-                                 config.seed, len(rows),
-                                 config.hyperparameters.eval_episodes, **options))
+    still = np.array(still_rates(config.task, seed=config.seed, evaluations=len(rows),
+                                 episodes=config.hyperparameters.eval_episodes,
+                                 **config.env_options))  # Its control among them.
     lines = ["| steps | evaluations | run | still policy | above / equal / below it |",
              "|---|---|---|---|---|"]
 
