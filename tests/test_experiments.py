@@ -134,6 +134,18 @@ def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
     env.close()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--move-z", "2"], "--move-z must be an action in [-1, 1], got 2"),
+    (["--seeds", "-1"], "argument --seeds: must be an integer >= 0, got '-1'"),
+    (["--weld-time-constant", "0"], "argument --weld-time-constant:"),
+])
+def test_edge_flick_names_a_bad_option_before_any_trial(args, message, capsys):
+    module = load_script(EXPERIMENTS / "edge_flick.py")
+    with pytest.raises(SystemExit) as exit_info:
+        module.main(args)
+    assert exit_info.value.code == 2 and message in capsys.readouterr().err
+
+
 def test_training_episodes_reads_what_each_flip_learner_episode_reached():
     """`training_episodes.py` on flip: which face is up from the quaternion, a tip, and
     success over the goals that need a tip and those that need none; a table per window."""
