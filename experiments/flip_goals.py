@@ -18,13 +18,13 @@ import argparse
 import pathlib
 import sys
 
-import gymnasium as gym
 import numpy as np
 
 from franka_composer.cli.options import episode_seed, positive_int
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-from training_episodes import face_up  # noqa: E402  (experiments/, not a package)
+from played_episodes import EpisodeRecorder, play_recorded  # noqa: E402  (not a package)
+from training_episodes import face_up  # noqa: E402
 
 GROUPS = ("no tip", "one tip", "two tips")
 
@@ -37,44 +37,25 @@ def tips_between(start_face: int, goal_face: int) -> int:
     return 2 if (start_face + 3) % 6 == goal_face else 1
 
 
-class FlipGoals(gym.Wrapper):
-    """Records, for each episode played through it, (tips its goal needs, tipped, success),
-    so that `measure_success` (evaluate's own loop) plays the episodes."""
+class FlipGoals(EpisodeRecorder):
+    """Records, for each episode, (tips its goal needs, tipped, success)."""
 
-    def __init__(self, env: gym.Env):
-        super().__init__(env)
-        self.rows: list[tuple[int, bool, bool]] = []
-
-    def reset(self, **kwargs):
-        obs, info = self.env.reset(**kwargs)
+    def begin(self, obs):
         self._start = int(face_up(obs["achieved_goal"]))
         self._tips = tips_between(self._start, int(face_up(obs["desired_goal"])))
         self._tipped = False
-        return obs, info
 
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
+    def watch(self, obs, action):
         self._tipped |= int(face_up(obs["achieved_goal"])) != self._start
-        if terminated or truncated:
-            self.rows.append((self._tips, self._tipped, bool(info.get("is_success", False))))
-        return obs, reward, terminated, truncated, info
+
+    def row(self, info):
+        return self._tips, self._tipped, bool(info.get("is_success", False))
 
 
 def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[int, np.ndarray]:
     """(steps trained, rows of (tips needed, tipped, success)) per episode, on the run's env."""
-    from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.policy_file import trained_on_its_task
-    from franka_composer.training.runs import RunDir
-
-    try:
-        task = RunDir(run_root).read_config().task
-    except ValueError as error:
-        raise SystemExit(str(error)) from None
-    if task != "flip":
-        raise SystemExit(f"{run_root}: a {task} run; this splits flip's goals")
-    with trained_on_its_task(run_root, device="cpu", wrap=FlipGoals) as (_, env, model):
-        measure_success(model, env, episodes, seed=seed)
-        return int(model.num_timesteps), np.array(env.rows, dtype=float)
+    _, steps, rows = play_recorded(run_root, "flip", FlipGoals, episodes, seed)
+    return steps, rows
 
 
 def group_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:

@@ -21,11 +21,14 @@ from __future__ import annotations
 
 import argparse
 import pathlib
+import sys
 
-import gymnasium as gym
 import numpy as np
 
 from franka_composer.cli.options import episode_seed, positive_int
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from played_episodes import EpisodeRecorder, play_recorded  # noqa: E402  (not a package)
 
 #: The tool centre point's height above the block's centre (m) with a finger's tip on its
 #: top: half the block (0.02) plus the tip's depth below the point (7.3 mm), give or take.
@@ -71,24 +74,17 @@ def at_block_height(offset):
             & (np.abs(offset[..., 1]) <= REACH))
 
 
-class HandOnTop(gym.Wrapper):
-    """Records, for each episode played through it, (steps held on top, steps at the block's
-    height, lifted, tipped), so that `measure_success` (evaluate's own loop) plays the episodes."""
+class HandOnTop(EpisodeRecorder):
+    """Records, for each episode, (steps held on top, steps at the block's height, lifted,
+    tipped)."""
 
-    def __init__(self, env: gym.Env):
-        super().__init__(env)
-        self.rows: list[tuple[int, int, bool]] = []
-
-    def reset(self, **kwargs):
-        obs, info = self.env.reset(**kwargs)
+    def begin(self, obs):
         self._resting = obs["achieved_goal"][2]
         self._on_top = self._down = 0
         self._lifted = self._tipped = False
         self._tcp_z = obs["observation"][2]
-        return obs, info
 
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
+    def watch(self, obs, action):
         offset = obs["observation"][:3] - obs["achieved_goal"]
         width = float(obs["observation"][6])
         came_down, self._tcp_z = self._tcp_z - obs["observation"][2], obs["observation"][2]
@@ -97,25 +93,16 @@ class HandOnTop(gym.Wrapper):
         self._down += bool(at_block_height(offset))
         self._lifted |= bool(obs["achieved_goal"][2] - self._resting > LIFTED)
         self._tipped |= bool(tipped(obs["observation"][10:12]))
-        if terminated or truncated:
-            self.rows.append((self._on_top, self._down, self._lifted, self._tipped))
-        return obs, reward, terminated, truncated, info
+
+    def row(self, info):
+        return self._on_top, self._down, self._lifted, self._tipped
 
 
 def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[dict, np.ndarray]:
     """(facts of the run, rows of (steps held on top, steps at the block's height, lifted,
     tipped)) per episode."""
-    from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.policy_file import trained_on_its_task
-    from franka_composer.training.runs import RunDir
-
-    config = RunDir(run_root).read_config()
-    if config.task != "pick_and_place":
-        raise SystemExit(f"{run_root}: a {config.task} run; this reads pick_and_place")
-    with trained_on_its_task(run_root, device="cpu", wrap=HandOnTop) as (_, env, model):
-        measure_success(model, env, episodes, seed=seed)
-        return ({"steps": int(model.num_timesteps), "timing": config.timing_label or "default"},
-                np.array(env.rows, dtype=float))
+    config, steps, rows = play_recorded(run_root, "pick_and_place", HandOnTop, episodes, seed)
+    return {"steps": steps, "timing": config.timing_label or "default"}, rows
 
 
 def main() -> None:

@@ -17,12 +17,15 @@ from __future__ import annotations
 
 import argparse
 import pathlib
+import sys
 
-import gymnasium as gym
 import numpy as np
 
 from franka_composer.cli.options import add_object_damping, episode_seed, positive_int
 from franka_composer.tasks import TASK_CONFIGS
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from played_episodes import EpisodeRecorder, play_recorded  # noqa: E402  (not a package)
 
 #: Goal heights above the resting height (m) that split the bands; the sparse reward's
 #: threshold, 0.05 m, is where pushing alone stops reaching the goal.
@@ -30,45 +33,29 @@ BANDS = (("on the floor", 0.0, 0.0), ("0-5 cm up", 0.0, 0.05), ("5-20 cm up", 0.
 LIFTED = 0.01
 
 
-class GoalBands(gym.Wrapper):
-    """Records, for each episode played through it, (goal height above rest, lifted,
-    success), so that `measure_success` (evaluate's own loop) plays the episodes."""
+class GoalBands(EpisodeRecorder):
+    """Records, for each episode, (goal height above rest, lifted, success)."""
 
-    def __init__(self, env: gym.Env):
-        super().__init__(env)
-        self.rows: list[tuple[float, bool, bool]] = []
-
-    def reset(self, **kwargs):
-        obs, info = self.env.reset(**kwargs)
+    def begin(self, obs):
         self._resting = obs["achieved_goal"][2]
         self._height = obs["desired_goal"][2] - self._resting
         self._lifted = False
-        return obs, info
 
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
+    def watch(self, obs, action):
         self._lifted |= bool(obs["achieved_goal"][2] - self._resting > LIFTED)
-        if terminated or truncated:
-            self.rows.append((self._height, self._lifted, bool(info.get("is_success", False))))
-        return obs, reward, terminated, truncated, info
+
+    def row(self, info):
+        return self._height, self._lifted, bool(info.get("is_success", False))
 
 
 def episodes_of(run_root: pathlib.Path, episodes: int, seed: int,
                 object_damping: float | None = None) -> tuple[int, np.ndarray]:
     """(steps trained, rows of (goal height above rest, lifted, success)) per episode, on
     the run's env, its objects damped by `object_damping` where given."""
-    from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.policy_file import trained_on_its_task
-    from franka_composer.training.runs import RunDir
-
-    task = RunDir(run_root).read_config().task
-    if task != "pick_and_place":
-        raise SystemExit(f"{run_root}: a {task} run; this splits pick_and_place's goals")
     damping = {} if object_damping is None else {"object_damping": object_damping}
-    with trained_on_its_task(run_root, device="cpu", wrap=GoalBands, **damping) as (
-            _, env, model):
-        measure_success(model, env, episodes, seed=seed)
-        return int(model.num_timesteps), np.array(env.rows, dtype=float)
+    _, steps, rows = play_recorded(run_root, "pick_and_place", GoalBands, episodes, seed,
+                                   **damping)
+    return steps, rows
 
 
 def check_object_damping(parser: argparse.ArgumentParser, damping: float | None) -> None:

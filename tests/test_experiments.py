@@ -276,7 +276,7 @@ def test_flip_goals_record_what_each_played_episode_needed_and_did():
 
 def test_flip_goals_refuse_a_run_of_another_task():
     module = load_script(EXPERIMENTS / "flip_goals.py")
-    with pytest.raises(SystemExit, match="a pick_and_place run; this splits flip's goals"):
+    with pytest.raises(SystemExit, match="a pick_and_place run; this reads flip runs"):
         module.episodes_of(RESULTS / "table2" / "pick_and_place-tqc-seed1", 1, seed=0)
 
 
@@ -385,7 +385,7 @@ def test_the_goal_bands_play_the_episodes_evaluate_plays(capsys, monkeypatch):
 
 def test_the_goal_bands_refuse_a_run_of_another_task():
     module = load_script(EXPERIMENTS / "pick_and_place_goals.py")
-    with pytest.raises(SystemExit, match="a push run; this splits pick_and_place's goals"):
+    with pytest.raises(SystemExit, match="a push run; this reads pick_and_place runs"):
         module.episodes_of(RESULTS / "table2" / "push-tqc-seed0", 1, 0)
 
 
