@@ -2,7 +2,7 @@
 learning curve must rise above.
 
     python experiments/still_baseline.py --task push [--control osc] [--seed 0] [--evaluations 50]
-    python experiments/still_baseline.py --run RUN_DIR   # a run's evaluations beside its floor
+    python experiments/still_baseline.py --run RUN_DIR [RUN_DIR ...] [--plot PNG]
 
 `train` evaluates 15 episodes every 2000 steps on an env seeded from the run's seed, and
 which episodes an evaluation sees does not depend on the policy (goals and objects are
@@ -15,7 +15,8 @@ list from its beginning, computed with that tree on PYTHONPATH). The same seed d
 same episodes with domain randomisation (`randomization`) as without, so this is also the
 floor of a randomised run. Prints one JSON list, a rate per evaluation; with `--run`, the
 floor of that run's own evaluations (its task, env options, seed and cadence) beside them,
-per 5e4 steps: whether a curve has left its floor, evaluation by evaluation.
+per 5e4 steps: whether a curve has left its floor, evaluation by evaluation; `--plot`
+draws each run's evaluations and both trailing means over 5e4 steps.
 """
 
 from __future__ import annotations
@@ -68,9 +69,9 @@ def still_rates(task: str, control: str = "mocap", seed: int = 0, evaluations: i
     return rates
 
 
-def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:
-    """A markdown table of `run_dir`'s evaluations beside the still policy's on the same
-    episodes, per `window` steps (evaluations in (a, a + window]), and over all of them."""
+def run_and_floor(run_dir: pathlib.Path):
+    """(config, steps, rates, still policy's rates): `run_dir`'s evaluations and the still
+    policy's on the same episodes."""
     from franka_composer.training.runs import RunDir, read_eval_rows
 
     run = RunDir(run_dir)
@@ -89,6 +90,13 @@ def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:
     still = np.array(still_rates(config.task, seed=config.seed, evaluations=len(rows),
                                  episodes=config.hyperparameters.eval_episodes,
                                  **config.env_options))  # Its control among them.
+    return config, steps, rates, still
+
+
+def floor_table(steps: np.ndarray, rates: np.ndarray, still: np.ndarray,
+                window: int = 50_000) -> str:
+    """A markdown table of evaluations beside the still policy's on the same episodes, per
+    `window` steps (evaluations in (a, a + window]), and over all of them."""
     lines = ["| steps | evaluations | run | still policy | above / equal / below it |",
              "|---|---|---|---|---|"]
 
@@ -105,18 +113,68 @@ def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:
     return "\n".join(lines)
 
 
+def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:
+    """`floor_table` of `run_dir`'s evaluations."""
+    return floor_table(*run_and_floor(run_dir)[1:], window)
+
+
+def trailing_mean(values: np.ndarray, count: int) -> np.ndarray:
+    """The mean of each value and the `count` - 1 before it (fewer at the start)."""
+    return np.array([values[max(0, end - count):end].mean()
+                     for end in range(1, len(values) + 1)])
+
+
+def draw_beside_floor(runs: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]],
+                      path: pathlib.Path, window: int = 50_000) -> None:
+    """One panel per (label, steps, rates, still rates): each evaluation as a dot, the run's
+    and the still policy's trailing means over `window` steps as lines."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(runs), figsize=(5.5 * len(runs), 4), squeeze=False)
+    for ax, (label, steps, rates, still) in zip(axes[0], runs):
+        count = max(1, window // int(steps[1] - steps[0])) if len(steps) > 1 else 1
+        ax.plot(steps, 100 * rates, ".", color="tab:blue", alpha=0.3, markersize=3)
+        ax.plot(steps, 100 * trailing_mean(rates, count), color="tab:blue",
+                label=f"run, mean of {count} evaluations")
+        ax.plot(steps, 100 * trailing_mean(still, count), "--", color="0.3",
+                label="still policy, same episodes")
+        ax.set(title=label, xlabel="steps", ylabel="success (%)", ylim=(-2, 102))
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--task", default="push", choices=ALL_TASKS)
     parser.add_argument("--control", default="mocap", choices=CONTROLS)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--evaluations", type=positive_int, default=50)
-    parser.add_argument("--run", type=pathlib.Path, metavar="RUN_DIR",
-                        help="a run directory: its evaluations beside its own floor, per "
-                             "5e4 steps (the other options are the run's)")
+    parser.add_argument("--run", type=pathlib.Path, nargs="+", metavar="RUN_DIR",
+                        help="run directories: each one's evaluations beside its own floor, "
+                             "per 5e4 steps (the other options are the run's)")
+    parser.add_argument("--plot", type=pathlib.Path, metavar="PNG",
+                        help="with --run: also draw each run beside its floor, one panel each")
     args = parser.parse_args(argv)
+    if args.plot and not args.run:
+        parser.error("--plot draws runs: give them with --run")
+    if args.plot and args.plot.suffix.lower() not in (".png", ".pdf", ".svg"):
+        parser.error(f"--plot: a .png, .pdf or .svg file, not {args.plot.name}")
     if args.run:
-        print(run_beside_floor(args.run))
+        drawn = []
+        for run_dir in args.run:
+            config, steps, rates, still = run_and_floor(run_dir)
+            print(f"{run_dir} ({config.task} {config.algo} seed {config.seed})\n")
+            print(floor_table(steps, rates, still) + "\n")
+            drawn.append((f"{config.task} {config.algo} seed {config.seed}", steps, rates,
+                          still))
+        if args.plot:
+            draw_beside_floor(drawn, args.plot)
+            print(f"wrote {args.plot}")
         return 0
     print(json.dumps(still_rates(args.task, args.control, args.seed, args.evaluations)))
     return 0

@@ -99,6 +99,45 @@ def test_a_run_is_set_beside_its_own_floor_evaluation_by_evaluation(tmp_path):
         module.run_beside_floor(tmp_path)
 
 
+def test_the_trailing_mean_averages_each_evaluation_with_those_before_it():
+    module = load_script(EXPERIMENTS / "still_baseline.py")
+    values = np.array([0.0, 0.2, 0.4, 0.0, 1.0])
+    np.testing.assert_allclose(module.trailing_mean(values, 3), [0.0, 0.1, 0.2, 0.2, 14 / 30])
+    np.testing.assert_array_equal(module.trailing_mean(values, 1), values)
+
+
+@pytest.mark.slow
+def test_runs_are_drawn_beside_their_floors_one_panel_each(tmp_path, capsys):
+    """`--run A B --plot PNG`: each run's table under its name, then one figure with a
+    panel per run; --plot without runs, or to a file of no image type, is refused first."""
+    from PIL import Image
+
+    module = load_script(EXPERIMENTS / "still_baseline.py")
+    from franka_composer.training.hyperparams import hyperparameters
+    from franka_composer.training.runs import RunConfig, RunDir
+
+    for name, seed in (("a", 3), ("b", 0)):
+        run = RunDir(tmp_path / name)
+        run.write_config(RunConfig("push", "sac", seed, hyperparameters("push", "sac")))
+        run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
+            f"{2000 * i},{i + 1},0.5,-1\n" for i in range(4)))
+    png = tmp_path / "floors.png"
+    assert module.main(["--run", str(tmp_path / "a"), str(tmp_path / "b"),
+                        "--plot", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert f"{tmp_path / 'a'} (push sac seed 3)" in out and f"{tmp_path / 'b'} (push sac " \
+        "seed 0)" in out
+    assert "| 0–6,000 | 4 | 50.0 % | 5.0 % | 4 / 0 / 0 |" in out  # Seed 0: 0, 1, 2, 0 of 15.
+    assert out.rstrip().endswith(f"wrote {png}")
+    assert Image.open(png).size == (1100, 400)  # Two 5.5 x 4 in panels at 100 dpi.
+    for args, message in ((["--plot", str(png)], "--plot draws runs: give them with --run"),
+                          (["--run", "x", "--plot", "floors.txt"],
+                           "--plot: a .png, .pdf or .svg file, not floors.txt")):
+        with pytest.raises(SystemExit):
+            module.main(args)
+        assert message in capsys.readouterr().err
+
+
 @pytest.mark.slow
 def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
     """docs/guide/physics.md's limit of the guard, as `edge_flick.py` measures it: a finger
