@@ -15,7 +15,8 @@ list from its beginning, computed with that tree on PYTHONPATH). The same seed d
 same episodes with domain randomisation (`randomization`) as without, so this is also the
 floor of a randomised run. Prints one JSON list, a rate per evaluation; with `--run`, the
 floor of that run's own evaluations (its task, env options, seed and cadence) beside them,
-per 5e4 steps: whether a curve has left its floor, evaluation by evaluation; `--plot`
+per 5e4 steps: whether a curve has left its floor, evaluation by evaluation (with a sign
+test's p: how likely as many evaluations above it were, were the run no better); `--plot`
 draws each run's evaluations and both trailing means over 5e4 steps.
 """
 
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import pathlib
 
 import numpy as np
@@ -97,20 +99,32 @@ def floor_table(steps: np.ndarray, rates: np.ndarray, still: np.ndarray,
                 window: int = 50_000) -> str:
     """A markdown table of evaluations beside the still policy's on the same episodes, per
     `window` steps (evaluations in (a, a + window]), and over all of them."""
-    lines = ["| steps | evaluations | run | still policy | above / equal / below it |",
-             "|---|---|---|---|---|"]
+    lines = ["| steps | evaluations | run | still policy | above / equal / below it | "
+             "sign test p |", "|---|---|---|---|---|---|"]
 
     def line(label: str, chosen: np.ndarray) -> str:
         run_rates, floor = rates[chosen], still[chosen]
+        above, below = int((run_rates > floor).sum()), int((run_rates < floor).sum())
+        p = sign_test(above, below)
         return (f"| {label} | {chosen.sum()} | {100 * run_rates.mean():.1f} % | "
-                f"{100 * floor.mean():.1f} % | {(run_rates > floor).sum()} / "
-                f"{(run_rates == floor).sum()} / {(run_rates < floor).sum()} |")
+                f"{100 * floor.mean():.1f} % | {above} / {(run_rates == floor).sum()} / "
+                f"{below} | {'–' if p is None else f'{p:.2g}'} |")
 
     for start in range(0, int(steps[-1]), window):
         chosen = (steps > start) & (steps <= start + window)
         lines.append(line(f"{start:,}–{min(start + window, int(steps[-1])):,}", chosen))
     lines.append(line(f"0–{int(steps[-1]):,}", steps >= 0))
     return "\n".join(lines)
+
+
+def sign_test(above: int, below: int) -> float | None:
+    """The chance of `above` or more of the `above + below` evaluations that differ from
+    the floor being above it, were each as likely above as below (a one-sided sign test;
+    ties drop out); None where none differ."""
+    differ = above + below
+    if differ == 0:
+        return None
+    return sum(math.comb(differ, k) for k in range(above, differ + 1)) / 2 ** differ
 
 
 def run_beside_floor(run_dir: pathlib.Path, window: int = 50_000) -> str:

@@ -88,15 +88,23 @@ def test_a_run_is_set_beside_its_own_floor_evaluation_by_evaluation(tmp_path):
     run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n" + "".join(
         f"{2000 * i},{i + 1},{rate},-1\n" for i, rate in enumerate(rates)))
     assert module.run_beside_floor(run.root, window=4000).splitlines()[2:] == [
-        "| 0–4,000 | 2 | 16.7 % | 6.7 % | 1 / 1 / 0 |",
-        "| 4,000–6,000 | 1 | 0.0 % | 6.7 % | 0 / 0 / 1 |",
-        "| 0–6,000 | 4 | 8.3 % | 5.0 % | 1 / 2 / 1 |"]
+        "| 0–4,000 | 2 | 16.7 % | 6.7 % | 1 / 1 / 0 | 0.5 |",
+        "| 4,000–6,000 | 1 | 0.0 % | 6.7 % | 0 / 0 / 1 | 1 |",
+        "| 0–6,000 | 4 | 8.3 % | 5.0 % | 1 / 2 / 1 | 0.75 |"]
     run.eval_csv.write_text("steps,wall_time_s,success_rate,mean_reward\n0,1,0.0,-1\n"
                             "4000,2,0.0,-1\n")
     with pytest.raises(SystemExit, match="evaluations are not every 2000 steps from 0"):
         module.run_beside_floor(run.root)
     with pytest.raises(SystemExit, match="is not a training run"):
         module.run_beside_floor(tmp_path)
+
+
+def test_the_sign_test_is_the_binomial_tail_of_the_evaluations_above_the_floor():
+    module = load_script(EXPERIMENTS / "still_baseline.py")
+    assert module.sign_test(0, 0) is None  # All equal: nothing to test.
+    assert module.sign_test(11, 0) == 2.0 ** -11
+    assert module.sign_test(0, 3) == 1.0
+    assert module.sign_test(2, 1) == (3 + 1) / 8  # P(X >= 2), X ~ Binomial(3, 1/2).
 
 
 def test_the_trailing_mean_averages_each_evaluation_with_those_before_it():
@@ -127,7 +135,7 @@ def test_runs_are_drawn_beside_their_floors_one_panel_each(tmp_path, capsys):
     out = capsys.readouterr().out
     assert f"{tmp_path / 'a'} (push sac seed 3)" in out and f"{tmp_path / 'b'} (push sac " \
         "seed 0)" in out
-    assert "| 0–6,000 | 4 | 50.0 % | 5.0 % | 4 / 0 / 0 |" in out  # Seed 0: 0, 1, 2, 0 of 15.
+    assert "| 0–6,000 | 4 | 50.0 % | 5.0 % | 4 / 0 / 0 | 0.062 |" in out  # Seed 0: 0, 1, 2, 0 of 15.
     assert out.rstrip().endswith(f"wrote {png}")
     assert Image.open(png).size == (1100, 400)  # Two 5.5 x 4 in panels at 100 dpi.
     for args, message in ((["--plot", str(png)], "--plot draws runs: give them with --run"),
