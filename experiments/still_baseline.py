@@ -3,6 +3,7 @@ learning curve must rise above.
 
     python experiments/still_baseline.py --task push [--control osc] [--seed 0] [--evaluations 50]
     python experiments/still_baseline.py --run RUN_DIR [RUN_DIR ...] [--plot PNG]
+        [--final-test EPISODES SEED ...]   # e.g. --final-test 20 2024 --final-test 200 100
 
 `train` evaluates 15 episodes every 2000 steps on an env seeded from the run's seed, and
 which episodes an evaluation sees does not depend on the policy (goals and objects are
@@ -17,7 +18,9 @@ floor of a randomised run. Prints one JSON list, a rate per evaluation; with `--
 floor of that run's own evaluations (its task, env options, seed and cadence) beside them,
 per 5e4 steps: whether a curve has left its floor, evaluation by evaluation (with a sign
 test's p: how likely as many evaluations above it were, were the run no better); `--plot`
-draws each run's evaluations and both trailing means over 5e4 steps.
+draws each run's evaluations and both trailing means over 5e4 steps; `--final-test`
+gives the still policy's success on `franka-composer evaluate`'s episodes, the floor of a
+final test.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import pathlib
 
 import numpy as np
 
-from franka_composer.cli.options import positive_int
+from franka_composer.cli.options import episode_seed, positive_int
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 
@@ -41,7 +44,9 @@ class StillPolicy:
         self._size = action_size
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        return np.zeros((len(observation["desired_goal"]), self._size), np.float32), None
+        goals = np.asarray(observation["desired_goal"])
+        shape = (self._size,) if goals.ndim == 1 else (len(goals), self._size)  # One env or a
+        return np.zeros(shape, np.float32), None                               # vector of them.
 
 
 def still_rates(task: str, control: str = "mocap", seed: int = 0, evaluations: int = 50,
@@ -69,6 +74,22 @@ def still_rates(task: str, control: str = "mocap", seed: int = 0, evaluations: i
         rates.append(float(np.mean(successes)))
     env.close()
     return rates
+
+
+def still_on_final_test(run_dir: pathlib.Path, episodes: int, seed: int) -> float:
+    """The still policy's success on the episodes `franka-composer evaluate RUN_DIR
+    --episodes N --seed S` plays (the run's task and env options): its final test's floor."""
+    from franka_composer.training.evaluation import measure_success
+    from franka_composer.training.models import make_env
+    from franka_composer.training.runs import RunDir
+
+    config = RunDir(run_dir).read_config()
+    env = make_env(config.task, **config.env_options)
+    try:
+        policy = StillPolicy(env.action_space.shape[0])
+        return measure_success(policy, env, episodes, seed=seed).success_rate
+    finally:
+        env.close()
 
 
 def run_and_floor(run_dir: pathlib.Path):
@@ -173,7 +194,22 @@ def main(argv: list[str] | None = None) -> int:
                              "per 5e4 steps (the other options are the run's)")
     parser.add_argument("--plot", type=pathlib.Path, metavar="PNG",
                         help="with --run: also draw each run beside its floor, one panel each")
+    parser.add_argument("--final-test", nargs=2, action="append", metavar=("EPISODES", "SEED"),
+                        help="with --run: also the still policy's success on the episodes "
+                             "`franka-composer evaluate RUN_DIR --episodes EPISODES --seed "
+                             "SEED` plays (repeatable)")
     args = parser.parse_args(argv)
+    if args.final_test and not args.run:
+        parser.error("--final-test reads runs: give them with --run")
+    final_tests = []
+    for episodes, seed in args.final_test or ():
+        for name, text, check in (("EPISODES", episodes, positive_int),
+                                  ("SEED", seed, episode_seed)):
+            try:
+                check(text)
+            except argparse.ArgumentTypeError as error:
+                parser.error(f"--final-test {name}: {error}")
+        final_tests.append((positive_int(episodes), episode_seed(seed)))
     if args.plot and not args.run:
         parser.error("--plot draws runs: give them with --run")
     if args.plot and args.plot.suffix.lower() not in (".png", ".pdf", ".svg"):
@@ -184,6 +220,10 @@ def main(argv: list[str] | None = None) -> int:
             config, steps, rates, still = run_and_floor(run_dir)
             print(f"{run_dir} ({config.task} {config.algo} seed {config.seed})\n")
             print(floor_table(steps, rates, still) + "\n")
+            for episodes, seed in final_tests:
+                rate = still_on_final_test(run_dir, episodes, seed)
+                print(f"still policy on evaluate's {episodes} episodes from seed {seed}: "
+                      f"{100 * rate:.1f} %\n")
             drawn.append((f"{config.task} {config.algo} seed {config.seed}", steps, rates,
                           still))
         if args.plot:

@@ -137,10 +137,29 @@ def test_runs_are_drawn_beside_their_floors_one_panel_each(tmp_path, capsys):
         "seed 0)" in out
     assert "| 0–6,000 | 4 | 50.0 % | 5.0 % | 4 / 0 / 0 | 0.062 |" in out  # Seed 0: 0, 1, 2, 0 of 15.
     assert out.rstrip().endswith(f"wrote {png}")
+    # --final-test: the still policy on evaluate's episodes: those that start solved (push's
+    # 20 from seed 2024: the block within 5 cm of the goal at reset in 2).
+    from franka_composer.training.models import make_env
+
+    env = make_env("push")
+    starts = [env.reset(seed=2024 if episode == 0 else None)[0] for episode in range(20)]
+    env.close()
+    solved = [np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]) < 0.05
+              for obs in starts]
+    assert sum(solved) == 2
+    assert module.main(["--run", str(tmp_path / "b"), "--final-test", "20", "2024"]) == 0
+    assert "still policy on evaluate's 20 episodes from seed 2024: 10.0 %" in \
+        capsys.readouterr().out
     assert Image.open(png).size == (1100, 400)  # Two 5.5 x 4 in panels at 100 dpi.
     for args, message in ((["--plot", str(png)], "--plot draws runs: give them with --run"),
                           (["--run", "x", "--plot", "floors.txt"],
-                           "--plot: a .png, .pdf or .svg file, not floors.txt")):
+                           "--plot: a .png, .pdf or .svg file, not floors.txt"),
+                          (["--final-test", "20", "2024"],
+                           "--final-test reads runs: give them with --run"),
+                          (["--run", "x", "--final-test", "0", "2024"],
+                           "--final-test EPISODES: must be a positive integer, got '0'"),
+                          (["--run", "x", "--final-test", "20", "-1"],
+                           "--final-test SEED: must be an integer >= 0, got '-1'")):
         with pytest.raises(SystemExit):
             module.main(args)
         assert message in capsys.readouterr().err
