@@ -7,6 +7,7 @@ Imported by those scripts (experiments/ is not a package; they put it on sys.pat
 
 from __future__ import annotations
 
+import contextlib
 import pathlib
 
 import gymnasium as gym
@@ -59,7 +60,11 @@ def play_recorded(run_root: pathlib.Path, task: str, recorder: type[EpisodeRecor
         raise SystemExit(str(error)) from None
     if config.task != task:
         raise SystemExit(f"{run_root}: a {config.task} run; this reads {task} runs")
-    with trained_on_its_task(run_root, device="cpu", wrap=recorder, **options) as (
-            _, env, model):
+    with contextlib.ExitStack() as stack:
+        try:  # A run this process cannot build or load is named, not a traceback.
+            _, env, model = stack.enter_context(
+                trained_on_its_task(run_root, device="cpu", wrap=recorder, **options))
+        except ValueError as error:
+            raise SystemExit(f"{run_root}: {error}") from None
         measure_success(model, env, episodes, seed=seed)
         return config, int(model.num_timesteps), np.array(env.rows, dtype=float)

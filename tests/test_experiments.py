@@ -453,6 +453,12 @@ def test_the_goal_bands_refuse_a_run_of_another_task():
     module = load_script(EXPERIMENTS / "pick_and_place_goals.py")
     with pytest.raises(SystemExit, match="a push run; this reads pick_and_place runs"):
         module.episodes_of(RESULTS / "table2" / "push-tqc-seed0", 1, 0)
+    # A run in an env only its own script builds (experiments/altered_runs.py) is named,
+    # with the script to use, not a traceback.
+    altered = RESULTS / "damped-block" / "pick_and_place-tqc-seed0"
+    with pytest.raises(SystemExit, match=f"^{altered}: the run trained in .* through the "
+                                         "experiments/ script that trained it$"):
+        module.episodes_of(altered, 1, 0)
 
 
 @pytest.mark.parametrize("args, message", [
