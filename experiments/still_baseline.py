@@ -2,7 +2,7 @@
 learning curve must rise above.
 
     python experiments/still_baseline.py --task push [--control osc] [--seed 0] [--evaluations 50]
-    python experiments/still_baseline.py --run RUN_DIR [RUN_DIR ...] [--plot PNG]
+    python experiments/still_baseline.py --run RUN_DIR [RUN_DIR ...] [--plot IMAGE]
         [--final-test EPISODES SEED ...]   # e.g. --final-test 20 2024 --final-test 200 100
 
 `train` evaluates 15 episodes every 2000 steps on an env seeded from the run's seed, and
@@ -110,9 +110,12 @@ def run_and_floor(run_dir: pathlib.Path):
     if not np.array_equal(steps, every * np.arange(len(rows))):
         raise SystemExit(f"{run.eval_csv}: evaluations are not every {every} steps from 0")
     rates = np.array([row["success_rate"] for row in rows])
-    still = np.array(still_rates(config.task, seed=config.seed, evaluations=len(rows),
-                                 episodes=config.hyperparameters.eval_episodes,
-                                 **config.env_options))  # Its control among them.
+    try:
+        still = np.array(still_rates(config.task, seed=config.seed, evaluations=len(rows),
+                                     episodes=config.hyperparameters.eval_episodes,
+                                     **config.env_options))  # Its control among them.
+    except ValueError as error:  # An env only its own script builds, named.
+        raise SystemExit(f"{run_dir}: {error}") from None
     return config, steps, rates, still
 
 
@@ -192,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run", type=pathlib.Path, nargs="+", metavar="RUN_DIR",
                         help="run directories: each one's evaluations beside its own floor, "
                              "per 5e4 steps (the other options are the run's)")
-    parser.add_argument("--plot", type=pathlib.Path, metavar="PNG",
+    parser.add_argument("--plot", type=pathlib.Path, metavar="IMAGE",
                         help="with --run: also draw each run beside its floor, one panel each")
     parser.add_argument("--final-test", nargs=2, action="append", metavar=("EPISODES", "SEED"),
                         help="with --run: also the still policy's success on the episodes "
@@ -201,15 +204,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.final_test and not args.run:
         parser.error("--final-test reads runs: give them with --run")
-    final_tests = []
-    for episodes, seed in args.final_test or ():
-        for name, text, check in (("EPISODES", episodes, positive_int),
-                                  ("SEED", seed, episode_seed)):
-            try:
-                check(text)
-            except argparse.ArgumentTypeError as error:
-                parser.error(f"--final-test {name}: {error}")
-        final_tests.append((positive_int(episodes), episode_seed(seed)))
+
+    def final_test_value(name: str, text: str, check) -> int:
+        try:
+            return check(text)
+        except argparse.ArgumentTypeError as error:
+            parser.error(f"--final-test {name}: {error}")
+
+    final_tests = [(final_test_value("EPISODES", episodes, positive_int),
+                    final_test_value("SEED", seed, episode_seed))
+                   for episodes, seed in args.final_test or ()]
     if args.plot and not args.run:
         parser.error("--plot draws runs: give them with --run")
     if args.plot and args.plot.suffix.lower() not in (".png", ".pdf", ".svg"):

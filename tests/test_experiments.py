@@ -97,6 +97,10 @@ def test_a_run_is_set_beside_its_own_floor_evaluation_by_evaluation(tmp_path):
         module.run_beside_floor(run.root)
     with pytest.raises(SystemExit, match="is not a training run"):
         module.run_beside_floor(tmp_path)
+    altered = RESULTS / "damped-block" / "pick_and_place-tqc-seed0"
+    with pytest.raises(SystemExit, match=f"^{altered}: the run trained in .* through the "
+                                         "experiments/ script that trained it$"):
+        module.run_beside_floor(altered)
 
 
 def test_the_sign_test_is_the_binomial_tail_of_the_evaluations_above_the_floor():
