@@ -73,36 +73,22 @@ background_sweep() {
   esac
 }
 
-# kept_runs finished|unfinished BUDGET: the runs sync kept in $KEPT (folders with a
-# config.json), by name, that have (not) finished at BUDGET steps: reached it, or stopped
-# early by the campaign's rule (`run_finished`; a run kept at a lower budget has not). This
-# checkout's code reads them (before use_frozen_tree).
-kept_runs() {
-  "$BIN/python" - "$KEPT" "$1" "$2" <<'PY'
-import pathlib
-import sys
-from franka_composer.training.runs import RunDir, run_finished
-kept, which, budget = pathlib.Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])
-runs = sorted(path for path in kept.glob("*/") if (path / "config.json").is_file())
-print(" ".join(path.name for path in runs
-               if run_finished(RunDir(path), budget) == (which == "finished")))
-PY
-}
-
 # report_cells KEPT NAME THRESHOLDS RUN...: the finished RUNs' test over 20 episodes
 # (KEPT/NAME.md) and over 200 others (seed 100, KEPT/NAME-200-episodes.md: the 20 are one
-# fixed set, +-5-9 points per model); from every run kept in KEPT, the curves
-# (KEPT/curves.png) and the steps to THRESHOLDS (percent, e.g. "80 90") beside the paper's
-# with the costs (KEPT/report.md).
+# fixed set, +-5-9 points per model); from the RUNs (PARTIAL=1: from every run kept in
+# KEPT, its evaluations so far), the curves (KEPT/curves.png) and the steps to THRESHOLDS
+# (percent, e.g. "80 90") beside the paper's with the costs (KEPT/report.md).
 report_cells() {
-  local kept=$1 name=$2 thresholds
+  local kept=$1 name=$2 thresholds curves
   read -ra thresholds <<< "$3"
   shift 3
+  curves=("$@")
+  [ "${PARTIAL:-0}" != 1 ] || curves=("$kept")
   "$BIN/franka-composer" evaluate "$@" --episodes 20 --device cpu --out "$kept/$name.md" \
     || return 1
   "$BIN/franka-composer" evaluate "$@" --episodes 200 --seed 100 --device cpu \
     --out "$kept/$name-200-episodes.md" || return 1
-  "$BIN/franka-composer" plot "$kept" --out "$kept/curves.png" || return 1
-  "$BIN/franka-composer" report "$kept" --thresholds "${thresholds[@]}" \
+  "$BIN/franka-composer" plot "${curves[@]}" --out "$kept/curves.png" || return 1
+  "$BIN/franka-composer" report "${curves[@]}" --thresholds "${thresholds[@]}" \
     --paper-curves results/paper-curves/curves.csv --out "$kept/report.md"
 }

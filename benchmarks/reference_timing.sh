@@ -11,20 +11,21 @@
 #   benchmarks/reference_timing.sh stop     checkpoint the running cells and stop
 #   benchmarks/reference_timing.sh status   the table of cells
 #   benchmarks/reference_timing.sh sync     what the cells kept, into $KEPT
-#   benchmarks/reference_timing.sh report   from what sync kept in $KEPT, once every cell there
-#                                           has finished: the test over 20 episodes
+#   benchmarks/reference_timing.sh report   from what sync kept in $KEPT, the algorithms
+#                                           whose every seed has finished (the others
+#                                           named, not reported): the test over 20 episodes
 #                                           (table.md) and 200 others (seed 100,
 #                                           table-200-episodes.md), the curves (curves.png)
 #                                           and the steps to 50/80/90 % beside the paper's with
 #                                           the costs (report.md), into $KEPT; PARTIAL=1
-#                                           makes the tables of the finished cells and
+#                                           makes the tables of every finished cell and
 #                                           the rest of every cell's evaluations so far
 #
 # ALGO (default tqc) and SEEDS (default "0 1 2") pick the cells; RUNS (default
 # ~/franka_runs/reference-timing), KEPT (default results/reference-timing).
 set -uo pipefail
 cd "$(dirname "$0")/.."
-case "${1:-}" in run|stop|status|sync|report) ;; *) sed -n '2,24p' "$0"; exit 2 ;; esac
+case "${1:-}" in run|stop|status|sync|report) ;; *) sed -n '2,25p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/reference-timing"
 read -ra seeds <<< "${SEEDS:-0 1 2}"
@@ -38,8 +39,39 @@ case "$ALGO" in
   *) echo "ALGO must be tqc, sac or ddpg, not $ALGO" >&2; exit 2 ;;
 esac
 BUDGET=500000
+
+# finished_algorithms: three lines from the runs sync kept in $KEPT, by name: the runs of
+# the algorithms whose every seed (SEEDS) has finished at BUDGET, the finished runs of all,
+# and for each other algorithm what it waits for. This checkout's code reads them (before
+# use_frozen_tree).
+finished_algorithms() {
+  "$BIN/python" - "$KEPT" "$BUDGET" "${seeds[@]}" <<'PY'
+import pathlib
+import sys
+from franka_composer.training.runs import RunDir, run_finished
+kept, budget, seeds = pathlib.Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3:]
+runs = {path.name: path for path in sorted(kept.glob("*/"))
+        if (path / "config.json").is_file()}
+finished = [name for name, path in runs.items() if run_finished(RunDir(path), budget)]
+complete, waiting = [], []
+for algo in dict.fromkeys(name.split("-")[1] for name in runs):
+    cells = [f"pick_and_place-{algo}-seed{seed}" for seed in seeds]
+    if all(cell in finished for cell in cells):
+        complete += cells
+        continue
+    unfinished = [cell for cell in cells if cell in runs and cell not in finished]
+    absent = [f"seed {seed} not kept"
+              for seed, cell in zip(seeds, cells) if cell not in runs]
+    waiting.append(f"{algo} ({', '.join(unfinished + absent)})")
+print(" ".join(complete))
+print(" ".join(finished))
+print("; ".join(waiting))
+PY
+}
+
 if [ "$1" = run ]; then  # A cell sync kept as finished is done (its runs may be gone).
-  finished=$(kept_runs finished "$BUDGET") || exit 1
+  by_algorithm=$(finished_algorithms) || exit 1
+  { read -r _; read -r finished; } <<< "$by_algorithm"
   unfinished=()
   for seed in "${seeds[@]}"; do
     [[ " $finished " == *" pick_and_place-$ALGO-seed$seed "* ]] || unfinished+=("$seed")
@@ -53,16 +85,16 @@ train_options=(${computation[@]+"${computation[@]}"} --timing reference
                --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1
                --device cpu)
 if [ "$1" = report ]; then
-  unfinished=$(kept_runs unfinished "$BUDGET") && finished=$(kept_runs finished "$BUDGET") \
-    || exit 1
-  if [ -n "$unfinished" ] && [ "${PARTIAL:-0}" != 1 ]; then
-    echo "not finished (PARTIAL=1 reports the rest): ${unfinished// /, }" >&2
+  by_algorithm=$(finished_algorithms) || exit 1
+  { read -r complete; read -r finished; read -r waiting; } <<< "$by_algorithm"
+  [ -z "$waiting" ] || echo "not reported until every seed has finished: $waiting" >&2
+  [ "${PARTIAL:-0}" = 1 ] || finished=$complete
+  read -ra finished <<< "$finished"
+  if [ ${#finished[@]} -eq 0 ]; then
+    echo "no algorithm has finished its cells in $KEPT" >&2
     exit 1
   fi
-  read -ra finished <<< "$finished"
-  [ ${#finished[@]} -gt 0 ] || { echo "no cell has finished in $KEPT" >&2; exit 1; }
-  finished=("${finished[@]/#/$KEPT/}")
-  report_cells "$KEPT" table "50 80 90" "${finished[@]}"
+  report_cells "$KEPT" table "50 80 90" "${finished[@]/#/$KEPT/}"
   exit
 fi
 background_sweep "$1" "$KEPT"

@@ -135,18 +135,26 @@ def _section(text: str, title: str) -> str:
     return text.split(f"\n## {title}\n", 1)[1].split("\n## ", 1)[0]
 
 
-def test_pick_and_place_at_the_reference_timing_is_reported_running_until_it_has_finished():
-    """No partial result: while a cell of `benchmarks/reference_timing.sh` has not finished
-    (no outcome.json kept), RESULTS.md says it is running and states no success rate."""
+def test_pick_and_place_at_the_reference_timing_reports_each_algorithm_once_finished():
+    """No partial result: RESULTS.md's table gives an algorithm of `reference_timing.sh`
+    only once its three seeds have finished (an outcome.json kept each); until then one
+    paragraph says it is running and states no success rate."""
     section = _section(RESULTS_MD.read_text(), "Pick-and-place at the reference timing")
     kept = TABLE2.parent / "reference-timing"
-    finished = sorted(kept.glob("*/outcome.json")) if kept.is_dir() else []
-    if len(finished) < 3:
-        assert "**Running.**" in section and "no result yet" in section
-        assert "%" not in section
-    else:  # Finished: the section gives the cell's result, no longer a running campaign.
-        assert "**Running.**" not in section and "no result yet" not in section
-        assert "%" in section
+    outcomes = [path.parent.name for path in kept.glob("pick_and_place-*-seed*/outcome.json")]
+    algorithms = {path.parent.name.split("-")[1]
+                  for path in kept.glob("pick_and_place-*/config.json")}
+    running = [algo.upper() for algo in ("tqc", "sac", "ddpg")
+               if algo in algorithms and sum(f"-{algo}-" in name for name in outcomes) < 3]
+    rows = [line for line in section.splitlines() if line.startswith("|")]
+    told = [p for p in section.split("\n\n") if p.startswith("**Running.**")]
+    assert [algo for algo in running if any(algo in row for row in rows)] == []
+    if running:
+        assert len(told) == 1 and "no result yet" in told[0] and "%" not in told[0]
+        assert [algo for algo in running if algo not in told[0]] == []
+    else:
+        assert told == []
+    assert any("TQC" in row for row in rows) == ("TQC" not in running)
 
 
 def test_the_learnability_runs_are_reported_running_until_both_have_finished():

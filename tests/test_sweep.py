@@ -649,30 +649,57 @@ def test_reference_timing_sh_trains_only_the_cells_sync_has_not_kept_as_finished
     assert "--seeds 0 1 2 --steps 500000" in status.stdout
 
 
-def test_reference_timing_sh_reports_once_every_kept_cell_has_finished(tmp_path):
+def test_reference_timing_sh_reports_the_algorithms_whose_every_seed_has_finished(tmp_path):
     """`report`: the tests over 20 and 200 episodes, the curves and the steps to 50/80/90 %
-    of the cells sync kept, refused while one has not finished unless PARTIAL=1."""
+    of the algorithms whose three seeds sync kept finished; an algorithm still training is
+    named and left out (its runs' evaluations too) unless PARTIAL=1."""
     kept = tmp_path / "kept"
     reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
     assert (reported.returncode, reported.stdout) == (1, "")
-    assert reported.stderr == f"no cell has finished in {kept}\n"
+    assert reported.stderr == f"no algorithm has finished its cells in {kept}\n"
     _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0)], (500000, False, 2))
     _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0)])
     _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)], (400000, False, 2))
     (kept / "notes").mkdir()  # Not a run: no config.json.
     reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
     assert (reported.returncode, reported.stdout) == (1, "")
-    assert reported.stderr == ("not finished (PARTIAL=1 reports the rest): "
-                               "pick_and_place-tqc-seed1, pick_and_place-tqc-seed2\n")
+    assert reported.stderr == (
+        "not reported until every seed has finished: tqc (pick_and_place-tqc-seed1, "
+        f"pick_and_place-tqc-seed2)\nno algorithm has finished its cells in {kept}\n")
     partial = _benchmark_sh(tmp_path, "reference_timing.sh", "report", PARTIAL="1")
     assert partial.returncode == 0, partial.stderr
-    finished = f"{kept}/pick_and_place-tqc-seed0"
-    assert partial.stdout.splitlines() == [
-        f"franka-composer evaluate {finished} --episodes 20 --device cpu --out {kept}/table.md",
-        f"franka-composer evaluate {finished} --episodes 200 --seed 100 --device cpu --out "
-        f"{kept}/table-200-episodes.md",
-        f"franka-composer plot {kept} --out {kept}/curves.png",  # Every cell's curve.
-        f"franka-composer report {kept} --thresholds 50 80 90 --paper-curves "
+    assert partial.stdout.splitlines() == _report_lines(
+        kept, [f"{kept}/pick_and_place-tqc-seed0"], [str(kept)])  # Every cell's curve.
+    # TQC finished (seed 2 stopped early by the rule); SAC's seed 0 training, 1 and 2 to come.
+    _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0)], (500000, False, 2))
+    _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)], (120000, True, 2))
+    _write_run(kept, "pick_and_place-sac-seed0", [(0, 1, 0.0)])
+    reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
+    assert reported.returncode == 0, reported.stderr
+    assert reported.stderr == ("not reported until every seed has finished: sac "
+                               "(pick_and_place-sac-seed0, seed 1 not kept, seed 2 not kept)\n")
+    tqc = [f"{kept}/pick_and_place-tqc-seed{seed}" for seed in range(3)]
+    assert reported.stdout.splitlines() == _report_lines(kept, tqc, tqc)
+    # SAC's seed 0 finished: still not reported, seeds 1 and 2 are not; SEEDS picks them.
+    _write_run(kept, "pick_and_place-sac-seed0", [(0, 1, 0.0)], (500000, False, 2))
+    reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
+    assert reported.stdout.splitlines() == _report_lines(kept, tqc, tqc)
+    one_seed = _benchmark_sh(tmp_path, "reference_timing.sh", "report", SEEDS="0")
+    assert (one_seed.returncode, one_seed.stderr) == (0, "")
+    both = [f"{kept}/pick_and_place-{algo}-seed0" for algo in ("sac", "tqc")]
+    assert one_seed.stdout.splitlines() == _report_lines(kept, both, both)
+
+
+def _report_lines(kept, tested, plotted):
+    """The commands `reference_timing.sh report` runs: the tests of `tested`, the curves
+    and steps to 50/80/90 % of `plotted`."""
+    return [
+        f"franka-composer evaluate {' '.join(tested)} --episodes 20 --device cpu --out "
+        f"{kept}/table.md",
+        f"franka-composer evaluate {' '.join(tested)} --episodes 200 --seed 100 --device cpu "
+        f"--out {kept}/table-200-episodes.md",
+        f"franka-composer plot {' '.join(plotted)} --out {kept}/curves.png",
+        f"franka-composer report {' '.join(plotted)} --thresholds 50 80 90 --paper-curves "
         f"results/paper-curves/curves.csv --out {kept}/report.md"]
 
 
