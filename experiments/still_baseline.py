@@ -76,14 +76,13 @@ def still_rates(task: str, control: str = "mocap", seed: int = 0, evaluations: i
     return rates
 
 
-def still_on_final_test(run_dir: pathlib.Path, episodes: int, seed: int) -> float:
+def still_on_final_test(config, episodes: int, seed: int) -> float:
     """The still policy's success on the episodes `franka-composer evaluate RUN_DIR
-    --episodes N --seed S` plays (the run's task and env options): its final test's floor."""
+    --episodes N --seed S` plays (the task and env options of the run's `config`): its final
+    test's floor."""
     from franka_composer.training.evaluation import measure_success
     from franka_composer.training.models import make_env
-    from franka_composer.training.runs import RunDir
 
-    config = RunDir(run_dir).read_config()
     env = make_env(config.task, **config.env_options)
     try:
         policy = StillPolicy(env.action_space.shape[0])
@@ -225,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{run_dir} ({config.task} {config.algo} seed {config.seed})\n")
             print(floor_table(steps, rates, still) + "\n")
             for episodes, seed in final_tests:
-                rate = still_on_final_test(run_dir, episodes, seed)
+                rate = still_on_final_test(config, episodes, seed)
                 print(f"still policy on evaluate's {episodes} episodes from seed {seed}: "
                       f"{100 * rate:.1f} %\n")
             drawn.append((f"{config.task} {config.algo} seed {config.seed}", steps, rates,
