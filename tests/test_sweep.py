@@ -589,37 +589,49 @@ def test_table2_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path)
     assert (done.returncode, done.stdout) == (0, f"every cell has finished ({tmp_path}/kept)\n")
 
 
-@pytest.mark.parametrize("script, env, cells, options", [
+@pytest.mark.parametrize("script, env, cells, options, kept", [
     ("reference_timing.sh", {}, "--tasks pick_and_place --algos tqc --seeds 0 1 2",
-     "--backend sbx --timing reference"),
+     "--backend sbx --timing reference", "reference-timing"),
     ("reference_timing.sh", {"ALGO": "sac", "SEEDS": "2"},
-     "--tasks pick_and_place --algos sac --seeds 2", "--precision bf16 --timing reference"),
+     "--tasks pick_and_place --algos sac --seeds 2", "--precision bf16 --timing reference",
+     "reference-timing"),
     ("reference_timing.sh", {"ALGO": "ddpg"}, "--tasks pick_and_place --algos ddpg --seeds 0 1 2",
-     "--timing reference"),
-    ("learnability.sh", {}, "--tasks stack flip --algos tqc --seeds 0", "--backend sbx"),
+     "--timing reference", "reference-timing"),
+    ("reference_timing.sh", {"TIMING": "default", "ALGO": "sac"},
+     "--tasks pick_and_place --algos sac --seeds 0 1 2", "--precision bf16", "default-timing"),
+    ("reference_timing.sh", {"TIMING": "default", "ALGO": "ddpg"},
+     "--tasks pick_and_place --algos ddpg --seeds 0 1 2", "", "default-timing"),
+    ("learnability.sh", {}, "--tasks stack flip --algos tqc --seeds 0", "--backend sbx",
+     "learnability"),
 ])
 def test_background_campaigns_train_their_cells_with_their_options(
-        tmp_path, script, env, cells, options):
+        tmp_path, script, env, cells, options, kept):
     """Each campaign script's `run` is one sweep of its cells at 5e5 steps, every cell with
     the campaign's stopping rule and checkpoints; an unknown command prints its usage."""
     ran = _benchmark_sh(tmp_path, script, "run", **env)
     assert ran.returncode == 0, ran.stderr
     assert ran.stdout == (
         f"franka-composer sweep --out {tmp_path}/runs {cells} --steps 500000 --num-cpus 1 "
-        f"--refresh 600 -- {options} --stop-at-success 0.95 --stop-after 5 "
-        "--checkpoint-every 10000 --threads 1 --device cpu\n")
+        f"--refresh 600 -- {options + ' ' if options else ''}--stop-at-success 0.95 "
+        "--stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu\n")
     synced = _benchmark_sh(tmp_path, script, "sync", **env)
     assert synced.stdout.endswith(f"--sync {tmp_path}/kept\n")  # KEPT, where given.
     synced = _benchmark_sh(tmp_path, script, "sync", **env, KEPT="")
-    assert synced.stdout.endswith(f"--sync results/{script[:-3].replace('_', '-')}\n")
+    assert synced.stdout.endswith(f"--sync results/{kept}\n")
+    # RUNS, where not given: beside the other campaigns' runs, one folder per campaign.
+    status = _benchmark_sh(tmp_path, script, "status", **env, RUNS="", HOME=str(tmp_path))
+    assert f"--out {tmp_path}/franka_runs/{kept} " in status.stdout
     usage = _benchmark_sh(tmp_path, script, "train", **env)
     assert usage.returncode == 2 and usage.stdout.startswith("# ")
 
 
-def test_reference_timing_sh_refuses_an_unknown_algorithm(tmp_path):
+def test_reference_timing_sh_refuses_an_unknown_algorithm_or_timing(tmp_path):
     refused = _benchmark_sh(tmp_path, "reference_timing.sh", "run", ALGO="td3")
     assert (refused.returncode, refused.stdout) == (2, "")
     assert refused.stderr == "ALGO must be tqc, sac or ddpg, not td3\n"
+    refused = _benchmark_sh(tmp_path, "reference_timing.sh", "run", TIMING="fast")
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == "TIMING must be reference or default, not fast\n"
 
 
 def test_reference_timing_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path):
