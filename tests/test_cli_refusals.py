@@ -151,6 +151,32 @@ def test_a_policy_or_run_that_does_not_exist_is_named_so(tmp_path):
         RunDir(tmp_path).read_config()
 
 
+def test_a_policy_run_with_nothing_trained_is_named_before_anything_is_made(tmp_path,
+                                                                              monkeypatch):
+    """A run still training, kept without a model: demo and rollout with --policy say so
+    before an env is built or a dataset begun."""
+    import shutil
+
+    import gymnasium
+
+    from franka_composer.training import models
+
+    made = []
+    monkeypatch.setattr(gymnasium, "make", lambda *args, **kwargs: made.append(args))
+    monkeypatch.setattr(models, "make_env", lambda *args, **kwargs: made.append(args))
+    kept = pathlib.Path(__file__).parents[1] / "results" / "table2" / "push-ddpg-seed1"
+    training = tmp_path / "training"
+    training.mkdir()
+    shutil.copy(kept / "config.json", training / "config.json")
+    no_model = f"^{re.escape(str(training))} has no model yet \\(no model.zip, no checkpoint, "
+    for argv in (["demo", "--policy", str(training), "--out", str(tmp_path / "videos")],
+                 ["rollout", "--task", "push", "--episodes", "1", "--policy", str(training),
+                  "--out", str(tmp_path / "x.npz")]):
+        with pytest.raises(ValueError, match=no_model):
+            cli.main(argv)
+    assert made == [] and sorted(path.name for path in tmp_path.iterdir()) == ["training"]
+
+
 @pytest.mark.parametrize("row, problem", [
     ("2000,2,7.0,-1", "success_rate must be within [0, 1], got 7.0"),
     ("2000,2,-2,-1", "success_rate must be within [0, 1], got -2.0"),

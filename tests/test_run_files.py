@@ -166,6 +166,28 @@ def test_evaluate_passes_over_a_damaged_model_zip_for_the_final_checkpoint(finis
         cli.main(["evaluate", str(run.root), "--episodes", "2", "--device", "cpu"])
 
 
+def test_evaluate_names_a_run_with_nothing_trained_before_it_plays_any(tmp_path, capsys,
+                                                                       monkeypatch):
+    """A run kept while still training (config.json and eval.csv, no model) among finished
+    ones: `evaluate` names it at once, not after playing the others, and makes no env."""
+    import shutil
+
+    from franka_composer.training import policy_file
+
+    kept = pathlib.Path(__file__).parents[1] / "results" / "table2" / "push-ddpg-seed1"
+    training = tmp_path / "push-ddpg-seed2"
+    training.mkdir()
+    shutil.copy(kept / "eval.csv", training / "eval.csv")
+    config = json.loads((kept / "config.json").read_text())
+    (training / "config.json").write_text(json.dumps({**config, "seed": 2}))
+    made = []
+    monkeypatch.setattr(policy_file, "make_env", lambda *args, **kwargs: made.append(args))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{training} has no model yet (no model.zip, no checkpoint, no policy.pt)")):
+        cli.main(["evaluate", str(kept), str(training), "--episodes", "2", "--device", "cpu"])
+    assert made == [] and "success" not in capsys.readouterr().out
+
+
 @pytest.mark.slow
 def test_a_kill_while_the_final_model_is_written_leaves_no_damaged_model_zip(tmp_path,
                                                                              monkeypatch):

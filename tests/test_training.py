@@ -224,10 +224,16 @@ def test_a_run_opens_on_its_task_as_it_trained_and_its_env_closes_whatever_happe
         assert run.task == "push" and env is opened[0] and isinstance(policy, ActorPolicy)
         assert env.unwrapped.task.config.terminate_on_success is False  # The run's option.
         assert policy.num_timesteps == 300
-    (committed / "policy.pt").unlink()  # Loading fails: the env made for it is closed.
+    (committed / "policy.pt").write_bytes(b"")  # Loading fails: the env made for it closes.
+    with pytest.raises(ValueError, match="policy.pt"):
+        with trained_on_its_task(committed, wrap=lambda env: opened.append(env) or env):
+            pass
+    assert len(opened) == 2
+    (committed / "policy.pt").unlink()  # Nothing to load: refused before an env is made.
     with pytest.raises(ValueError, match="has no model yet"):
         with trained_on_its_task(committed, wrap=lambda env: opened.append(env) or env):
             pass
+    assert len(opened) == 2
     for env in opened:
         with pytest.raises(gym.error.ClosedEnvironmentError, match="closed: make a new one"):
             env.reset(seed=0)

@@ -95,9 +95,11 @@ def run(args: argparse.Namespace) -> int:
 def _adopt_the_runs_task(args: argparse.Namespace):
     """The --policy run's config, with `args` set to its task and controller; a --tasks or
     --control that names others is an error (before anything is built)."""
+    from franka_composer.training.policy_file import check_trained
     from franka_composer.training.runs import RunDir
 
     config = RunDir(args.policy).read_config()
+    check_trained(RunDir(args.policy))
     if args.tasks not in (franka_composer.ALL_TASKS, (config.task,)):
         raise ValueError(f"--policy {args.policy} was trained on {config.task}; --tasks "
                          f"{','.join(args.tasks)} asks for others")

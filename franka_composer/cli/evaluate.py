@@ -32,13 +32,18 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.policy_file import trained_on_its_task
+    from franka_composer.training.policy_file import check_trained, trained_on_its_task
     from franka_composer.training.report import (RunResult, markdown_table, seeds_note,
                                                  with_variant)
+    from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import run_directories
 
+    roots = run_directories(args.runs)
+    for root in roots:  # Every run named before the first is played, not after.
+        RunDir(root).read_config()
+        check_trained(RunDir(root))
     results = []
-    for root in run_directories(args.runs):
+    for root in roots:
         with trained_on_its_task(root, device=args.device) as (config, env, model):
             outcome = measure_success(model, env, args.episodes, seed=args.seed)
         result = RunResult(str(root), config.task, config.algo, config.seed,

@@ -61,9 +61,11 @@ def run(args: argparse.Namespace) -> int:
 
     run_timing, damping = None, args.object_damping
     if args.policy is not None:  # In the run's env unless told otherwise.
+        from franka_composer.training.policy_file import check_trained
         from franka_composer.training.runs import RunDir
 
         trained = RunDir(args.policy).read_config()
+        check_trained(RunDir(args.policy))  # Before a dataset is begun.
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
     task_options = {**given_timing(args, run_timing),

@@ -126,11 +126,21 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
     return policy
 
 
+def check_trained(run: RunDir) -> None:
+    """A ValueError naming `run` if it holds nothing trained to load (a run still training
+    and kept without a checkpoint, say): asked before an env is made for it."""
+    if not any(path.is_file() for path in (run.final_model, run.checkpoint_model,
+                                           run.policy_file)):
+        raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
+                         "no policy.pt)")
+
+
 def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
     """What `run` trained, ready to act on `env`: its full model (model.zip, else its latest
     checkpoint: `RunDir.best_model`) where it has one whole, else its policy file (a run as
     committed; a warning says which damaged model was passed over)."""
     config = run.read_config()
+    check_trained(run)
     if run.final_model.is_file() or run.checkpoint_model.is_file():
         try:
             model = run.best_model()
@@ -142,9 +152,6 @@ def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
         else:
             return load_model(config.algo, model, env=env, device=device,
                               backend=config.backend)
-    if not run.policy_file.is_file():
-        raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
-                         "no policy.pt)")
     return load_policy(config, run.policy_file, env, device)
 
 
@@ -155,6 +162,7 @@ def trained_on_its_task(root: pathlib.Path, device: str = "auto", wrap=None, **o
     it trained, acting on that env, which is closed on leaving, whatever happens inside."""
     run = RunDir(pathlib.Path(root))
     config = run.read_config()
+    check_trained(run)
     env = make_env(config.task, **{**config.env_options, **options})
     try:
         if wrap is not None:
