@@ -98,8 +98,9 @@ def _adopt_the_runs_task(args: argparse.Namespace):
     from franka_composer.training.policy_file import check_trained
     from franka_composer.training.runs import RunDir
 
-    config = RunDir(args.policy).read_config()
-    check_trained(RunDir(args.policy))
+    policy_run = RunDir(args.policy)
+    config = policy_run.read_config()
+    check_trained(policy_run)
     if args.tasks not in (franka_composer.ALL_TASKS, (config.task,)):
         raise ValueError(f"--policy {args.policy} was trained on {config.task}; --tasks "
                          f"{','.join(args.tasks)} asks for others")

@@ -64,8 +64,9 @@ def run(args: argparse.Namespace) -> int:
         from franka_composer.training.policy_file import check_trained
         from franka_composer.training.runs import RunDir
 
-        trained = RunDir(args.policy).read_config()
-        check_trained(RunDir(args.policy))  # Before a dataset is begun.
+        policy_run = RunDir(args.policy)
+        trained = policy_run.read_config()
+        check_trained(policy_run)  # Before a dataset is begun.
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
     task_options = {**given_timing(args, run_timing),
