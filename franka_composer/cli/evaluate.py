@@ -39,9 +39,9 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.sweep import run_directories
 
     roots = run_directories(args.runs)
-    for root in roots:  # Every run named before the first is played, not after.
-        RunDir(root).read_config()
-        check_trained(RunDir(root))
+    for run in map(RunDir, roots):  # Every run named before the first is played, not after.
+        run.read_config()
+        check_trained(run)
     results = []
     for root in roots:
         with trained_on_its_task(root, device=args.device) as (config, env, model):
