@@ -67,10 +67,38 @@ background_sweep() {
       stop_sweep "franka-composer sweep --out $RUNS " "$RUNS" || return 1
       "$BIN/franka-composer" "${sweep[@]}" --status
       ;;
-    status) "$BIN/franka-composer" "${sweep[@]}" --status ;;
+    status)
+      "$BIN/franka-composer" "${sweep[@]}" --status || return 1
+      kept_ahead "$RUNS" "${KEPT:-$2}"
+      ;;
     sync) "$BIN/franka-composer" "${sweep[@]}" --sync "${KEPT:-$2}" ;;
     *) return 2 ;;
   esac
+}
+
+# kept_ahead RUNS KEPT [NAME...]: a line for each unfinished run kept in KEPT (or each NAME)
+# whose evaluations there go past its run's in RUNS: a run lost with its machine, begun
+# again from zero (or not yet), which retraces them and is kept once it has passed them.
+kept_ahead() {
+  "$BIN/python" - "$@" <<'PY'
+import pathlib
+import sys
+from franka_composer.training.runs import RunDir, read_eval_rows
+runs, kept = (pathlib.Path(arg) for arg in sys.argv[1:3])
+names = sys.argv[3:] or sorted(path.name for path in kept.glob("*/"))
+for name in names:
+    ours = RunDir(kept / name)
+    rows = read_eval_rows(ours.eval_csv)
+    if not rows or ours.read_outcome():
+        continue
+    last, run = rows[-1]["steps"], RunDir(runs / name)
+    reached = max((row["steps"] for row in run.kept_evaluations()), default=None)
+    if reached is not None and reached >= last:
+        continue
+    here = "no run here" if reached is None else f"its run here is at step {reached:,}"
+    print(f"{name}: evaluations kept to step {last:,} in {kept}; {here} (begun again from "
+          "zero, it retraces them, and is kept once it has passed them)")
+PY
 }
 
 # report_cells KEPT NAME THRESHOLDS RUN...: the finished RUNs' test over 20 episodes

@@ -11,7 +11,7 @@
 #                                           FROZEN=COMMIT runs that commit's code (a
 #                                           worktree beside $RUNS)
 #   benchmarks/reference_timing.sh stop     checkpoint the running cells and stop
-#   benchmarks/reference_timing.sh status   the table of cells
+#   benchmarks/reference_timing.sh status   the table of cells, evaluations to retrace
 #   benchmarks/reference_timing.sh sync     what the cells kept, into $KEPT
 #   benchmarks/reference_timing.sh report   from what sync kept in $KEPT, the algorithms
 #                                           whose every seed has finished (the others

@@ -10,7 +10,7 @@
 #   experiments/pick_and_place_checks.sh stop CHECK   checkpoint it and stop (waits)
 #   experiments/pick_and_place_checks.sh keep CHECK   what it has kept, into results/
 #   experiments/pick_and_place_checks.sh status CHECK whether it runs, its checkpoint, its
-#                                                     last evaluation
+#                                                     last evaluation, kept ones to retrace
 #
 # CHECK: damped_block (the reference code's block damping), unguarded (the surface guard
 # let go), reference_physics (every difference experiments/env_differences.py undoes, undone
@@ -18,7 +18,7 @@
 # ~/franka_runs/reference-code, a checkout of panda_mujoco_gym at e9881d9), reference_env_sb3
 # (the same on SB3 in fp32, the paper's computation, in place of sbx), learning_starts (1e5
 # random steps first). SEED (default 0) picks the seed; RUNS (default ~/franka_runs) holds
-# the runs and the trees.
+# the runs and the trees, RESULTS (default results/) what `keep` kept.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -29,6 +29,7 @@ esac
 SEED=${SEED:-0}
 [[ $SEED =~ ^[0-9]+$ ]] || { echo "SEED must be a whole number, not $SEED" >&2; exit 2; }
 RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs}")
+RESULTS=$(realpath -m "${RESULTS:-results}")
 BIN=$(realpath -m "${BIN:-.venv/bin}")
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 cell=(--task pick_and_place --algo tqc --backend sbx --seed "$SEED" --total-steps 500000
@@ -80,15 +81,20 @@ case "$1" in
     if pgrep -af -- "--out $out( |$)"; then echo "still running: the process above" >&2; exit 1; fi
     cat "$out/checkpoint/state.json"; echo
     ;;
-  keep) "$BIN/franka-composer" keep "$out" --into "$ROOT/results/$folder" ;;
+  keep) "$BIN/franka-composer" keep "$out" --into "$RESULTS/$folder" ;;
   status)
-    if [ ! -d "$out" ]; then echo "$2: not started ($out)"; exit 0; fi
-    state=stopped; pgrep -f -- "--out $out( |$)" >/dev/null && state=running
-    steps=none
-    [ -f "$out/checkpoint/state.json" ] && steps=$(sed -n 's/.*"steps": *\([0-9]*\).*/\1/p' \
-      "$out/checkpoint/state.json")
-    last=$(tail -n 1 "$out/eval.csv" 2>/dev/null | cut -d, -f1,3)
-    echo "$2: $state; checkpoint at step ${steps:-none}; last evaluation (step,success):" \
-         "${last:-none}"
+    if [ ! -d "$out" ]; then
+      echo "$2: not started ($out)"
+    else
+      state=stopped; pgrep -f -- "--out $out( |$)" >/dev/null && state=running
+      steps=none
+      [ -f "$out/checkpoint/state.json" ] && steps=$(sed -n \
+        's/.*"steps": *\([0-9]*\).*/\1/p' "$out/checkpoint/state.json")
+      last=$(tail -n 1 "$out/eval.csv" 2>/dev/null | cut -d, -f1,3)
+      echo "$2: $state; checkpoint at step ${steps:-none}; last evaluation (step,success):" \
+           "${last:-none}"
+    fi
+    source benchmarks/background_sweep.sh
+    kept_ahead "$RUNS/$folder" "$RESULTS/$folder" "$(basename "$out")"
     ;;
 esac

@@ -1231,6 +1231,19 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
         env={**os.environ, "RUNS": str(tmp_path), "SEED": "1"})
     assert completed.stdout.strip() == ("reference_env_sb3: not started "
                                         f"({tmp_path}/reference-env-sb3/pick_and_place-tqc-seed1)")
+    # Evaluations kept (RESULTS) beyond the run's: lost with its machine, to be retraced.
+    kept = tmp_path / "kept" / "unguarded" / "pick_and_place-tqc-seed0"
+    kept.mkdir(parents=True)
+    (kept / "eval.csv").write_text("steps,wall_time_s,success_rate,mean_reward\n"
+                                   "0,1.0,0.0,-50.0\n2000,9.5,0.2,-40.0\n4000,19.0,0.1,-45.0\n")
+    completed = subprocess.run(
+        ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status", "unguarded"],
+        capture_output=True, text=True, check=True,
+        env={**os.environ, "RUNS": str(tmp_path), "RESULTS": str(tmp_path / "kept")})
+    assert completed.stdout.splitlines()[1] == (
+        f"pick_and_place-tqc-seed0: evaluations kept to step 4,000 in {kept.parent}; its run "
+        "here is at step 2,000 (begun again from zero, it retraces them, and is kept once it "
+        "has passed them)")
 
 
 @pytest.mark.parametrize("args, seed, message", [

@@ -661,6 +661,29 @@ def test_reference_timing_sh_trains_only_the_cells_sync_has_not_kept_as_finished
     assert "--seeds 0 1 2 --steps 500000" in status.stdout
 
 
+def test_a_campaigns_status_names_the_kept_runs_its_runs_have_not_passed(tmp_path):
+    """A machine handed back bare lost the unfinished runs: `status` says, below the table,
+    which kept evaluations their runs begun again from zero have still to retrace."""
+    kept, runs = tmp_path / "kept", tmp_path / "runs"
+    _write_run(kept, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 9, 0.1), (4000, 18, 0.2)])
+    _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0), (2000, 9, 0.1)],
+               (500000, False, 2))  # Finished: done, whatever is here.
+    _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0), (2000, 9, 0.1)])
+    _write_run(runs, "pick_and_place-tqc-seed2", [(0, 1, 0.0), (2000, 8, 0.1)])  # Passed.
+    ahead = (f"pick_and_place-tqc-seed0: evaluations kept to step 4,000 in {kept}; "
+             "{} (begun again from zero, it retraces them, and is kept once it has passed "
+             "them)\n")
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
+    assert status.returncode == 0, status.stderr
+    assert status.stdout.endswith("--status\n" + ahead.format("no run here"))
+    _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.1)])
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
+    assert status.stdout.endswith("--status\n" + ahead.format("its run here is at step 2,000"))
+    _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.1), (4000, 17, 0.2)])
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
+    assert status.stdout.endswith("--status\n")
+
+
 def test_reference_timing_sh_reports_the_algorithms_whose_every_seed_has_finished(tmp_path):
     """`report`: the tests over 20 and 200 episodes, the curves and the steps to 50/80/90 %
     of the algorithms whose three seeds sync kept finished; an algorithm still training is
