@@ -78,7 +78,8 @@ background_sweep() {
 
 # kept_ahead RUNS KEPT [NAME...]: a line for each unfinished run kept in KEPT (or each NAME)
 # whose evaluations there go past its run's in RUNS: a run lost with its machine, begun
-# again from zero (or not yet), which retraces them and is kept once it has passed them.
+# again from zero (or not yet), which retraces them and is kept once it has passed them;
+# and one for each run here that has left them (keeping it would refuse, hours later).
 kept_ahead() {
   "$BIN/python" - "$@" <<'PY'
 import pathlib
@@ -91,13 +92,25 @@ for name in names:
     rows = read_eval_rows(ours.eval_csv)
     if not rows or ours.read_outcome():
         continue
-    last, run = rows[-1]["steps"], RunDir(runs / name)
-    reached = max((row["steps"] for row in run.kept_evaluations()), default=None)
+    run = RunDir(runs / name)
+    theirs = {row["steps"]: row for row in run.kept_evaluations()}
+    left = [(row, theirs[row["steps"]]) for row in rows if row["steps"] in theirs and (
+        row["success_rate"], row["mean_reward"]) != (theirs[row["steps"]]["success_rate"],
+                                                     theirs[row["steps"]]["mean_reward"])]
+    if left:
+        row, other = left[0]
+        print(f"{name}: its run here has left the evaluations kept in {kept} at step "
+              f"{row['steps']:,} (success rate {other['success_rate']:g}, mean reward "
+              f"{other['mean_reward']:g}; kept: {row['success_rate']:g}, "
+              f"{row['mean_reward']:g}): it will not be kept there")
+        continue
+    last, reached = rows[-1]["steps"], max(theirs, default=None)
     if reached is not None and reached >= last:
         continue
-    here = "no run here" if reached is None else f"its run here is at step {reached:,}"
-    print(f"{name}: evaluations kept to step {last:,} in {kept}; {here} (begun again from "
-          "zero, it retraces them, and is kept once it has passed them)")
+    here = ("no run here" if reached is None else
+            f"its run here has retraced them to step {reached:,}")
+    print(f"{name}: evaluations kept to step {last:,} in {kept}; {here} (a run begun again "
+          "from zero retraces them, and is kept once it has passed them)")
 PY
 }
 

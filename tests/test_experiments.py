@@ -1242,8 +1242,8 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
         env={**os.environ, "RUNS": str(tmp_path), "RESULTS": str(tmp_path / "kept")})
     assert completed.stdout.splitlines()[1] == (
         f"pick_and_place-tqc-seed0: evaluations kept to step 4,000 in {kept.parent}; its run "
-        "here is at step 2,000 (begun again from zero, it retraces them, and is kept once it "
-        "has passed them)")
+        "here has retraced them to step 2,000 (a run begun again from zero retraces them, "
+        "and is kept once it has passed them)")
 
 
 @pytest.mark.parametrize("args, seed, message", [

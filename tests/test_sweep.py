@@ -671,17 +671,25 @@ def test_a_campaigns_status_names_the_kept_runs_its_runs_have_not_passed(tmp_pat
     _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0), (2000, 9, 0.1)])
     _write_run(runs, "pick_and_place-tqc-seed2", [(0, 1, 0.0), (2000, 8, 0.1)])  # Passed.
     ahead = (f"pick_and_place-tqc-seed0: evaluations kept to step 4,000 in {kept}; "
-             "{} (begun again from zero, it retraces them, and is kept once it has passed "
+             "{} (a run begun again from zero retraces them, and is kept once it has passed "
              "them)\n")
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
     assert status.returncode == 0, status.stderr
     assert status.stdout.endswith("--status\n" + ahead.format("no run here"))
     _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.1)])
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
-    assert status.stdout.endswith("--status\n" + ahead.format("its run here is at step 2,000"))
+    assert status.stdout.endswith(
+        "--status\n" + ahead.format("its run here has retraced them to step 2,000"))
     _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.1), (4000, 17, 0.2)])
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
     assert status.stdout.endswith("--status\n")
+    # A run that has left them is named as soon as it has (sync would refuse it).
+    _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.3)])
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
+    assert status.stdout.endswith(
+        f"--status\npick_and_place-tqc-seed0: its run here has left the evaluations kept in "
+        f"{kept} at step 2,000 (success rate 0.3, mean reward -1; kept: 0.1, -1): it will not "
+        "be kept there\n")
 
 
 def test_reference_timing_sh_reports_the_algorithms_whose_every_seed_has_finished(tmp_path):
