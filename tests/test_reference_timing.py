@@ -215,6 +215,31 @@ def test_each_env_page_says_its_timing_and_how_to_get_the_reference_codes():
         gym.make("FrankaSlideSparse-v0").unwrapped.__doc__.split())
 
 
+@pytest.mark.parametrize("task, options, says, damping", [
+    ("push", {}, "what differs from the reference code at both is", "the object's free joint"),
+    ("pick_and_place", {}, "what differs from the reference code at both is",
+     "the object's free joint"),
+    ("push", {"object_damping": 0.01}, "what differs from the reference code at both is", None),
+    ("slide", {}, "what differs from the reference code at both is", None),  # Undamped there.
+    ("reach", {}, "the reference code has no reach task, and what differs from its tasks", None),
+    ("stack", {}, "the reference code has no stack task, and what differs from its tasks",
+     "the objects' free joints"),
+])
+def test_each_env_page_names_what_differs_from_the_reference_codes_task(
+        task, options, says, damping):
+    """The block's damping is a difference where the reference code's object is damped (its
+    push and pick-and-place block, not its slide's puck) and this one is not; a task the
+    reference code lacks says so."""
+    from franka_composer.adapters.pages import page
+
+    text = " ".join(page(task_config(task, **options), ()).split())
+    assert says in text
+    said = "undamped here where the reference code's block's is damped" in text
+    assert said == (damping is not None)
+    if damping:
+        assert f"{damping}, undamped here" in text
+
+
 @pytest.mark.parametrize("timing, share", [("default", (0.93, 0.96)), ("reference", (0.68, 0.73))])
 def test_the_hand_moves_as_fast_as_the_reference_codes_at_its_timing(timing, share):
     """The weld sets how fast a full action moves the hand within the step: 0.05 s into a

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import textwrap
 
-from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig
+from franka_composer.tasks.config import (REFERENCE_CODE_OBJECT_DAMPING,
+                                          REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig)
 from franka_composer.tasks.layout import layout_for
 
 #: Line width of the page.
@@ -26,6 +27,31 @@ VERSION_HISTORY = (
 )
 
 
+def _reference_differences(config: TaskConfig) -> str:
+    """What differs from the reference code's task at both timings; for a task it lacks,
+    from its tasks (the arm, the guard, contacts and solver are theirs all the same)."""
+    differences = ["Menagerie's Panda (no arm servos holding the neutral pose, other finger "
+                   "pads)"]
+    if config.control.actuated_gripper:
+        differences.append("the fingers open at reset (closed there)")
+    differences += ["the guard that keeps the hand's target out of surfaces",
+                    "the contact parameters", "the solver's settings (an elliptic friction "
+                    "cone here, a pyramidal one there)"]
+    damped_there = REFERENCE_CODE_OBJECT_DAMPING.get(config.name, REFERENCE_OBJECT_DAMPING)
+    if config.objects and damped_there and not config.objects[0].joint_damping:
+        joints, them = (("the object's free joint", "it") if len(config.objects) == 1 else
+                        ("the objects' free joints", "them"))
+        differences.append(
+            f"{joints}, undamped here where the reference code's block's is damped, which "
+            f"keeps {them} from tipping over when pushed "
+            f"(object_damping={REFERENCE_OBJECT_DAMPING:g} damps {them} so)")
+    where = ("what differs from the reference code at both is"
+             if config.name in REFERENCE_CODE_OBJECT_DAMPING else
+             f"the reference code has no {config.name} task, and what differs from its tasks "
+             "at both is")
+    return f"{where} {', '.join(differences[:-1])} and {differences[-1]}."
+
+
 def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     """The documentation page of the task `config` describes, registered as `ids`."""
     layout = layout_for(config)
@@ -38,8 +64,6 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     options = [f"{name} = {value!r}" for name, value in config.options.items()
                if name != "reward_type"]  # The id fixes it.
     default, reference = TIMINGS["default"], TIMINGS["reference"]
-    reset_fingers = ("the fingers open at reset (closed there), "
-                     if control.actuated_gripper else "")
     sections = [
         ("Action space", [
             "Box(-1, 1, (n,), float32), by controller (the control option; the ids with Osc "
@@ -90,15 +114,8 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             "hand about as fast as the reference's); timing=\"default\" is "
             f"{default['control_timestep']:g} s with velocities per step and a stiffer weld "
             f"({default['weld_time_constant']:g} s) that tracks within the step. The action "
-            "law and the "
-            "observation layout are those above at either timing; what differs from the "
-            "reference code at both is Menagerie's Panda (no arm servos holding the neutral "
-            f"pose, other finger pads), {reset_fingers}the guard "
-            "that keeps the hand's target out of surfaces, the contact parameters, the "
-            "solver's settings (an elliptic friction cone here, a pyramidal one there), "
-            "and the object's free joint, undamped here "
-            "where the reference code's block's is damped, which keeps it from tipping over "
-            f"when pushed (object_damping={REFERENCE_OBJECT_DAMPING:g} damps it so)."]),
+            "law and the observation layout are those above at either timing; "
+            + _reference_differences(config)]),
         ("Arguments", [
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',

@@ -84,6 +84,10 @@ class Workspace:
 #: on a 4 cm, 0.1 kg cube a turn dies out within 2.7 ms, so a push slides the block where
 #: an undamped one tips over (docs/experiments/push-tip.md). Task option `object_damping`.
 REFERENCE_OBJECT_DAMPING = 0.01
+#: The tasks the reference code has, each with its object's free-joint damping there; this
+#: suite's reach, stack and flip are panda-gym's, which the reference code lacks.
+REFERENCE_CODE_OBJECT_DAMPING = {"push": REFERENCE_OBJECT_DAMPING, "slide": 0.0,
+                                 "pick_and_place": REFERENCE_OBJECT_DAMPING}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -6,7 +6,7 @@ from franka_composer.tasks.config import Box2D, PuckSpec, TaskConfig, Workspace
 # puck glides. Noslip would fight the intended sliding, so it stays off (the default).
 SLIDE = TaskConfig(
     name="slide",
-    description="Strike a puck across a slippery floor (friction 0.04) to a goal 0.25-0.55 m "
+    description="Strike a puck across a slippery floor (friction 0.04) to a goal 0.1-0.4 m "
                 "beyond the object square, often out of the arm's reach: the puck must glide "
                 "there. The fingers are locked closed.",
     objects=(PuckSpec(),),
