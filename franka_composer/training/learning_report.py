@@ -24,6 +24,10 @@ from franka_composer.training.runs import RunDir, success_curve
 
 #: Evaluations in the trailing mean of a seed's curve.
 SMOOTHING = 5
+#: How far below a threshold a smoothed success rate may lie and still reach it: a mean of
+#: k/15 rates lands on a threshold such as 0.4 or 0.8 only up to rounding (6, 6, 7, 6 and 5
+#: of 15 average to 0.39999999999999997), while rates that differ do so by 1/75 or more.
+REACH_TOLERANCE = 1e-9
 #: Success rates whose first crossing is reported by default (the paper's curves are read at
 #: these).
 THRESHOLDS = (0.8, 0.9)
@@ -104,8 +108,10 @@ def held(run: RunRecord, curve: dict[int, float], steps) -> dict[int, float]:
 
 
 def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
-    """The first step at which `curve` reaches `threshold`; None if it never does."""
-    return next((step for step in sorted(curve) if curve[step] >= threshold), None)
+    """The first step at which `curve` reaches `threshold` (to `REACH_TOLERANCE`); None if
+    it never does."""
+    return next((step for step in sorted(curve)
+                 if curve[step] >= threshold - REACH_TOLERANCE), None)
 
 
 #: The columns of the paper's curves as `experiments/paper_curves.py` writes them.
