@@ -79,12 +79,43 @@ def near_goal_pairs(task: str, rng, count: int):
                                            / 0.05, (count, size))
 
 
+def batches_substeps(env) -> bool:
+    """Whether the dm_env environment `env` steps on the fast path, one MuJoCo call per
+    control step (where it falls back, a fast-against-stock comparison compares stock with
+    stock)."""
+    return type(env) is fast_path.FastEnvironment and env._batch_substeps
+
+
 @pytest.fixture(params=["fast", "stock"])
 def composer_path(request, monkeypatch) -> str:
     """Runs a test on the fast path and on Composer's stock stepping (modules that use it:
-    `pytestmark = pytest.mark.usefixtures("composer_path")`)."""
+    `pytestmark = pytest.mark.usefixtures("composer_path")`). On the fast path it checks
+    that the path was taken: every environment `load` built is a FastEnvironment, and of
+    the steps taken some batched their substeps (a silent fall back to stock stepping
+    would compare stock with stock)."""
     monkeypatch.setenv(fast_path.ENV_VARIABLE, "1" if request.param == "fast" else "0")
-    return request.param
+    if request.param == "stock":
+        yield request.param
+        return
+    import franka_composer.suite
+
+    built, steps, make, step = [], [], franka_composer.suite.make_environment, \
+        fast_path.FastEnvironment.step
+
+    def making(*args, **kwargs):
+        built.append(make(*args, **kwargs))
+        return built[-1]
+
+    def stepping(env, action):
+        steps.append(not env._reset_next_step and getattr(env, "_batch_substeps", False))
+        return step(env, action)
+
+    monkeypatch.setattr(franka_composer.suite, "make_environment", making)
+    monkeypatch.setattr(fast_path.FastEnvironment, "step", stepping)
+    yield request.param
+    assert [type(env).__name__ for env in built
+            if type(env) is not fast_path.FastEnvironment] == []
+    assert not steps or any(steps), "the fast path fell back to stock stepping"
 
 
 def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):

@@ -264,9 +264,12 @@ def test_sweep_status_and_sync_name_a_cells_damaged_config(tmp_path, capsys):
 
 
 @needs_proc
-def test_sweep_reads_an_out_it_cannot_write_and_refuses_to_train_there(capsys):
+def test_sweep_reads_an_out_it_cannot_write_and_refuses_to_train_there(capsys, monkeypatch):
     """--status and --sync only read --out (a sweep on a read-only mount can be looked at);
     a sweep that would train there is refused before Ray starts."""
+    import ray
+
+    monkeypatch.setattr(ray, "init", lambda *args, **kwargs: pytest.fail("Ray started"))
     out = PROC / "franka-composer-sweep"
     assert cli.main(_sweep(out, "--status")) == 0
     assert capsys.readouterr().out.splitlines()[2:] == [

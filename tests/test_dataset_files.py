@@ -18,10 +18,6 @@ from franka_composer.policies import Trajectories
 from franka_composer.training import demos
 from franka_composer.training.models import make_env
 
-pytest.importorskip("minari")
-pytest.importorskip("envlogger")
-pytest.importorskip("stable_baselines3")
-
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):

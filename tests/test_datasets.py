@@ -4,19 +4,15 @@ back the stored observations exactly."""
 
 from __future__ import annotations
 
+import minari
 import numpy as np
 import pytest
 
 import franka_composer
 from franka_composer import seeding
 from franka_composer.cli import main
-from franka_composer.datasets import record
+from franka_composer.datasets import minari_format, record, rlds_format
 from franka_composer.policies import Trajectories
-
-minari = pytest.importorskip("minari")
-pytest.importorskip("envlogger")
-
-from franka_composer.datasets import minari_format, rlds_format  # noqa: E402
 
 
 def _replay_goal_env(env, seed, actions):
@@ -261,6 +257,7 @@ def test_a_trained_policy_records_deterministically(tmp_path):
         assert summary["episodes"] == 2
     first, second = rlds_format.read(tmp_path / "a"), rlds_format.read(tmp_path / "b")
     assert first["metadata"]["source"] == "policy"
+    assert len(first["episodes"]) == len(second["episodes"]) == 2
     for a, b in zip(first["episodes"], second["episodes"]):
         np.testing.assert_array_equal(np.array(a["actions"]), np.array(b["actions"]))
     with pytest.raises(ValueError, match="trained push, not slide"):

@@ -76,7 +76,11 @@ def test_time_limit_sets_the_episode_length_in_whole_control_steps(time_limit, t
 
 
 @pytest.mark.parametrize("time_limit", [0, -1.0, float("nan"), "2.5", True, [2.5]])
-def test_a_bad_time_limit_is_refused_before_anything_is_built(time_limit):
+def test_a_bad_time_limit_is_refused_before_anything_is_built(time_limit, monkeypatch):
+    import franka_composer.suite
+
+    monkeypatch.setattr(franka_composer.suite, "build_task",
+                        lambda *args, **kwargs: pytest.fail("a task was built"))
     with pytest.raises(ValueError, match=r"time_limit must be a number of seconds > 0, or None "
                                          r"for no limit, got"):
         franka_composer.load("push", time_limit=time_limit)

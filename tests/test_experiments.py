@@ -209,8 +209,12 @@ def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
     (["--seeds", "-1"], "argument --seeds: must be an integer >= 0, got '-1'"),
     (["--weld-time-constant", "0"], "argument --weld-time-constant:"),
 ])
-def test_edge_flick_names_a_bad_option_before_any_trial(args, message, capsys):
+def test_edge_flick_names_a_bad_option_before_any_trial(args, message, capsys, monkeypatch):
     module = load_script(EXPERIMENTS / "edge_flick.py")
+    monkeypatch.setattr(module, "trial", lambda *args, **kwargs: pytest.fail("a trial ran"))
+    import gymnasium
+
+    monkeypatch.setattr(gymnasium, "make", lambda *args, **kwargs: pytest.fail("env made"))
     with pytest.raises(SystemExit) as exit_info:
         module.main(args)
     assert exit_info.value.code == 2 and message in capsys.readouterr().err
@@ -1125,7 +1129,7 @@ def test_a_damped_block_run_damps_the_block_in_every_env_it_builds(monkeypatch):
         env.reset(seed=0)
         physics = env.unwrapped.composer_env.physics
         damping = physics.model.dof_damping.copy()
-        assert list(damping[-6:]) == [0.0] * 6 if environment is None else [0.01] * 6
+        assert list(damping[-6:]) == ([0.0] * 6 if environment is None else [0.01] * 6)
         if environment is None:  # The block's free joint comes last.
             push_tip.reference_block_damping(env)
             np.testing.assert_array_equal(physics.model.dof_damping, np.r_[damping[:-6],

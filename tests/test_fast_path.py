@@ -12,6 +12,8 @@ from franka_composer.environment import GoalEnvironment
 from franka_composer.fast_path import FastEnvironment
 from franka_composer.policies import make_expert
 
+from conftest import batches_substeps
+
 
 def _load(path: str, monkeypatch, name: str, **options):
     monkeypatch.setenv(fast_path.ENV_VARIABLE, "1" if path == "fast" else "0")
@@ -53,7 +55,9 @@ def test_load_takes_the_fast_path_unless_it_is_switched_off(monkeypatch):
 def test_fast_and_stock_paths_give_the_same_episodes_bit_for_bit(task_name, control,
                                                                 monkeypatch):
     """Under osc the fast path runs the torque law itself between physics steps."""
-    fast = _rollout(_load("fast", monkeypatch, task_name, seed=4, control=control), task_name)
+    fast_env = _load("fast", monkeypatch, task_name, seed=4, control=control)
+    fast = _rollout(fast_env, task_name)
+    assert batches_substeps(fast_env)
     stock = _rollout(_load("stock", monkeypatch, task_name, seed=4, control=control),
                      task_name)
     assert len(fast) == len(stock)

@@ -17,7 +17,8 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.controllers import CONTROLS
 from franka_composer.environment import GoalEnvironment
 from franka_composer.randomization import PARAMETERS, PRESETS
-from conftest import SPEC, UNBOUNDED_OBSERVATIONS, env_checker_findings, her_samples
+from conftest import (SPEC, UNBOUNDED_OBSERVATIONS, batches_substeps, env_checker_findings,
+                      her_samples)
 
 DEFAULT = PRESETS["default"]
 VISUAL = {name: d for name, d in DEFAULT.items() if PARAMETERS[name].group == "visual"}
@@ -94,7 +95,8 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
     for _ in range(3):
         env.reset()
         drawn = task.randomization
-        assert physics.model.ptr is first_model  # The same compiled model, every episode.
+        # The same physics and compiled model, every episode.
+        assert env.physics is physics and env.physics.model.ptr is first_model
         body = physics.bind(task.prop.geom).bodyid
         assert model.body_mass[body] == pytest.approx(nominal_mass * drawn["object_mass"][0],
                                                       rel=1e-12)
@@ -250,6 +252,7 @@ def test_fast_and_stock_paths_agree_under_the_default_preset(monkeypatch):
         assert type(env.unwrapped.composer_env) is (fast_path.FastEnvironment if path == "fast"
                                                      else GoalEnvironment)
         records[path] = _rollout(env, 11, 120)
+        assert batches_substeps(env.unwrapped.composer_env) == (path == "fast")
     for (a, reward_a, info_a), (b, reward_b, info_b) in zip(records["fast"], records["stock"]):
         for key in a:
             np.testing.assert_array_equal(a[key], b[key])
@@ -290,7 +293,11 @@ def test_her_relabelled_rewards_are_exact_under_randomisation():
      "randomization 'observation_delay' cannot draw from UniformInteger("),
     (3, "randomization must be None, a preset (default) or a mapping"),
 ])
-def test_bad_randomisations_are_refused_before_anything_is_built(value, message):
+def test_bad_randomisations_are_refused_before_anything_is_built(value, message, monkeypatch):
+    import franka_composer.suite
+
+    monkeypatch.setattr(franka_composer.suite, "build_task",
+                        lambda *args, **kwargs: pytest.fail("a task was built"))
     with pytest.raises(ValueError) as error:
         _make(randomization=value)
     assert message in str(error.value)

@@ -17,7 +17,7 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.policies import make_expert
 from franka_composer.tasks import task_config
 from franka_composer.tasks.layout import layout_for
-from conftest import SPEC, spec_distance
+from conftest import SPEC, batches_substeps, spec_distance
 
 CONTROLS = ("mocap", "osc", "joints")
 
@@ -150,7 +150,9 @@ def test_same_seed_same_episode_on_both_stepping_paths(control, monkeypatch):
     """Two runs on the fast path are equal bit for bit, and Composer's stock stepping gives
     the same episode (the same arithmetic in the same order)."""
     name = env_id("pick_and_place", "sparse", control)
-    first = _rollout(gym.make(name, timing="reference"), seed=4, steps=12)
+    fast_env = gym.make(name, timing="reference")
+    first = _rollout(fast_env, seed=4, steps=12)
+    assert batches_substeps(fast_env.unwrapped.composer_env)
     second = _rollout(gym.make(name, timing="reference"), seed=4, steps=12)
     _assert_same_records(first, second)
     monkeypatch.setenv(fast_path.ENV_VARIABLE, "0")

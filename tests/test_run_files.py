@@ -10,11 +10,9 @@ import re
 
 import pytest
 
-pytest.importorskip("stable_baselines3")
-
-from franka_composer import cli  # noqa: E402
-from franka_composer.training.run_files import replace_atomically  # noqa: E402
-from franka_composer.training.runs import RunDir, read_eval_rows  # noqa: E402
+from franka_composer import cli
+from franka_composer.training.run_files import replace_atomically
+from franka_composer.training.runs import RunDir, read_eval_rows
 
 #: Small enough for seconds per run; learning starts after two 50-step episodes.
 TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
@@ -48,7 +46,6 @@ def test_a_run_train_cannot_start_is_refused_before_its_directory_exists(tmp_pat
 def test_a_sweep_checks_what_it_forwards_to_train_before_ray_starts(tmp_path, monkeypatch):
     """Each cell's train options, --timing among them, are read by train's parser and
     checked as train checks them: a missing dataset is refused before any cell runs."""
-    pytest.importorskip("ray")
     from franka_composer.cli import sweep
 
     def no_ray(*args, **kwargs):

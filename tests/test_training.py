@@ -10,16 +10,13 @@ import shutil
 import numpy as np
 import pytest
 
+from franka_composer import cli
+from franka_composer.training import ALGOS, TABLE_I, hyperparameters
+from franka_composer.training.callbacks import LatestCheckpoint
+from franka_composer.training.models import build_model, load_model, make_env
+from franka_composer.training.runs import RunDir, read_eval_rows
+
 pytestmark = pytest.mark.slow  # Trains networks (and JAX), a few seconds each.
-
-pytest.importorskip("stable_baselines3")
-pytest.importorskip("sb3_contrib")
-
-from franka_composer import cli  # noqa: E402
-from franka_composer.training import ALGOS, TABLE_I, hyperparameters  # noqa: E402
-from franka_composer.training.callbacks import LatestCheckpoint  # noqa: E402
-from franka_composer.training.models import build_model, load_model, make_env  # noqa: E402
-from franka_composer.training.runs import RunDir, read_eval_rows  # noqa: E402
 
 #: Small enough for seconds per run; learning starts after two 50-step episodes.
 TINY = ["--net-arch", "16,16", "--batch-size", "32", "--buffer-size", "2000",
@@ -374,13 +371,22 @@ def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
     from tqdm.std import tqdm
 
     _stop_asked_at(monkeypatch, 160)
+    made, init = [], tqdm.__init__
+
+    def recorded(bar, *args, **kwargs):  # Each bar, and whether it was shown when made.
+        init(bar, *args, **kwargs)
+        made.append((bar, not bar.disable))
+
+    monkeypatch.setattr(tqdm, "__init__", recorded)
     options = [o for o in TINY if o != "--no-progress"]  # The bar is on by default.
     gc.disable()  # Nothing closes a bar that was left open before the test looks.
     try:
         assert cli.main(["train", "--task", "push", "--algo", "sac", "--seed", "1", "--out",
                          str(tmp_path / "run"), "--total-steps", "400", *options]) == 130
         assert RunDir(tmp_path / "run").read_state()["steps"] >= 160
-        assert [bar for bar in tqdm._instances if not bar.disable] == []
+        shown = [bar for bar, was_shown in made if was_shown]
+        assert shown  # The run had a bar to close.
+        assert [bar for bar in shown if not bar.disable] == []  # close() disables a bar.
     finally:
         gc.enable()
 
