@@ -57,8 +57,9 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     layout = layout_for(config)
     control, workspace = config.control, config.workspace
     max_episode_steps = config.max_episode_steps
-    gripper = (f"The 4th changes the finger opening by up to {control.max_finger_step:g} m "
-               "(-1 closes, +1 opens the hand in one step)." if control.actuated_gripper
+    gripper = (f"The 4th moves the fingers' target opening by up to "
+               f"{control.max_finger_step:g} m (-1 and +1 set it fully closed and fully open "
+               "in one step; the fingers follow it)." if control.actuated_gripper
                else "The fingers are locked closed.")
     goals, start, unit = _goal_words(config)
     options = [f"{name} = {value!r}" for name, value in config.options.items()
