@@ -933,16 +933,61 @@ def test_the_early_stopping_rule_ends_a_run_and_resume_keeps_it_ended(tmp_path, 
 
     monkeypatch.setattr(sb3_callbacks, "evaluate_policy", evaluate)
     out = tmp_path / "early"
+    run = RunDir(out)
     assert _train(out, "ddpg", 2000, "--stop-at-success", "0.95", "--stop-after", "3") == 0
-    rows = read_eval_rows(RunDir(out).eval_csv)
+    rows = read_eval_rows(run.eval_csv)
     assert [r["steps"] for r in rows] == [0, 100, 200, 300, 400, 500]
-    outcome = RunDir(out).read_outcome()
+    outcome = run.read_outcome()
     assert outcome["steps"] == 500 and outcome["stopped_early"] is True
-    config = RunDir(out).read_config().hyperparameters
+    config = run.read_config().hyperparameters
     assert (config.stop_success_rate, config.stop_after_evaluations) == (0.95, 3)
+    ended = run.outcome_path.read_bytes()
     assert _train(out, "ddpg", 3000, "--resume") == 0
-    assert RunDir(out).read_outcome()["steps"] == 500
-    assert len(read_eval_rows(RunDir(out).eval_csv)) == 6
+    # Nothing trained, nothing recorded: no fresh episode stream, no added wall time.
+    assert run.outcome_path.read_bytes() == ended
+    assert len(read_eval_rows(run.eval_csv)) == 6
+    # Stopped after the rule was met and before its outcome was written: a resume ends it
+    # there, as it would have ended, and trains nothing.
+    for path in (run.outcome_path, run.final_model, run.policy_file):
+        path.unlink()
+    assert _train(out, "ddpg", 3000, "--resume") == 0
+    outcome = run.read_outcome()
+    assert (outcome["steps"], outcome["stopped_early"]) == (500, True)
+    assert outcome["fresh_streams"] == run.read_state()["fresh_streams"]
+    assert run.final_model.is_file() and run.policy_file.is_file()
+    assert len(read_eval_rows(run.eval_csv)) == 6
+
+
+def test_an_evaluation_off_the_grid_neither_stops_a_run_nor_survives_a_raised_budget(
+        tmp_path, monkeypatch):
+    """A budget between two evaluations ends with one at the last step: success there is
+    not the stopping rule's (the run reached its budget), and a raised budget drops it, as
+    the uninterrupted run at that budget has none there. While the raised run trains, it
+    has no final model or policy: `evaluate` plays its newest checkpoint, not the model it
+    ended with before."""
+    from stable_baselines3.common import callbacks as sb3_callbacks
+
+    rates = iter([0.0] * 6 + [1.0] + [0.0] * 50)  # Success only at step 550, off the grid.
+
+    def evaluate(model, env, n_eval_episodes, callback=None, **kwargs):
+        successes = int(next(rates) * n_eval_episodes)
+        for episode in range(n_eval_episodes):
+            callback({"done": True, "info": {"is_success": episode < successes}}, {})
+        return [-10.0] * n_eval_episodes, [50] * n_eval_episodes
+
+    monkeypatch.setattr(sb3_callbacks, "evaluate_policy", evaluate)
+    out = tmp_path / "off-grid"
+    run = RunDir(out)
+    assert _train(out, "sac", 550, "--stop-at-success", "0.95", "--stop-after", "1") == 0
+    assert [r["steps"] for r in read_eval_rows(run.eval_csv)][-2:] == [500, 550]
+    outcome = run.read_outcome()
+    assert (outcome["steps"], outcome["stopped_early"]) == (550, False)
+    _stop_asked_at(monkeypatch, 700)
+    assert _train(out, "sac", 1000, "--resume") == 130
+    assert not run.final_model.exists() and not run.policy_file.exists()
+    assert not run.outcome_path.exists() and run.read_state()["steps"] >= 700
+    steps = [r["steps"] for r in read_eval_rows(run.eval_csv)]
+    assert 550 not in steps and steps[-1] == 700
 
 
 def test_a_run_without_the_rule_records_that_it_went_the_distance(runs):

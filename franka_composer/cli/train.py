@@ -151,7 +151,9 @@ def add_parser(subparsers) -> None:
                         action="store_false", default=None,
                         help="episodes always last 50 steps (Fetch semantics). The paper's "
                              "ids end an episode on success, which makes HER relabelling "
-                             "inexact: a relabelled transition never gets done=True and "
+                             "inexact: a relabelled transition keeps the stored done (the "
+                             "success that ended an episode stays terminal under goals it "
+                             "did not reach; reaching a relabelled goal ends nothing), and "
                              "'future' goals come only from the cut-short episode")
     parser.add_argument("--update-schedule", choices=UPDATE_SCHEDULES, default=None,
                         help="'step' (the paper's, default): one gradient step after each "

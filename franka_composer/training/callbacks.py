@@ -43,25 +43,53 @@ class WallClock:
         return self._cpu_before + time.process_time() - self._cpu_start
 
 
+class StoppingRule:
+    """The early-stopping rule: `after` consecutive evaluations on the run's grid of `every`
+    steps all reach `success_rate` (None: never). An evaluation off the grid (where a run
+    ended at a budget between two) is not one of them: the uninterrupted run at a larger
+    budget has none there, and a run that reached its budget did not stop early."""
+
+    def __init__(self, every: int, success_rate: float | None, after: int) -> None:
+        self._every, self._success_rate, self._after = every, success_rate, after
+        self._streak = 0
+        self.met = False
+
+    def count(self, steps: int, success_rate: float) -> None:
+        if self._success_rate is None or steps % self._every:
+            return
+        self._streak = self._streak + 1 if success_rate >= self._success_rate else 0
+        self.met = self._streak >= self._after
+
+    @classmethod
+    def over(cls, rows, every: int, success_rate: float | None, after: int) -> StoppingRule:
+        """The rule after the evaluations `rows` (eval.csv's)."""
+        rule = cls(every, success_rate, after)
+        for row in rows:
+            rule.count(row["steps"], row["success_rate"])
+        return rule
+
+
 class RecordEvaluation(BaseCallback):
     """After each of its parent `Evaluation`'s evaluations: a row of eval.csv, and the
-    early-stopping rule (stop once `stop_after` consecutive evaluations, those already in
-    eval.csv when resuming included, all reach `stop_success_rate`)."""
+    early-stopping rule (`StoppingRule`, those already in eval.csv when resuming
+    included)."""
 
-    def __init__(self, run: RunDir, clock: WallClock, *, stop_success_rate: float | None,
-                 stop_after: int) -> None:
+    def __init__(self, run: RunDir, clock: WallClock, *, every: int,
+                 stop_success_rate: float | None, stop_after: int) -> None:
         super().__init__()
         self._run, self._clock = run, clock
-        self._stop_success_rate, self._stop_after = stop_success_rate, stop_after
-        self._streak = 0
-        self.stopped_early = False
+        self._rule = StoppingRule(every, stop_success_rate, stop_after)
         self.last_steps = -1
         self.last_success_rate: float | None = None
+
+    @property
+    def stopped_early(self) -> bool:
+        return self._rule.met
 
     def restore(self) -> None:
         """The streak so far, from eval.csv (a resumed run)."""
         for row in read_eval_rows(self._run.eval_csv):
-            self._count(row["success_rate"])
+            self._rule.count(row["steps"], row["success_rate"])
             self.last_steps = row["steps"]
 
     def _on_step(self) -> bool:
@@ -72,14 +100,8 @@ class RecordEvaluation(BaseCallback):
             "steps": self.num_timesteps, "wall_time_s": round(self._clock(), 2),
             "success_rate": success_rate, "mean_reward": mean_reward})
         self.last_steps, self.last_success_rate = self.num_timesteps, success_rate
-        self._count(success_rate)
+        self._rule.count(self.num_timesteps, success_rate)
         return not self.stopped_early
-
-    def _count(self, success_rate: float) -> None:
-        if self._stop_success_rate is None:
-            return
-        self._streak = self._streak + 1 if success_rate >= self._stop_success_rate else 0
-        self.stopped_early = self._streak >= self._stop_after
 
 
 class Evaluation(EvalCallback):
@@ -89,7 +111,8 @@ class Evaluation(EvalCallback):
 
     def __init__(self, eval_env, run: RunDir, clock: WallClock, *, every: int, episodes: int,
                  stop_success_rate: float | None = None, stop_after: int = 5) -> None:
-        self.record = RecordEvaluation(run, clock, stop_success_rate=stop_success_rate,
+        self.record = RecordEvaluation(run, clock, every=every,
+                                       stop_success_rate=stop_success_rate,
                                        stop_after=stop_after)
         super().__init__(eval_env, callback_after_eval=self.record, n_eval_episodes=episodes,
                          eval_freq=every, log_path=str(run.root),

@@ -21,7 +21,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from franka_composer.training import demos, exact_resume
 from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
-                                                StoppedAtCheckpoint, WallClock)
+                                                StoppedAtCheckpoint, StoppingRule, WallClock)
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
@@ -141,6 +141,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
 
     run.recover_checkpoint()
     state = run.read_state()
+    outcome = run.read_outcome()
     if resume:
         if not state:
             raise ValueError(f"{run.root} has no complete checkpoint to resume from "
@@ -148,6 +149,28 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         if not run.eval_csv.is_file():
             raise ValueError(f"{run.eval_csv} is missing: the run's evaluations up to its "
                              "checkpoint would be lost; put it back to resume")
+        rows = run.kept_evaluations()
+        if outcome.get("stopped_early") or (outcome and hp.total_steps <= outcome["steps"]):
+            # It has ended, by the stopping rule or at this budget: nothing to train, and
+            # its files stay as they are.
+            return _trained_model(run, config, env, eval_env, device, run.best_model())
+        if StoppingRule.over(rows, hp.eval_every, hp.stop_success_rate,
+                             hp.stop_after_evaluations).met:
+            # It met the stopping rule and was stopped before it wrote its outcome: it ends
+            # there, as it would have.
+            model = _trained_model(run, config, env, eval_env, device, run.checkpoint_model)
+            _finish(run, model, True, state["wall_time_s"], state.get("cpu_time_s"),
+                    state.get("fresh_streams"))
+            return model
+        if outcome:
+            # A raised budget: it has not ended now. Its final model and policy go with its
+            # outcome (the checkpoint it ended at is the same model, and `evaluate` would
+            # otherwise score them after it trains on), and so does an evaluation off the
+            # grid where it ended, which the uninterrupted run at this budget has not.
+            for path in (run.final_model, run.policy_file, run.outcome_path):
+                path.unlink(missing_ok=True)
+            if rows and rows[-1]["steps"] % hp.eval_every:
+                rows = rows[:-1]
         # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
         clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
         model, stream, fresh = _resume(run, config, state, env, device)
@@ -157,7 +180,6 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         fresh_streams = state.get("fresh_streams")
         if fresh_streams is not None:
             fresh_streams = [*fresh_streams, *([state["steps"]] if fresh else [])]
-        rows = run.kept_evaluations()
         write_eval_rows(run.eval_csv, rows)
         # The evaluations go on with the episodes an uninterrupted run would see next.
         _skip_evaluated_episodes(eval_env, sum(r["steps"] % hp.eval_every == 0 for r in rows),
@@ -194,10 +216,6 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     bar = ProgressBarCallback() if progress else None
     callbacks = CallbackList([precision, evaluation, checkpoint, *([bar] if bar else [])])
     remaining = hp.total_steps - model.num_timesteps
-    if run.read_outcome().get("stopped_early"):
-        remaining = 0  # It met the stopping rule: more steps would not be the same run.
-    elif remaining > 0:
-        run.outcome_path.unlink(missing_ok=True)  # A raised budget: it has not ended now.
     try:
         with stop_requests(lambda: setattr(checkpoint, "stop_requested", True),
                            *_stop_signals()):
@@ -221,9 +239,24 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             bar.pbar.close()  # Closed already where training ended; a second close is none.
         env.close()
         eval_env.close()
+    _finish(run, model, evaluation.stopped_early, clock(), clock.cpu(), fresh_streams)
+    return model
+
+
+def _trained_model(run: RunDir, config: RunConfig, env, eval_env, device: str, path):
+    """The model at `path` of a run that trains no further, its envs closed."""
+    try:
+        return load_model(config.algo, checked_model(path), env=env, device=device,
+                          backend=config.backend)
+    finally:
+        env.close()
+        eval_env.close()
+
+
+def _finish(run: RunDir, model, stopped_early: bool, wall_time_s: float,
+            cpu_time_s: float | None, fresh_streams) -> None:
+    """What an ended run writes: its final model, its policy and, last, its outcome."""
     replace_atomically(run.final_model, model.save)
     replace_atomically(run.policy_file, lambda path: save_policy(model, path))
-    stopped_early = evaluation.stopped_early or run.read_outcome().get("stopped_early", False)
-    run.write_outcome(int(model.num_timesteps), stopped_early, clock(), clock.cpu(),
+    run.write_outcome(int(model.num_timesteps), stopped_early, wall_time_s, cpu_time_s,
                       fresh_streams)
-    return model
