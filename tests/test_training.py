@@ -916,22 +916,26 @@ def test_config_without_backend_resumes_as_sb3(tmp_path):
     env.close()
 
 
-def test_the_early_stopping_rule_ends_a_run_and_resume_keeps_it_ended(tmp_path, monkeypatch):
-    """5 consecutive evaluations at >= 95 % (here 3 at 100 %) end the run before its budget;
-    outcome.json records it, and --resume does not train it further."""
+def _scripted_evaluations(monkeypatch, rates) -> None:
+    """Each evaluation scores the next of `rates` (SB3's evaluate_policy as EvalCallback calls
+    it: episode rewards and lengths, and each episode's last step reported to `callback`)."""
     from stable_baselines3.common import callbacks as sb3_callbacks
 
-    rates = iter([0.5, 1.0, 0.5, 1.0, 1.0, 1.0] + [0.0] * 50)
+    rates = iter(rates)
 
     def evaluate(model, env, n_eval_episodes, callback=None, **kwargs):
-        """SB3's evaluate_policy as EvalCallback calls it: episode rewards and lengths, and
-        each episode's last step reported to `callback`."""
         successes = int(next(rates) * n_eval_episodes)
         for episode in range(n_eval_episodes):
             callback({"done": True, "info": {"is_success": episode < successes}}, {})
         return [-10.0] * n_eval_episodes, [50] * n_eval_episodes
 
     monkeypatch.setattr(sb3_callbacks, "evaluate_policy", evaluate)
+
+
+def test_the_early_stopping_rule_ends_a_run_and_resume_keeps_it_ended(tmp_path, monkeypatch):
+    """5 consecutive evaluations at >= 95 % (here 3 at 100 %) end the run before its budget;
+    outcome.json records it, and --resume does not train it further."""
+    _scripted_evaluations(monkeypatch, [0.5, 1.0, 0.5, 1.0, 1.0, 1.0] + [0.0] * 50)
     out = tmp_path / "early"
     run = RunDir(out)
     assert _train(out, "ddpg", 2000, "--stop-at-success", "0.95", "--stop-after", "3") == 0
@@ -965,17 +969,7 @@ def test_an_evaluation_off_the_grid_neither_stops_a_run_nor_survives_a_raised_bu
     the uninterrupted run at that budget has none there. While the raised run trains, it
     has no final model or policy: `evaluate` plays its newest checkpoint, not the model it
     ended with before."""
-    from stable_baselines3.common import callbacks as sb3_callbacks
-
-    rates = iter([0.0] * 6 + [1.0] + [0.0] * 50)  # Success only at step 550, off the grid.
-
-    def evaluate(model, env, n_eval_episodes, callback=None, **kwargs):
-        successes = int(next(rates) * n_eval_episodes)
-        for episode in range(n_eval_episodes):
-            callback({"done": True, "info": {"is_success": episode < successes}}, {})
-        return [-10.0] * n_eval_episodes, [50] * n_eval_episodes
-
-    monkeypatch.setattr(sb3_callbacks, "evaluate_policy", evaluate)
+    _scripted_evaluations(monkeypatch, [0.0] * 6 + [1.0] + [0.0] * 50)  # Success at 550 only.
     out = tmp_path / "off-grid"
     run = RunDir(out)
     assert _train(out, "sac", 550, "--stop-at-success", "0.95", "--stop-after", "1") == 0
