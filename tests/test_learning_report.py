@@ -119,6 +119,31 @@ def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     assert steps_to([stopped, going], 0.9) == 16000
 
 
+def test_a_seed_stopped_by_a_shorter_rule_holds_the_evaluations_that_met_it(tmp_path):
+    """With `--stop-after 3` a run can stop after fewer evaluations than the smoothing's 5
+    (the figure failed with a KeyError), and holds the mean of the 3 that met the rule, not
+    of 5 that reach back past them."""
+    import dataclasses
+
+    from franka_composer.training.curves import seed_curves
+    from franka_composer.training.learning_report import held
+
+    root = _write_run(tmp_path, "push", "tqc", 0, [0.0, 1.0, 1.0, 1.0], (True, 50.0))
+    config = RunDir(root).read_config()
+    RunDir(root).write_config(dataclasses.replace(config, hyperparameters=(
+        config.hyperparameters.replace(stop_after_evaluations=3))))
+    stopped = read_run(root)
+    assert held(stopped, stopped.curve, [8000, 10000]) == {
+        0: 0.0, 2000: 1.0, 4000: 1.0, 6000: 1.0, 8000: 1.0, 10000: 1.0}
+    # Table I's rule (5): its 5 evaluations at 95 % or more, as the smoothing reads them.
+    longer = read_run(_write_run(tmp_path, "push", "tqc", 1, [0.0, 0.0, 0.96, 0.98, 1.0, 1.0,
+                                                              0.99], (True, 50.0)))
+    assert held(longer, longer.curve, [14000]) == {**longer.curve, 14000: pytest.approx(0.986)}
+    going = _write_run(tmp_path, "push", "tqc", 2, [0.0] * 6)
+    curves = seed_curves([root, going])[("push", "tqc", "")]
+    assert curves[0][10000] == 1.0
+
+
 def test_the_figure_holds_a_seed_that_stopped_early_as_the_steps_to_thresholds_do(tmp_path):
     """Without holding, the cell's median line ended at the first seed's stop (8,000 steps
     of the 18,000 the other seed reached)."""

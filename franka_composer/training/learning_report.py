@@ -48,6 +48,7 @@ class RunRecord:
     cpu_s: float | None  # None: not finished, or not recorded throughout
     curve: dict[int, float]  # evaluated step -> success rate
     wall_times: dict[int, float]  # evaluated step -> the run's wall-clock seconds there
+    stop_after: int = SMOOTHING  # the evaluations in a row the stopping rule asks for
 
 
 def read_run(root: pathlib.Path) -> RunRecord:
@@ -62,7 +63,8 @@ def read_run(root: pathlib.Path) -> RunRecord:
         stopped_early=bool(outcome.get("stopped_early", False)),
         wall_s=float(outcome.get("wall_time_s", last["wall_time_s"])),
         cpu_s=outcome.get("cpu_time_s"), curve=success_curve(rows),
-        wall_times={row["steps"]: row["wall_time_s"] for row in rows})
+        wall_times={row["steps"]: row["wall_time_s"] for row in rows},
+        stop_after=config.hyperparameters.stop_after_evaluations)
 
 
 def smoothed(curve: dict[int, float]) -> dict[int, float]:
@@ -99,11 +101,13 @@ def minutes_to(runs: list[RunRecord], threshold: float) -> float | None:
 
 def held(run: RunRecord, curve: dict[int, float], steps) -> dict[int, float]:
     """`curve` (the run's own or smoothed) with the `steps` after its last at the level a
-    run that stopped early by the rule holds from there on: the mean of its last
-    `SMOOTHING` evaluations (each 95 % or more). Another run's curve comes back as it is."""
+    run that stopped early by the rule holds from there on: the mean of the evaluations
+    that met the rule, its last `stop_after` (each at the rule's rate or more). Another
+    run's curve comes back as it is."""
     if not run.stopped_early:
         return curve
-    last, level = max(curve), smoothed(run.curve)[max(run.curve)]
+    streak = [run.curve[step] for step in sorted(run.curve)[-run.stop_after:]]
+    last, level = max(curve), float(np.mean(streak))
     return {**curve, **{step: level for step in steps if step > last}}
 
 
