@@ -1349,6 +1349,10 @@ def test_demonstrations_fill_the_replay_buffer_before_learning(tmp_path, algo, f
                                   np.concatenate([e["action"] for e in episodes[:2]]))
     assert buffer.ep_length[0, 0] == len(episodes[0]["action"])  # Whole episodes for HER.
     assert buffer.pos == count + 100  # Then the run's own 100 steps.
+    with pytest.raises(ValueError, match=re.escape(  # A raised budget keeps them too.
+            f"holds 2000 transitions, {count} of them for its demonstrations, so at most "
+            f"{2000 - count} steps keep them")):
+        _train(out, algo, 2001 - count, "--resume")
 
 
 def test_the_runs_expert_records_its_demonstrations_at_its_start(tmp_path):
@@ -1381,6 +1385,13 @@ def test_the_runs_expert_records_its_demonstrations_at_its_start(tmp_path):
     np.testing.assert_array_equal(buffer.actions[:count, 0],
                                   np.concatenate([e["action"] for e in recorded]))
     assert buffer.pos == count + 100
+    # A raised budget keeps them too: 2 episodes of up to 50 steps leave 1900 of 2000.
+    config_before = run.config_path.read_bytes()
+    with pytest.raises(ValueError, match=re.escape(
+            f"--total-steps 1901: {out}'s replay buffer holds 2000 transitions, 100 of them "
+            "for its demonstrations, so at most 1900 steps keep them")):
+        _train(out, "sac", 1901, "--resume")
+    assert run.config_path.read_bytes() == config_before
 
 
 def test_expert_demonstrations_are_refused_beside_a_dataset_or_past_the_buffer(tmp_path):

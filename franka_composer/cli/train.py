@@ -336,11 +336,37 @@ def _check_threads(threads: int | None) -> None:
 
 
 def _check_budget(args: argparse.Namespace, run_dir) -> None:
-    """A resume's --total-steps may raise the run's budget, not go below what it trained."""
+    """A resume's --total-steps may raise the run's budget, not go below what it trained,
+    nor so far that the steps would overwrite its demonstrations in the replay buffer (its
+    start checked its budget so: `_check_demos`)."""
     steps = run_dir.read_state().get("steps", 0)
-    if args.total_steps is not None and args.total_steps < steps:
+    if args.total_steps is None:
+        return
+    if args.total_steps < steps:
         raise ValueError(f"{run_dir.root} has trained {steps} steps already, more than "
                          f"--total-steps {args.total_steps}")
+    config = run_dir.read_config()
+    if config.demos is None and config.expert_demos is None:
+        return
+    from franka_composer.tasks import TASK_CONFIGS
+    from franka_composer.training import demos
+    from franka_composer.training.models import make_env
+
+    if config.expert_demos is not None:  # At most, as its start counted them.
+        transitions = config.expert_demos * TASK_CONFIGS[config.task].max_episode_steps
+    else:
+        env = make_env(config.task, **config.env_options)
+        try:
+            episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
+        finally:
+            env.close()
+        transitions = sum(len(episode["action"]) for episode in episodes)
+    buffer_size = config.hyperparameters.buffer_size
+    if transitions + args.total_steps > buffer_size:
+        raise ValueError(f"--total-steps {args.total_steps}: {run_dir.root}'s replay buffer "
+                         f"holds {buffer_size} transitions, {transitions} of them for its "
+                         f"demonstrations, so at most {buffer_size - transitions} steps keep "
+                         "them (more would overwrite them)")
 
 
 def run(args: argparse.Namespace) -> int:
