@@ -13,6 +13,7 @@ import pytest
 from franka_composer import cli
 from franka_composer.training import ALGOS, TABLE_I, hyperparameters
 from franka_composer.training.callbacks import LatestCheckpoint
+from franka_composer.training.loop import EVAL_SEED_OFFSET, FRESH_STREAM_SEED_OFFSET
 from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.runs import RunDir, read_eval_rows
 
@@ -429,7 +430,9 @@ def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, mon
                 "would be")):
             assert cli.main(["train", "--resume", "--out", str(out), "--total-steps", "200",
                              "--no-progress", "--device", "cpu"]) == 0
-    assert seeds[-1] == 1 + 130  # The run's seed and step.
+    # The run's seed and step, above the evaluation's seed: at step 10,000 they met.
+    assert seeds[-1] == 1 + FRESH_STREAM_SEED_OFFSET + 130
+    assert FRESH_STREAM_SEED_OFFSET > EVAL_SEED_OFFSET
     assert threads == [1] and RunDir(out).read_state()["threads"] == 1
     assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100, 200]
     # Where it left the uninterrupted run's course, in its last checkpoint and its outcome.

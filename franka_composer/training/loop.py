@@ -33,6 +33,10 @@ from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.
 EVAL_SEED_OFFSET = 10_000
+#: A fresh training stream's seed (a resume that cannot go on exactly) is the run's seed plus
+#: this and the step: above the evaluation's, so the two never share episodes (a fresh
+#: stream at step 10,000 took the evaluation's seed when it was the seed plus the step).
+FRESH_STREAM_SEED_OFFSET = 2 * EVAL_SEED_OFFSET
 
 
 def _skip_evaluated_episodes(eval_env, evaluations: int, episodes: int) -> None:
@@ -72,8 +76,8 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
                       "fresh_streams in its checkpoint's state.json and its outcome.json)",
                       RuntimeWarning, stacklevel=2)
         model._last_obs = None  # SB3 resets the env, with the new stream's seed.
-        stream = exact_resume.EpisodeStream(config.seed + int(state["steps"]),
-                                            model._episode_num)
+        stream = exact_resume.EpisodeStream(
+            config.seed + FRESH_STREAM_SEED_OFFSET + int(state["steps"]), model._episode_num)
         model.set_random_seed(stream.seed)
     return model, stream, fresh
 
