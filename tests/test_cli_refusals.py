@@ -228,6 +228,35 @@ def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path
     assert not kept.exists()
 
 
+def test_keep_copies_each_file_whole_or_not_at_all(tmp_path, monkeypatch):
+    """A copy that fails halfway (a full disk) leaves the kept file as it was, not half of
+    the run's: what keep writes is committed."""
+    import shutil
+
+    run = _run(tmp_path / "run")
+    run.policy_file.write_bytes(b"policy" * 1000)
+    kept = tmp_path / "kept"
+    assert cli.main(["keep", str(run.root), "--into", str(kept)]) == 0
+    copied = (kept / "run" / "policy.pt").read_bytes()
+    run.policy_file.write_bytes(b"longer policy" * 1000)
+    copy = shutil.copy
+
+    def half(source, target):
+        copy(source, target)
+        if pathlib.Path(source).name == "policy.pt":
+            with open(target, "r+b") as written:
+                written.truncate(100)
+            raise OSError(28, "No space left on device")
+        return target
+
+    monkeypatch.setattr(shutil, "copy", half)
+    with pytest.raises(OSError, match="No space left"):
+        cli.main(["keep", str(run.root), "--into", str(kept)])
+    assert (kept / "run" / "policy.pt").read_bytes() == copied
+    assert sorted(path.name for path in (kept / "run").iterdir()) == [
+        "config.json", "eval.csv", "outcome.json", "policy.pt"]  # No partial file left.
+
+
 def test_keep_refuses_to_keep_a_run_into_itself(tmp_path):
     run = _run(tmp_path / "run")
     before = sorted(os.listdir(run.root))

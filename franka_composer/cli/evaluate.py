@@ -58,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nSuccess rate %, mean ± std over seeds, {args.episodes} episodes per model:\n")
     print(table + "\n" + notes, end="")
     if args.out:
+        from franka_composer.training.run_files import replace_atomically
+
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(table + "\n" + notes)
+        replace_atomically(args.out, lambda path: path.write_text(table + "\n" + notes))
     return 0

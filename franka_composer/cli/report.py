@@ -50,6 +50,8 @@ def run(args: argparse.Namespace) -> int:
                            wall_clock=args.wall_clock, thresholds=thresholds)
     print(table, end="")
     if args.out:
+        from franka_composer.training.run_files import replace_atomically
+
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(table)
+        replace_atomically(args.out, lambda path: path.write_text(table))
     return 0

@@ -12,6 +12,7 @@ import dataclasses
 import pathlib
 import shutil
 
+from franka_composer.training.run_files import replace_atomically
 from franka_composer.training.runs import (RunDir, read_eval_rows, run_finished,
                                            write_eval_rows)
 
@@ -76,14 +77,19 @@ def keep_run(files: KeptFiles, kept: RunDir) -> None:
     loses its outcome and policy here until it finishes again."""
     run = files.run
     kept.root.mkdir(parents=True, exist_ok=True)
-    shutil.copy(run.config_path, kept.config_path)
+    _copy(run.config_path, kept.config_path)
     write_eval_rows(kept.eval_csv, files.evaluations)
     for path, copy in ((run.outcome_path, kept.outcome_path),
                        (run.policy_file, kept.policy_file)):
         if files.finished and path.is_file():
-            shutil.copy(path, copy)
+            _copy(path, copy)
         elif copy.is_file():
             copy.unlink()
+
+
+def _copy(path: pathlib.Path, copy: pathlib.Path) -> None:
+    """`path` copied to `copy` whole or not at all (a committed file is never half one)."""
+    replace_atomically(copy, lambda partial: shutil.copy(path, partial))
 
 
 def check_kept_apart(roots, kept: pathlib.Path, option: str) -> None:

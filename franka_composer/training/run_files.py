@@ -16,11 +16,15 @@ import zlib
 def replace_atomically(path: pathlib.Path, write) -> None:
     """`write(partial)` writes the file beside `path` (the same suffix), which then takes
     `path`'s place in one step: a run killed while writing leaves the file it had whole,
-    or none, never half of one."""
+    or none, never half of one; a write that fails takes its partial file with it."""
     partial = path.with_name(f"{path.stem}.partial{path.suffix}")
-    write(partial)
-    with open(partial, "rb+") as written:
-        os.fsync(written.fileno())
+    try:
+        write(partial)
+        with open(partial, "rb+") as written:
+            os.fsync(written.fileno())
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
     os.replace(partial, path)
 
 

@@ -389,9 +389,14 @@ def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
 
 
 def append_eval_row(path: pathlib.Path, row: dict[str, float]) -> None:
-    new = not path.is_file()
+    """Appends `row` to an eval.csv (with its header, where new) in one write, flushed to
+    the disk: a run killed there leaves the rows it had, and this one whole or not at all."""
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=EVAL_COLUMNS)
+    if not path.is_file():
+        writer.writeheader()
+    writer.writerow(row)
     with path.open("a", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=EVAL_COLUMNS)
-        if new:
-            writer.writeheader()
-        writer.writerow(row)
+        f.write(text.getvalue())
+        f.flush()
+        os.fsync(f.fileno())
