@@ -44,6 +44,34 @@ def test_a_new_checkpoint_replaces_the_latest_only_once_written_whole(tmp_path):
     assert not (run.root / "checkpoint.next").exists()
 
 
+def test_a_checkpoint_is_on_the_disk_before_it_replaces_the_latest(tmp_path, monkeypatch):
+    """Its files and folder are flushed before the link moves, and the run's folder (the
+    link) before the old checkpoint is removed: a crash in between leaves one whole."""
+    import shutil
+
+    run = RunDir(tmp_path / "run")
+    run.root.mkdir()
+    first = run.new_checkpoint(100)
+    _write(first, 100)
+    run.publish_checkpoint(first)
+    second = run.new_checkpoint(200)
+    _write(second, 200)
+    events = []
+    fsync, replace, rmtree = os.fsync, os.replace, shutil.rmtree
+    monkeypatch.setattr(os, "fsync", lambda fd: events.append(
+        ("sync", os.path.realpath(f"/proc/self/fd/{fd}"))) or fsync(fd))
+    monkeypatch.setattr(os, "replace", lambda a, b: events.append(("link", str(b))) or
+                        replace(a, b))
+    monkeypatch.setattr(shutil, "rmtree", lambda path, *a, **k: events.append(
+        ("remove", str(path))) or rmtree(path, *a, **k))
+    run.publish_checkpoint(second)
+    link = events.index(("link", str(run.checkpoint)))
+    synced = {path for kind, path in events[:link] if kind == "sync"}
+    assert synced >= {str(path.resolve()) for path in [second, *second.iterdir()]}
+    removed = events.index(("remove", str(first)))
+    assert ("sync", str(run.root.resolve())) in events[link:removed]
+
+
 def test_a_checkpoint_folder_of_a_run_from_before_is_replaced_in_the_same_way(tmp_path):
     run = RunDir(tmp_path / "run")
     run.checkpoint.mkdir(parents=True)
