@@ -167,11 +167,89 @@ def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env
             main(["train", "--task", "push", "--demos", str(path), "--out",
                   str(tmp_path / "run")])
         assert not (tmp_path / "run").exists()
+    # Cut to 90 %, an index file split an episode (a 5-step stub read as one) or joined two:
+    # refused, where the stub went into the buffer as an episode ending at a time-out.
+    for index_file in ("step_offsets.riegeli", "episode_index.riegeli"):
+        path = tmp_path / index_file
+        shutil.copytree(recorded / "rlds", path)
+        for damaged in path.glob(f"*/{index_file}"):
+            damaged.write_bytes(damaged.read_bytes()[:len(damaged.read_bytes()) * 9 // 10])
+        with pytest.raises(ValueError, match=f"^{re.escape(str(path))}"):
+            demos.load_episodes(path, push_env)
     garbage = tmp_path / "garbage"
     shutil.copytree(recorded / "rlds", garbage)
     (garbage / "metadata.riegeli").write_bytes(b"garbage" * 10)
     _refused(garbage, push_env, "is not a readable RLDS dataset (damaged?): envlogger says "
                                 "RuntimeError: INTERNAL: Failed to parse riegeli record")
+
+
+def test_an_rlds_episode_cut_at_the_time_limit_is_a_truncation_not_a_termination(tmp_path,
+                                                                                 push_env):
+    """Its LAST step's discount is 1: the buffer bootstraps there (it read every LAST step
+    as a termination, teaching the critic that the time limit is the end), as from npz
+    and Minari."""
+    for format, name in (("rlds", "rlds"), ("npz", "push.npz"), ("minari", "minari")):
+        out = tmp_path / name
+        record("push", 2, out, format=format, seed=7, action_noise=0.5,
+               terminate_on_success=False, **({"dataset_id": "franka_composer/push/cut-v0"}
+                                              if format == "minari" else {}))
+        if format == "minari":
+            out = out / "franka_composer" / "push" / "cut-v0"
+        for episode in demos.load_episodes(out, push_env):
+            assert not episode["terminated"].any(), format
+            assert episode["truncated"].tolist() == [False] * 49 + [True], format
+
+
+def test_an_npz_recording_interrupted_while_writing_leaves_the_old_file(recorded, tmp_path,
+                                                                        monkeypatch):
+    import shutil
+
+    out = tmp_path / "push.npz"
+    shutil.copy(recorded / "push.npz", out)
+    before = out.read_bytes()
+    savez = np.savez_compressed
+
+    def interrupted(file, **arrays):
+        savez(file, **dict(list(arrays.items())[:3]))  # Some of the arrays, then a stop.
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(np, "savez_compressed", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        record("push", 1, out, seed=3)
+    assert out.read_bytes() == before
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["push.npz"]
+
+
+def test_demonstrations_whose_rewards_the_task_does_not_give_are_refused(tmp_path, push_env):
+    """Recorded with a 0.3 m success threshold: its stored successes are not the run's
+    task's, and went into the buffer as they were."""
+    out = tmp_path / "wide.npz"
+    record("push", 2, out, seed=0, distance_threshold=0.3)
+    _refused(out, push_env, "holds rewards this task does not give its goals (episode 0, "
+                            "step 0: 0 stored, -1 from the goals)")
+
+
+def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch):
+    """A policy that fails on its 20th action: no folder of steps that would read as a
+    dataset of two short episodes."""
+    import franka_composer.datasets as datasets
+
+    make_policy, calls = datasets.make_policy, []
+
+    def failing(*args, **kwargs):
+        policy = make_policy(*args, **kwargs)
+
+        def act(observation):
+            calls.append(observation)
+            if len(calls) == 20:
+                raise RuntimeError("the policy failed")
+            return policy(observation)
+        return act
+
+    monkeypatch.setattr(datasets, "make_policy", failing)
+    with pytest.raises(RuntimeError, match="the policy failed"):
+        record("push", 3, tmp_path / "rlds", format="rlds", seed=0)
+    assert not (tmp_path / "rlds").exists()
 
 
 def test_an_rlds_dataset_of_another_task_is_refused_before_its_observations_are_read(

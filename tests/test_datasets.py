@@ -70,7 +70,8 @@ def test_an_rlds_dataset_reads_with_envlogger_and_replays_exactly(tmp_path):
     assert dataset["metadata"]["options"] == {"terminate_on_success": False}
     env = franka_composer.load("pick_and_place", terminate_on_success=False)
     for index, episode in enumerate(dataset["episodes"]):
-        assert episode["seed"] == 5 + index and episode["last"]  # The time-out's LAST.
+        # The time-out's LAST (discount 1): not a termination.
+        assert episode["seed"] == 5 + index and not episode["terminated"]
         seeding.reseed(env.random_state, episode["seed"])
         replayed = [env.reset().observation]
         rewards = []
@@ -122,7 +123,7 @@ def test_record_works_in_the_pixel_modes(tmp_path, format):
                                                                   16, 3)
     else:
         episode = rlds_format.read(out)["episodes"][0]
-        assert episode["last"] and episode["observations"][0]["workspace_pixels"].shape == (
+        assert episode["observations"][0]["workspace_pixels"].shape == (
             16, 16, 3)
 
 

@@ -16,6 +16,7 @@ extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unic
 from __future__ import annotations
 
 import pathlib
+import shutil
 
 import numpy as np
 
@@ -43,47 +44,69 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     limit = env.spec.max_episode_steps if env.spec is not None else None
     if limit is not None and limit < (composer_env.episode_steps or float("inf")):
         composer_env.set_episode_steps(limit)
+    made = not root.exists()
     root.mkdir(parents=True, exist_ok=True)
     episode = {"seed": None}
     steps = successes = 0
-    with envlogger.EnvLogger(composer_env, data_directory=str(root), metadata=metadata,
-                             episode_fn=lambda timestep, action, env: dict(episode)) as logged:
-        for index in range(episodes):
-            episode["seed"] = seed + index
-            if hasattr(policy, "reset"):
-                policy.reset()
-            seeding.reseed(composer_env.random_state, seed + index)  # As env.reset(seed=...).
-            timestep = logged.reset()
-            while not timestep.last():
-                timestep = logged.step(policy(adapter.goal_observation(timestep.observation)))
-                steps += 1
-            successes += bool(task.success)
+    try:
+        with envlogger.EnvLogger(composer_env, data_directory=str(root), metadata=metadata,
+                                 episode_fn=lambda timestep, action, env: dict(episode)
+                                 ) as logged:
+            for index in range(episodes):
+                episode["seed"] = seed + index
+                if hasattr(policy, "reset"):
+                    policy.reset()
+                seeding.reseed(composer_env.random_state, seed + index)  # As reset(seed=...).
+                timestep = logged.reset()
+                while not timestep.last():
+                    timestep = logged.step(
+                        policy(adapter.goal_observation(timestep.observation)))
+                    steps += 1
+                successes += bool(task.success)
+    except BaseException:
+        if made:  # A recording cut short is no dataset: nothing of it is left behind.
+            shutil.rmtree(root, ignore_errors=True)
+        raise
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
 
 
 def read(root: pathlib.Path) -> dict:
     """The dataset under `root`: its metadata, and per episode its seed, observations (the
-    reset's first), actions, rewards and whether it ended on a LAST step. A dataset
-    envlogger cannot read, or that holds no episodes (its step files emptied or cut short
-    read as none), is a ValueError naming `root`."""
+    reset's first), actions, rewards and whether it ended on the goal (`terminated`: its
+    LAST step's discount is 0) rather than at the time limit (discount 1). A dataset
+    envlogger cannot read, that holds no episodes (its step files emptied or cut short
+    read as none), or an episode that is not one FIRST step, MID steps and one LAST step
+    (its index files cut short join or split episodes), is a ValueError naming `root`."""
     envlogger = _envlogger()
     try:
         with envlogger.Reader(data_directory=str(root)) as reader:
             metadata = reader.metadata()
-            episodes = []
-            for steps, info in zip(reader.episodes, reader.episode_metadata()):
-                steps = list(steps)
-                episodes.append({
-                    "seed": int(info["seed"]),
-                    "observations": [step.timestep.observation for step in steps],
-                    "actions": [step.action for step in steps[1:]],
-                    "rewards": [step.timestep.reward for step in steps[1:]],
-                    "last": bool(steps[-1].timestep.last()),
-                })
+            read_episodes = [(list(steps), info) for steps, info in
+                             zip(reader.episodes, reader.episode_metadata())]
     except Exception as error:  # envlogger's riegeli reader raises what it meets.
         first_line = (str(error).splitlines() or [""])[0]
         raise ValueError(f"{root} is not a readable RLDS dataset (damaged?): envlogger "
                          f"says {type(error).__name__}: {first_line}") from None
-    if not episodes:
+    if not read_episodes:
         raise ValueError(f"{root} holds no episodes (its step files empty or damaged?)")
+    episodes = []
+    for index, (steps, info) in enumerate(read_episodes):
+        _check_episode(root, index, [step.timestep for step in steps])
+        episodes.append({
+            "seed": int(info["seed"]),
+            "observations": [step.timestep.observation for step in steps],
+            "actions": [step.action for step in steps[1:]],
+            "rewards": [step.timestep.reward for step in steps[1:]],
+            "terminated": bool(steps[-1].timestep.discount == 0),
+        })
     return {"metadata": metadata, "episodes": episodes}
+
+
+def _check_episode(root: pathlib.Path, index: int, timesteps: list) -> None:
+    """A ValueError naming `root` unless the episode is whole: a FIRST step, MID steps, a
+    LAST step, each step with an action but the first."""
+    whole = (len(timesteps) >= 2 and timesteps[0].first() and timesteps[-1].last()
+             and all(timestep.mid() for timestep in timesteps[1:-1]))
+    if not whole:
+        raise ValueError(f"{root}: episode {index} is not whole (a FIRST step, then steps, "
+                         "then a LAST one; damaged, or a recording cut short?)")

@@ -34,12 +34,28 @@ _DAMAGED = (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError)
 
 def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
           metadata: dict | None = None) -> None:
-    """Writes every episode, concatenated, with `episode_length` and `metadata` (JSON)."""
+    """Writes every episode, concatenated, with `episode_length` and `metadata` (JSON), whole
+    or not at all: beside the file, which it then replaces in one step (a recording
+    interrupted while writing left an archive of some of the arrays in the old one's place,
+    read as a foreign file)."""
     arrays = {key: np.concatenate([e[key] for e in episodes]) for key in episodes[0]}
     if metadata:
         arrays[METADATA_KEY] = np.array(json.dumps(metadata))
     lengths = np.array([len(e["action"]) for e in episodes], dtype=np.int64)
-    np.savez_compressed(path, episode_length=lengths, **arrays)
+    target = os.fspath(path)
+    if not target.endswith(".npz"):  # Where numpy's savez puts a file named without it.
+        target += ".npz"
+    partial = f"{target[:-len('.npz')]}.partial.npz"
+    try:
+        with open(partial, "wb") as file:
+            np.savez_compressed(file, episode_length=lengths, **arrays)
+            file.flush()
+            os.fsync(file.fileno())
+    except BaseException:
+        if os.path.exists(partial):
+            os.remove(partial)
+        raise
+    os.replace(partial, target)
 
 
 def read(path: str | os.PathLike) -> tuple[list[dict[str, np.ndarray]], dict]:

@@ -55,6 +55,7 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
                              f"{spaces[key].shape}: demonstrations of another task?")
     _check_actions(path, episodes, env.action_space)
     _check_sparse_rewards(path, episodes)
+    _check_rewards_are_the_tasks(path, episodes, env)
     return episodes
 
 
@@ -148,6 +149,22 @@ def _check_sparse_rewards(path, episodes: list[dict]) -> None:
                              "--reward-type dense?)")
 
 
+def _check_rewards_are_the_tasks(path, episodes: list[dict], env) -> None:
+    """Each stored reward is the one this run's task gives the step's goals (HER recomputes
+    them so): a dataset recorded with another success threshold, say, would put successes
+    the run's task does not count into the buffer."""
+    for index, episode in enumerate(episodes):
+        rewards = env.unwrapped.compute_reward(episode["achieved_goal"][1:],
+                                               episode["desired_goal"][1:], None)
+        wrong = np.flatnonzero(rewards != episode["reward"])
+        if wrong.size:
+            step = int(wrong[0])
+            raise ValueError(
+                f"{path} holds rewards this task does not give its goals (episode {index}, "
+                f"step {step}: {episode['reward'][step]:g} stored, {rewards[step]:g} from the "
+                "goals): recorded with another distance_threshold or reward?")
+
+
 def _npz_episodes(path: pathlib.Path, env) -> list[dict]:
     trajectories = Trajectories.load(path)
     _check_recorded_as_trained(path, trajectories.metadata, env)
@@ -206,12 +223,13 @@ def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
         steps = len(episode["actions"])
         goals = {key: np.array([o[key] for o in observations]) for key in OBSERVATION_KEYS}
         success = task.is_success(goals["achieved_goal"][1:], goals["desired_goal"][1:])
-        terminated = np.zeros(steps, dtype=bool)
-        terminated[-1:] = episode["last"]
+        # The LAST step's discount: 0 where the episode ended on the goal, 1 at the time
+        # limit (a truncation, from which the critic bootstraps).
+        end = np.arange(steps) == steps - 1
         episodes.append({**goals, "action": np.array(episode["actions"], dtype=np.float32),
                          "reward": np.array(episode["rewards"], dtype=np.float64),
-                         "terminated": terminated, "truncated": ~terminated & (
-                             np.arange(steps) == steps - 1),
+                         "terminated": end & episode["terminated"],
+                         "truncated": end & (not episode["terminated"]),
                          "is_success": np.asarray(success, dtype=bool)})
     return episodes
 
