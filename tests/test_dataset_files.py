@@ -270,6 +270,24 @@ def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_pat
                                 "Unable to synchronously open file (truncated file")
 
 
+def test_a_minari_dataset_of_another_env_is_refused_by_its_id(tmp_path, push_env,
+                                                               monkeypatch):
+    """Not "does not say which task... (an npz written before...?)", with a command that
+    would not record it."""
+    import gymnasium as gym
+    import minari
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path))
+    env = minari.DataCollector(gym.make("Pendulum-v1", max_episode_steps=5))
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(env.action_space.sample())
+    env.create_dataset(dataset_id="pendulum/random-v0", algorithm_name="random")
+    env.close()
+    _refused(tmp_path / "pendulum" / "random-v0", push_env,
+             "is a Minari dataset of Pendulum-v1, not of a franka_composer task")
+
+
 def test_the_folder_rollout_wrote_minari_datasets_into_names_them(recorded, push_env):
     """`rollout --format minari --out DIR` keeps its dataset under DIR/<namespace>/<id>."""
     _refused(recorded / "minari", push_env, "is not a dataset: expected a .npz file, a Minari "

@@ -181,6 +181,9 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
         env_spec = dataset.spec.env_spec
     except Exception as error:  # h5py, json and Minari raise what they meet.
         raise _unreadable_minari(path, error) from None
+    if env_spec is not None and env_spec.id not in ENV_IDS:
+        raise ValueError(f"{path} is a Minari dataset of {env_spec.id}, not of a "
+                         "franka_composer task")
     _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env)
     try:
         return [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
