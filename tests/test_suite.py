@@ -291,6 +291,25 @@ def test_physics_divergence_ends_the_episode_with_a_warning_and_reset_recovers(c
     assert np.all(np.isfinite(timestep.observation["block/position"]))
 
 
+def test_a_diverged_step_is_a_truncation_in_gymnasium():
+    """Not a termination: with the sparse reward, ending the episode there would make
+    breaking the simulation the cheapest way out (no more -1s)."""
+    import gymnasium as gym
+
+    for options in ({}, {"terminate_on_success": False}):
+        env = gym.make("FrankaPushSparse-v0", **options)
+        env.reset(seed=0)
+        env.unwrapped.composer_env.physics.data.qvel[-6:] = 1e12
+        _, reward, terminated, truncated, info = env.step(np.zeros(3, np.float32))
+        assert (terminated, truncated, info["diverged"], info["is_success"]) == (
+            False, True, True, False)
+        assert reward == -1.0
+        env.reset(seed=0)
+        _, _, terminated, truncated, info = env.step(np.zeros(3, np.float32))
+        assert "diverged" not in info and not truncated
+        env.close()
+
+
 def test_a_diverged_step_is_not_rewarded_as_reaching_the_goal():
     """Composer would give a diverged step a reward of 0, the sparse reward for success."""
     env = franka_composer.load("push", seed=0)

@@ -39,8 +39,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
       **task_kwargs: overrides of the task's configuration (e.g. terminate_on_success=False).
 
     Episodes end with `terminated=True` on success when the task's `terminate_on_success`
-    is set (the paper's default) or if the physics diverges, and with `truncated=True` at
-    the dm_env environment's time limit: the task's `max_episode_steps` unless `time_limit`
+    is set (the paper's default), and with `truncated=True` at the dm_env environment's
+    time limit or if the physics diverges (`info["diverged"]`: no end of the task, so a
+    learner bootstraps there rather than learn that breaking the simulation ends its
+    costs): the time limit is the task's `max_episode_steps` unless `time_limit`
     (seconds; None: none) says otherwise. Through `gym.make` the length is Gymnasium's
     `TimeLimit`'s alone, `max_episode_steps` (the task's by default), as in
     Gymnasium-Robotics (`registration.make_registered`).
@@ -148,11 +150,15 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         obs = self.goal_observation(self._timestep.observation)
         info = self._info()
         reward = REWARD_DTYPE(self._timestep.reward)
-        # dm_env's LAST step: discount 0 ends the episode (goal reached, or diverged
-        # physics), discount 1 is the time-out, Gymnasium's truncation.
+        # dm_env's LAST step: discount 1 is the time-out, Gymnasium's truncation; discount
+        # 0 the goal reached, or the physics diverged (Composer's discount there), which is
+        # no end of the task: a truncation too.
         ended = self._timestep.last()
-        truncated = bool(ended and self._timestep.discount > 0)
+        diverged = bool(ended and self._timestep.discount == 0 and not self._task.success)
+        truncated = bool(ended and (self._timestep.discount > 0 or diverged))
         terminated = bool(ended and not truncated)
+        if diverged:
+            info["diverged"] = True
         if ended:
             self._timestep = None  # Composer would reset on the next step: make it explicit.
         if self.render_mode == "human":
