@@ -166,18 +166,18 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             _finish(run, model, True, state["wall_time_s"], state.get("cpu_time_s"),
                     state.get("fresh_streams"))
             return model
+        # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
+        clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
+        model, stream, fresh = _resume(run, config, state, env, device)
         if outcome:
             # A raised budget: it has not ended now. Its final model and policy go with its
-            # outcome (the checkpoint it ended at is the same model, and `evaluate` would
-            # otherwise score them after it trains on), and so does an evaluation off the
-            # grid where it ended, which the uninterrupted run at this budget has not.
+            # outcome (the checkpoint it resumed from is the same model, and `evaluate`
+            # would otherwise score them after it trains on), and so does an evaluation off
+            # the grid where it ended, which the uninterrupted run at this budget has not.
             for path in (run.final_model, run.policy_file, run.outcome_path):
                 path.unlink(missing_ok=True)
             if rows and rows[-1]["steps"] % hp.eval_every:
                 rows = rows[:-1]
-        # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
-        clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
-        model, stream, fresh = _resume(run, config, state, env, device)
         # Where the run left the uninterrupted run's course, carried from checkpoint to
         # checkpoint into outcome.json; unknown (None) for a run whose checkpoints began
         # before it was recorded.
