@@ -248,8 +248,8 @@ def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch
 
     monkeypatch.setattr(datasets, "make_policy", failing)
     with pytest.raises(RuntimeError, match="the policy failed"):
-        record("push", 3, tmp_path / "rlds", format="rlds", seed=0)
-    assert not (tmp_path / "rlds").exists()
+        record("push", 3, tmp_path / "out" / "rlds", format="rlds", seed=0)
+    assert list(tmp_path.iterdir()) == []  # "out" too, which it made.
 
 
 def test_an_rlds_dataset_of_another_task_is_refused_before_its_observations_are_read(
@@ -345,7 +345,7 @@ def test_a_minari_recording_that_fails_leaves_nothing_behind(tmp_path, monkeypat
         return env.action_space.sample()
 
     with pytest.raises(RuntimeError, match="the policy failed"):
-        minari_format.write(env, failing_policy, 3, 0, tmp_path / "out",
+        minari_format.write(env, failing_policy, 3, 0, tmp_path / "out" / "nested",
                             "franka_composer/push/expert-v0", "a test")
     env.close()
-    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # "out" too, which it made.

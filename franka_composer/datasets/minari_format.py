@@ -15,6 +15,8 @@ import pathlib
 import shutil
 import warnings
 
+from franka_composer.datasets.folders import make_folder
+
 #: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
 DATASETS_PATH_VARIABLE = "MINARI_DATASETS_PATH"
 
@@ -41,11 +43,11 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     Minari's collector keeps the episodes in a temporary folder under its datasets root
     until `create_dataset`, and joins that root to itself if it is relative: the collector
     is made with `root` (absolute) as its root, and closed (its temporary folder removed)
-    whatever happens; a dataset that was not finished is removed (with `root` if it made it)."""
+    whatever happens; a dataset that was not finished is removed (with the folders it made
+    for `root`)."""
     import minari
 
-    made_root = not root.exists()
-    root.mkdir(parents=True, exist_ok=True)
+    made = make_folder(root)
     with datasets_root(root):
         collector = minari.DataCollector(env, record_infos=True)
     successes, finished = 0, False
@@ -72,7 +74,7 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     finally:
         collector.close()
         if not finished:
-            shutil.rmtree(root if made_root else root / dataset_id, ignore_errors=True)
+            shutil.rmtree(made or root / dataset_id, ignore_errors=True)
     return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
             "success_rate": successes / episodes}
 

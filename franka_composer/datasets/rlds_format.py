@@ -21,6 +21,7 @@ import shutil
 import numpy as np
 
 from franka_composer import seeding
+from franka_composer.datasets.folders import make_folder
 
 
 def _envlogger():
@@ -44,8 +45,7 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     limit = env.spec.max_episode_steps if env.spec is not None else None
     if limit is not None and limit < (composer_env.episode_steps or float("inf")):
         composer_env.set_episode_steps(limit)
-    made = not root.exists()
-    root.mkdir(parents=True, exist_ok=True)
+    made = make_folder(root)
     episode = {"seed": None}
     steps = successes = 0
     try:
@@ -65,7 +65,7 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
                 successes += bool(task.success)
     except BaseException:
         if made:  # A recording cut short is no dataset: nothing of it is left behind.
-            shutil.rmtree(root, ignore_errors=True)
+            shutil.rmtree(made, ignore_errors=True)
         raise
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
 
