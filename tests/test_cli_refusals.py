@@ -320,3 +320,24 @@ def test_sweep_sync_refuses_the_sweeps_own_folder(tmp_path):
                                          "folder other than the one holding the runs$"):
         cli.main(_sweep(out, "--sync", str(out)))
     assert run.eval_csv.read_bytes() == before  # Not cut back to its checkpoint.
+
+
+def test_stop_after_without_a_rate_is_refused_before_the_run_exists(tmp_path):
+    """It counts evaluations for --stop-at-success: alone, it was silently ignored."""
+    with pytest.raises(ValueError, match=re.escape(
+            "--stop-after counts evaluations for --stop-at-success RATE, and no "
+            "--stop-at-success was given")):
+        cli.main(["train", "--task", "push", "--stop-after", "3", "--out",
+                  str(tmp_path / "run")])
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_control_step_longer_than_mujoco_steps_in_one_call_is_refused():
+    """1e9 s reached MuJoCo as 5e11 steps and failed there with a traceback."""
+    import franka_composer
+
+    with pytest.raises(ValueError, match=re.escape(
+            "control_timestep must be at most 2,147,483,647 physics steps of 0.002 s, got "
+            "1000000000.0")):
+        franka_composer.load("push", control_timestep=1e9)
+    assert franka_composer.load("push", control_timestep=2.0).control_timestep() == 2.0

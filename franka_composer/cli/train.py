@@ -300,7 +300,11 @@ def check_new_run(args: argparse.Namespace):
     if hp.batch_size > hp.buffer_size:
         raise ValueError(f"--batch-size {hp.batch_size} is larger than the replay buffer "
                          f"(--buffer-size {hp.buffer_size}) it is sampled from")
-    _check_demos(settings, hp.buffer_size, args.total_steps or hp.total_steps)
+    total_steps = args.total_steps or hp.total_steps
+    if args.stop_after is not None and hp.stop_success_rate is None:
+        raise ValueError("--stop-after counts evaluations for --stop-at-success RATE, and "
+                         "no --stop-at-success was given")
+    _check_demos(settings, hp.buffer_size, total_steps)
     return config
 
 

@@ -79,6 +79,10 @@ class Workspace:
     goal_in_air_probability: float = 0.0
 
 
+#: The most physics steps a control step may take: MuJoCo steps them in one call whose
+#: count is a C int.
+MAX_SUBSTEPS = 2**31 - 1
+
 #: The damping of the paper's reference code's block's free joint (its push and
 #: pick-and-place XML: `<joint type="free" damping="0.01"/>`; its slide's puck has none):
 #: on a 4 cm, 0.1 kg cube a turn dies out within 2.7 ms, so a push slides the block where
@@ -294,11 +298,16 @@ class TaskConfig:
         return config
 
     def check(self) -> None:
-        """Checks what no single option can: the timestep ratio."""
+        """Checks what no single option can: the timestep ratio, a whole number of physics
+        steps that MuJoCo's step count (a C int) holds."""
         substeps = self.control_timestep / self.physics.timestep
         if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6 * substeps:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
                              f"timestep ({self.physics.timestep:g} s), got "
+                             f"{self.control_timestep!r}")
+        if round(substeps) > MAX_SUBSTEPS:
+            raise ValueError(f"control_timestep must be at most {MAX_SUBSTEPS:,} physics "
+                             f"steps of {self.physics.timestep:g} s, got "
                              f"{self.control_timestep!r}")
 
     @property
