@@ -11,7 +11,7 @@ import re
 import pytest
 
 from franka_composer import cli
-from franka_composer.training.run_files import replace_atomically
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.training.runs import RunDir, read_eval_rows
 
 #: Small enough for seconds per run; learning starts after two 50-step episodes.

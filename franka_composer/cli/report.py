@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
                            wall_clock=args.wall_clock, thresholds=thresholds)
     print(table, end="")
     if args.out:
-        from franka_composer.training.run_files import replace_atomically
+        from franka_composer.atomic_files import replace_atomically
 
         args.out.parent.mkdir(parents=True, exist_ok=True)
         replace_atomically(args.out, lambda path: path.write_text(table))

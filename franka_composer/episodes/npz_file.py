@@ -19,11 +19,13 @@ from __future__ import annotations
 
 import json
 import os
+import pathlib
 import zipfile
 import zlib
 
 import numpy as np
 
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.episodes.record import GOAL_KEYS, STEP_KEYS, check_episodes
 
 #: The key holding `metadata`, a JSON string.
@@ -42,20 +44,11 @@ def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
     if metadata:
         arrays[METADATA_KEY] = np.array(json.dumps(metadata))
     lengths = np.array([len(e["action"]) for e in episodes], dtype=np.int64)
-    target = os.fspath(path)
-    if not target.endswith(".npz"):  # Where numpy's savez puts a file named without it.
-        target += ".npz"
-    partial = f"{target[:-len('.npz')]}.partial.npz"
-    try:
-        with open(partial, "wb") as file:
-            np.savez_compressed(file, episode_length=lengths, **arrays)
-            file.flush()
-            os.fsync(file.fileno())
-    except BaseException:
-        if os.path.exists(partial):
-            os.remove(partial)
-        raise
-    os.replace(partial, target)
+    target = pathlib.Path(path)
+    if target.suffix != ".npz":  # Where numpy's savez puts a file named without it.
+        target = target.with_name(target.name + ".npz")
+    replace_atomically(target, lambda partial: np.savez_compressed(
+        partial, episode_length=lengths, **arrays))
 
 
 def read(path: str | os.PathLike) -> tuple[list[dict[str, np.ndarray]], dict]:

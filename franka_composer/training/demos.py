@@ -243,7 +243,7 @@ def record_expert(path: pathlib.Path, config) -> pathlib.Path:
     transitions the run could have collected, to `path` (an npz, written whole; seeded
     from `RunConfig.expert_demo_seed`); returns `path`."""
     from franka_composer.datasets import record
-    from franka_composer.training.run_files import replace_atomically
+    from franka_composer.atomic_files import replace_atomically
 
     options = {name: value for name, value in (
         *config.dynamics_options.items(),

@@ -12,7 +12,7 @@ import dataclasses
 import pathlib
 import shutil
 
-from franka_composer.training.run_files import replace_atomically
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.training.runs import (RunDir, read_eval_rows, run_finished,
                                            write_eval_rows)
 

@@ -19,6 +19,7 @@ import warnings
 from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import DummyVecEnv
 
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.training import demos, exact_resume
 from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
                                                 StoppedAtCheckpoint, StoppingRule, WallClock)
@@ -26,7 +27,7 @@ from franka_composer.training.models import build_model, load_model, make_env
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.run_config import RunConfig
-from franka_composer.training.run_files import checked_model, replace_atomically, unpickling
+from franka_composer.training.run_files import checked_model, unpickling
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, RunDir, write_eval_rows
 from franka_composer.training.signals import stop_requests
 from franka_composer.training.target_bounds import clip_target_critic

@@ -13,21 +13,6 @@ import zipfile
 import zlib
 
 
-def replace_atomically(path: pathlib.Path, write) -> None:
-    """`write(partial)` writes the file beside `path` (the same suffix), which then takes
-    `path`'s place in one step: a run killed while writing leaves the file it had whole,
-    or none, never half of one; a write that fails takes its partial file with it."""
-    partial = path.with_name(f"{path.stem}.partial{path.suffix}")
-    try:
-        write(partial)
-        with open(partial, "rb+") as written:
-            os.fsync(written.fileno())
-    except BaseException:
-        partial.unlink(missing_ok=True)
-        raise
-    os.replace(partial, path)
-
-
 def model_damage(path: pathlib.Path) -> str | None:
     """What is wrong with the SB3 (or sbx) model file at `path`, or None if it is a whole
     archive with its "data" (what SB3's load asserts) and every member's checksum right."""

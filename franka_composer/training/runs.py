@@ -31,9 +31,9 @@ import time
 import uuid
 import warnings
 
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.training.run_config import RunConfig
-from franka_composer.training.run_files import (checked_model, model_damage, read_json,
-                                                replace_atomically, steps_of)
+from franka_composer.training.run_files import checked_model, model_damage, read_json, steps_of
 
 EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
