@@ -84,6 +84,7 @@ kept_ahead() {
   "$BIN/python" - "$@" <<'PY'
 import pathlib
 import sys
+from franka_composer.training.keep import departure
 from franka_composer.training.runs import RunDir, read_eval_rows
 runs, kept = (pathlib.Path(arg) for arg in sys.argv[1:3])
 names = sys.argv[3:] or sorted(path.name for path in kept.glob("*/"))
@@ -92,19 +93,18 @@ for name in names:
     rows = read_eval_rows(ours.eval_csv)
     if not rows or ours.read_outcome():
         continue
-    run = RunDir(runs / name)
-    theirs = {row["steps"]: row for row in run.kept_evaluations()}
-    left = [(row, theirs[row["steps"]]) for row in rows if row["steps"] in theirs and (
-        row["success_rate"], row["mean_reward"]) != (theirs[row["steps"]]["success_rate"],
-                                                     theirs[row["steps"]]["mean_reward"])]
+    theirs = RunDir(runs / name).kept_evaluations()
+    left = departure(rows, theirs)
     if left:
-        row, other = left[0]
+        row, other = left
+        at = ("no evaluation" if other is None else f"success rate {other['success_rate']:g}, "
+              f"mean reward {other['mean_reward']:g}")
         print(f"{name}: its run here has left the evaluations kept in {kept} at step "
-              f"{row['steps']:,} (success rate {other['success_rate']:g}, mean reward "
-              f"{other['mean_reward']:g}; kept: {row['success_rate']:g}, "
+              f"{row['steps']:,} ({at}; kept: {row['success_rate']:g}, "
               f"{row['mean_reward']:g}): it will not be kept there")
         continue
-    last, reached = rows[-1]["steps"], max(theirs, default=None)
+    last = rows[-1]["steps"]
+    reached = max((row["steps"] for row in theirs), default=None)
     if reached is not None and reached >= last:
         continue
     here = ("no run here" if reached is None else

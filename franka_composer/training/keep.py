@@ -48,28 +48,43 @@ def check_extends(files: KeptFiles, kept: RunDir) -> None:
             raise ValueError(f"{kept.config_path} is another run's than {files.run.root}'s "
                              f"({'; '.join(differences)}): move {kept.root} away to keep "
                              "this run there")
-    ours = {row["steps"]: row for row in files.evaluations}
-    reached = max(ours, default=None)
-    for row in read_eval_rows(kept.eval_csv):
-        step = row["steps"]
-        if reached is None or step > reached:
-            ends = "it has kept none" if reached is None else f"its own end at step {reached:,}"
-            raise ValueError(
-                f"{kept.eval_csv} holds evaluations from step {step:,} on, which "
-                f"{files.run.root} has not reached ({ends}; begun again from zero?): keeping "
-                f"it now would drop them. Keep it once it has passed them, or move "
-                f"{kept.root} away")
-        mine = ours.get(step)
+    kept_rows = read_eval_rows(kept.eval_csv)
+    left = departure(kept_rows, files.evaluations)
+    if left:
+        row, mine = left
+        theirs = ("no evaluation" if mine is None else
+                  f"success rate {mine['success_rate']:g}, mean reward "
+                  f"{mine['mean_reward']:g}")
+        raise ValueError(
+            f"{kept.eval_csv} is not {files.run.root}'s evaluations: at step {row['steps']:,} "
+            f"it holds success rate {row['success_rate']:g}, mean reward "
+            f"{row['mean_reward']:g}, and the run {theirs}. Move {kept.root} away to keep "
+            "this run there")
+    reached = max((row["steps"] for row in files.evaluations), default=None)
+    beyond = [row["steps"] for row in kept_rows if reached is None or row["steps"] > reached]
+    if beyond:
+        ends = "it has kept none" if reached is None else f"its own end at step {reached:,}"
+        raise ValueError(
+            f"{kept.eval_csv} holds evaluations from step {beyond[0]:,} on, which "
+            f"{files.run.root} has not reached ({ends}; begun again from zero?): keeping "
+            f"it now would drop them. Keep it once it has passed them, or move "
+            f"{kept.root} away")
+
+
+def departure(kept: list[dict], ours: list[dict]) -> tuple[dict, dict | None] | None:
+    """Where the evaluations `ours` leave those `kept` (eval.csv rows), up to the last of
+    ours: the first kept one they do not hold with the same success rate and mean reward,
+    and theirs at its step (None: no evaluation there); None where they retrace them."""
+    by_step = {row["steps"]: row for row in ours}
+    reached = max(by_step, default=-1)
+    for row in kept:
+        if row["steps"] > reached:
+            break
+        mine = by_step.get(row["steps"])
         if mine is None or (mine["success_rate"], mine["mean_reward"]) != (
                 row["success_rate"], row["mean_reward"]):
-            theirs = ("no evaluation" if mine is None else
-                      f"success rate {mine['success_rate']:g}, mean reward "
-                      f"{mine['mean_reward']:g}")
-            raise ValueError(
-                f"{kept.eval_csv} is not {files.run.root}'s evaluations: at step {step:,} it "
-                f"holds success rate {row['success_rate']:g}, mean reward "
-                f"{row['mean_reward']:g}, and the run {theirs}. Move {kept.root} away to keep "
-                "this run there")
+            return row, mine
+    return None
 
 
 def keep_run(files: KeptFiles, kept: RunDir) -> None:
