@@ -104,7 +104,7 @@ def read(root: pathlib.Path) -> dict:
 
 def _check_episode(root: pathlib.Path, index: int, timesteps: list) -> None:
     """A ValueError naming `root` unless the episode is whole: a FIRST step, MID steps, a
-    LAST step, each step with an action but the first."""
+    LAST step."""
     whole = (len(timesteps) >= 2 and timesteps[0].first() and timesteps[-1].last()
              and all(timestep.mid() for timestep in timesteps[1:-1]))
     if not whole:
