@@ -61,30 +61,20 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
     if args.expert_demos is not None:  # (Beside --demos, RunConfig has refused them.)
         from franka_composer.policies import check_expert_control
         from franka_composer.tasks import TASK_CONFIGS
-        from franka_composer.training import demos
 
         check_expert_control(TASK_CONFIGS[args.task].replace(control=args.control).control)
-        # The most the expert's episodes can hold: each as long as the task's horizon.
-        demos.check_room(args.expert_demos * TASK_CONFIGS[args.task].max_episode_steps,
-                         buffer_size, total_steps)
-    if args.demos is None:
-        if args.demo_episodes is not None:
-            raise ValueError("--demo-episodes takes the first episodes of --demos DATASET, "
-                             "and no --demos was given")
+    if args.demos is None and args.demo_episodes is not None:
+        raise ValueError("--demo-episodes takes the first episodes of --demos DATASET, "
+                         "and no --demos was given")
+    if args.demos is None and args.expert_demos is None:
         return
     from franka_composer.training import demos
-    from franka_composer.training.models import make_env
 
-    env = make_env(args.task, control=args.control, object_damping=args.object_damping,
-                   **timing_options(args))
-    try:
-        episodes = demos.load_episodes(args.demos, env)
-    finally:
-        env.close()
-    if args.demo_episodes is not None and args.demo_episodes > len(episodes):
-        raise ValueError(f"--demo-episodes {args.demo_episodes}, but {args.demos} holds "
-                         f"{len(episodes)} episodes")
-    demos.check_capacity(episodes[:args.demo_episodes], buffer_size, total_steps)
+    env_options = dict(control=args.control, object_damping=args.object_damping,
+                       **timing_options(args))
+    demos.check_room(demos.transitions(args.task, args.expert_demos, args.demos,
+                                       args.demo_episodes, env_options),
+                     buffer_size, total_steps)
 
 
 def add_parser(subparsers) -> None:
@@ -352,19 +342,10 @@ def _check_budget(args: argparse.Namespace, run_dir) -> None:
     config = run_dir.read_config()
     if config.demos is None and config.expert_demos is None:
         return
-    from franka_composer.tasks import TASK_CONFIGS
     from franka_composer.training import demos
-    from franka_composer.training.models import make_env
 
-    if config.expert_demos is not None:  # At most, as its start counted them.
-        transitions = config.expert_demos * TASK_CONFIGS[config.task].max_episode_steps
-    else:
-        env = make_env(config.task, **config.env_options)
-        try:
-            episodes = demos.load_episodes(config.demos, env)[:config.demo_episodes]
-        finally:
-            env.close()
-        transitions = sum(len(episode["action"]) for episode in episodes)
+    transitions = demos.transitions(config.task, config.expert_demos, config.demos,
+                                    config.demo_episodes, config.env_options)
     buffer_size = config.hyperparameters.buffer_size
     if transitions + args.total_steps > buffer_size:
         raise ValueError(f"--total-steps {args.total_steps}: {run_dir.root}'s replay buffer "

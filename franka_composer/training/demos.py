@@ -255,6 +255,29 @@ def record_expert(path: pathlib.Path, config) -> pathlib.Path:
     return path
 
 
+def transitions(task: str, expert_demos: int | None, dataset, demo_episodes: int | None,
+                env_options: dict) -> int:
+    """How many transitions a run's demonstrations put in its replay buffer: the expert's
+    `expert_demos` episodes at most (each as long as the task's horizon), or the first
+    `demo_episodes` of `dataset`, loaded (and so checked) in an env made with
+    `env_options`; 0 without either. One count for a run's start and its resumes."""
+    if expert_demos is not None:
+        return expert_demos * TASK_CONFIGS[task].max_episode_steps
+    if dataset is None:
+        return 0
+    from franka_composer.training.models import make_env
+
+    env = make_env(task, **env_options)
+    try:
+        episodes = load_episodes(dataset, env)
+    finally:
+        env.close()
+    if demo_episodes is not None and demo_episodes > len(episodes):
+        raise ValueError(f"--demo-episodes {demo_episodes}, but {dataset} holds "
+                         f"{len(episodes)} episodes")
+    return int(sum(len(episode["action"]) for episode in episodes[:demo_episodes]))
+
+
 def check_capacity(episodes: list[dict], buffer_size: int, total_steps: int) -> int:
     """How many transitions `episodes` hold; a ValueError if a buffer of `buffer_size`
     cannot keep them through `total_steps` steps of training."""
