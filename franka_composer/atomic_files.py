@@ -1,4 +1,5 @@
-"""A file written whole or not at all: beside its place, then moved there in one step."""
+"""A file written whole or not at all: beside its place, then moved there in one step; and
+what is written flushed to the disk."""
 
 from __future__ import annotations
 
@@ -13,9 +14,17 @@ def replace_atomically(path: pathlib.Path, write) -> None:
     partial = path.with_name(f"{path.stem}.partial{path.suffix}")
     try:
         write(partial)
-        with open(partial, "rb+") as written:
-            os.fsync(written.fileno())
+        sync_to_disk(partial)
     except BaseException:
         partial.unlink(missing_ok=True)
         raise
     os.replace(partial, path)
+
+
+def sync_to_disk(path: pathlib.Path) -> None:
+    """`path` (a file, or a folder's entries) flushed to the disk."""
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)

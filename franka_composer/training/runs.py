@@ -31,7 +31,7 @@ import time
 import uuid
 import warnings
 
-from franka_composer.atomic_files import replace_atomically
+from franka_composer.atomic_files import replace_atomically, sync_to_disk
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, model_damage, read_json, steps_of
 
@@ -169,15 +169,15 @@ class RunDir:
         disk first, and the link before the old one goes: a machine that crashes in between
         comes back with one whole checkpoint, not an empty new one and no old one."""
         for path in written.iterdir():
-            _sync(path)
-        _sync(written)
+            sync_to_disk(path)
+        sync_to_disk(written)
         link = self.root / "checkpoint.next"
         link.unlink(missing_ok=True)
         link.symlink_to(written.name)
         if self.checkpoint.is_dir() and not self.checkpoint.is_symlink():  # A run from before.
             self.checkpoint.rename(self._unused_checkpoint_name(0))
         os.replace(link, self.checkpoint)
-        _sync(self.root)
+        sync_to_disk(self.root)
         self._remove_unpublished_checkpoints()
 
     def recover_checkpoint(self) -> None:
@@ -289,15 +289,6 @@ class RunDir:
         if self.checkpoint_model.is_file():
             return checked_model(self.checkpoint_model)
         raise ValueError(f"{self.root} has no model yet (neither model.zip nor a checkpoint)")
-
-
-def _sync(path: pathlib.Path) -> None:
-    """`path` (a file, or a folder's entries) flushed to the disk."""
-    descriptor = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(descriptor)
-    finally:
-        os.close(descriptor)
 
 
 #: How long a trainer waits for a run's lock held by another: a look (`RunDir.trainer`)
