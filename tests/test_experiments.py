@@ -1239,7 +1239,8 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
     completed = subprocess.run(
         ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status",
          "reference_env_learning_starts"],
-        capture_output=True, text=True, check=True, env={**os.environ, "RUNS": str(tmp_path)})
+        capture_output=True, text=True, check=True,
+        env={**os.environ, "RUNS": str(tmp_path), "RESULTS": str(tmp_path / "kept")})
     assert completed.stdout.strip() == (
         "reference_env_learning_starts: not started "
         f"({tmp_path}/reference-env-learning-starts/pick_and_place-tqc-seed0)")
