@@ -70,8 +70,10 @@ def test_torch_comes_from_the_cpu_index_beside_pips_own(tmp_path):
     (venv / "bin").mkdir(parents=True)
     (venv / "bin" / "python").write_text("#!/bin/sh\nexit 1\n")
     (venv / "bin" / "python").chmod(0o755)
+    default = {name: value for name, value in os.environ.items() if name != "TORCH_INDEX"}
     recipe = subprocess.run(["make", "-n", "-C", str(REPO), "setup", f"VENV={venv}"],
-                            capture_output=True, text=True, check=True, timeout=60).stdout
+                            capture_output=True, text=True, check=True, timeout=60,
+                            env=default).stdout  # The Makefile's default, not the caller's.
     torch_line = next(line for line in recipe.splitlines() if "torch==2.13.0" in line)
     assert "--extra-index-url https://download.pytorch.org/whl/cpu" in torch_line
     assert " --index-url" not in torch_line
