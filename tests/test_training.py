@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from franka_composer import cli
-from franka_composer.training import ALGOS, TABLE_I, hyperparameters
+from franka_composer.training import ALGOS, TABLE_I, hyperparameters, machine
 from franka_composer.training.callbacks import LatestCheckpoint
 from franka_composer.training.loop import EVAL_SEED_OFFSET, FRESH_STREAM_SEED_OFFSET
 from franka_composer.training.models import build_model, load_model, make_env
@@ -325,6 +325,9 @@ def _assert_trained_alike(whole, resumed, algo, backend):
     """The resumed run trained, evaluated and stored what the uninterrupted run did, to the
     bit, and its outcome says it is that run (no fresh episode stream); returns the whole
     run's `_trained_state`."""
+    # Resumed on the machine it began on: one machine, as the uninterrupted run's.
+    assert (RunDir(resumed).read_outcome()["machines"] == RunDir(whole).read_outcome()["machines"]
+            == [{"from_steps": 0, **machine.fingerprint()}])
     whole, resumed_state = (_trained_state(out, algo, backend) for out in (whole, resumed))
     for row in (*whole[0], *resumed_state[0]):
         del row["wall_time_s"]
@@ -492,6 +495,45 @@ def test_fresh_streams_stay_unknown_after_a_checkpoint_that_did_not_record_them(
     assert _train(out, "ddpg", 200, "--resume") == 0
     assert RunDir(out).read_outcome()["fresh_streams"] is None
     assert RunDir(out).read_state()["fresh_streams"] is None
+
+
+def test_a_resume_on_another_machine_says_what_differs_and_records_it(tmp_path):
+    """The checkpoint's machine had other vector instructions and another torch: the resume
+    goes on, warns naming both, and the run's outcome lists both machines, each from the
+    step it began there."""
+    out = tmp_path / "run"
+    assert _train(out, "ddpg", 100, "--checkpoint-every", "100") == 0
+    here = machine.fingerprint()
+    state = RunDir(out).read_state()
+    assert state["machines"] == RunDir(out).read_outcome()["machines"] == [
+        {"from_steps": 0, **here}]
+    there = json.loads(json.dumps(here))
+    there["vector_isa"] = [*(there["vector_isa"] or []), "avx10_2"]
+    there["libraries"]["torch"] = "2.12.0"
+    state["machines"] = [{"from_steps": 0, **there}]
+    RunDir(out).checkpoint_state.write_text(json.dumps(state))
+    with pytest.warns(RuntimeWarning, match=re.escape(
+            "its checkpoint at step 100 was written on another machine (vector instruction "
+            f"sets without avx10_2 now; torch 2.12.0 then, {here['libraries']['torch']} "
+            "now): the resume is exact, but from here the run's floating-point results, and "
+            "so its course, can differ")):
+        assert _train(out, "ddpg", 200, "--resume") == 0
+    assert RunDir(out).read_outcome()["machines"] == [{"from_steps": 0, **there},
+                                                      {"from_steps": 100, **here}]
+    assert RunDir(out).read_state()["machines"] == RunDir(out).read_outcome()["machines"]
+
+
+def test_machines_start_at_the_resume_after_a_checkpoint_that_did_not_record_them(tmp_path):
+    """Where the checkpoint predates the record, the list starts at its step: the machines
+    before it are unknown, not this one."""
+    out = tmp_path / "run"
+    assert _train(out, "ddpg", 100, "--checkpoint-every", "100") == 0
+    state = RunDir(out).read_state()
+    del state["machines"]
+    RunDir(out).checkpoint_state.write_text(json.dumps(state))
+    assert _train(out, "ddpg", 200, "--resume") == 0
+    assert RunDir(out).read_outcome()["machines"] == [
+        {"from_steps": 100, **machine.fingerprint()}]
 
 
 def test_a_run_stopped_while_writing_a_checkpoint_resumes_from_the_one_before(tmp_path,

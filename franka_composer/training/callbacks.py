@@ -158,15 +158,17 @@ class LatestCheckpoint(CheckpointCallback):
     stored and its gradient steps done, a resume goes on exactly (`exact_resume`). The
     episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop;
     `threads`, the CPU threads the networks are computed with, recorded for a resume;
-    `fresh_streams`, the steps at which the run went on with a fresh episode stream, carried
-    on (`RunDir.read_state`; None where unknown)."""
+    `fresh_streams`, the steps at which the run went on with a fresh episode stream, and
+    `machines`, those it has trained on (`machine`), carried on (`RunDir.read_state`; None
+    where unknown)."""
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
-                 threads: int | None = None, fresh_streams: list[int] | None = None) -> None:
+                 threads: int | None = None, fresh_streams: list[int] | None = None,
+                 machines: list[dict] | None = None) -> None:
         super().__init__(every, str(run.root), name_prefix="model", save_replay_buffer=True)
         self._writing = run.checkpoint  # The folder a checkpoint is being written into.
         self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
-        self._fresh_streams = fresh_streams
+        self._fresh_streams, self._machines = fresh_streams, machines
         self.stop_requested = False
         self.episode_ended = False  # Whether the latest step ended an episode.
 
@@ -212,5 +214,5 @@ class LatestCheckpoint(CheckpointCallback):
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
              "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
              "exact": exact, "threads": self._threads,
-             "fresh_streams": self._fresh_streams}) + "\n")
+             "fresh_streams": self._fresh_streams, "machines": self._machines}) + "\n")
         run.publish_checkpoint(self._writing)

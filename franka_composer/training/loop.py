@@ -20,7 +20,7 @@ from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from franka_composer.atomic_files import replace_atomically
-from franka_composer.training import demos, exact_resume
+from franka_composer.training import demos, exact_resume, machine
 from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
                                                 StoppedAtCheckpoint, StoppingRule, WallClock)
 from franka_composer.training.models import build_model, load_model, make_env
@@ -165,7 +165,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             # there, as it would have.
             model = _trained_model(run, config, env, eval_env, device, run.checkpoint_model)
             _finish(run, model, True, state["wall_time_s"], state.get("cpu_time_s"),
-                    state.get("fresh_streams"))
+                    state.get("fresh_streams"), state.get("machines"))
             return model
         # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
         clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
@@ -185,6 +185,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         fresh_streams = state.get("fresh_streams")
         if fresh_streams is not None:
             fresh_streams = [*fresh_streams, *([state["steps"]] if fresh else [])]
+        machines = _machines_on_resume(run, state)
         write_eval_rows(run.eval_csv, rows)
         # The evaluations go on with the episodes an uninterrupted run would see next.
         _skip_evaluated_episodes(eval_env, sum(r["steps"] % hp.eval_every == 0 for r in rows),
@@ -202,6 +203,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             demos.prefill(model, demos.load_episodes(dataset, env), hp.total_steps)
         stream = exact_resume.EpisodeStream(config.seed)  # SB3 seeds the env's first reset.
         fresh_streams = []
+        machines = [{"from_steps": 0, **machine.fingerprint()}]
     if hp.clip_q_targets:
         clip_target_critic(model, hp.gamma)
     if tensorboard:
@@ -214,7 +216,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         checkpoint_every = state.get("checkpoint_every", DEFAULT_CHECKPOINT_EVERY) if resume \
             else DEFAULT_CHECKPOINT_EVERY
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream,
-                                  threads=threads, fresh_streams=fresh_streams)
+                                  threads=threads, fresh_streams=fresh_streams,
+                                  machines=machines)
     precision = GradientStepPrecision(config.precision)
     # The loop's own bar, not learn(progress_bar=True)'s: an interrupt skips SB3's closing
     # of it, and a bar left open is closed at interpreter shutdown, where rich fails.
@@ -244,8 +247,30 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             bar.pbar.close()  # Closed already where training ended; a second close is none.
         env.close()
         eval_env.close()
-    _finish(run, model, evaluation.stopped_early, clock(), clock.cpu(), fresh_streams)
+    _finish(run, model, evaluation.stopped_early, clock(), clock.cpu(), fresh_streams,
+            machines)
     return model
+
+
+def _machines_on_resume(run: RunDir, state: dict) -> list[dict]:
+    """The machines the run has trained on (`machine`), this one added where it differs
+    from the last: said with a warning, since the run's course from here can differ from
+    the one that machine would have trained. A checkpoint written before machines were
+    recorded starts the list at its step."""
+    now = machine.fingerprint()
+    machines = state.get("machines")
+    if not machines:
+        return [{"from_steps": state["steps"], **now}]
+    changed = machine.differences(machines[-1], now)
+    if not changed:
+        return machines
+    warnings.warn(f"{run.root}: its checkpoint at step {state['steps']:,} was written on "
+                  f"another machine ({'; '.join(changed)}): the resume is exact, but from "
+                  "here the run's floating-point results, and so its course, can differ from "
+                  "the ones that machine would have computed (recorded as machines in its "
+                  "checkpoint's state.json and its outcome.json)", RuntimeWarning,
+                  stacklevel=2)
+    return [*machines, {"from_steps": state["steps"], **now}]
 
 
 def _trained_model(run: RunDir, config: RunConfig, env, eval_env, device: str, path):
@@ -259,9 +284,9 @@ def _trained_model(run: RunDir, config: RunConfig, env, eval_env, device: str, p
 
 
 def _finish(run: RunDir, model, stopped_early: bool, wall_time_s: float,
-            cpu_time_s: float | None, fresh_streams) -> None:
+            cpu_time_s: float | None, fresh_streams, machines) -> None:
     """What an ended run writes: its final model, its policy and, last, its outcome."""
     replace_atomically(run.final_model, model.save)
     replace_atomically(run.policy_file, lambda path: save_policy(model, path))
     run.write_outcome(int(model.num_timesteps), stopped_early, wall_time_s, cpu_time_s,
-                      fresh_streams)
+                      fresh_streams, machines)

@@ -60,10 +60,13 @@ class RunDir:
         return self.root / "outcome.json"
 
     def read_outcome(self) -> dict:
-        """{"steps", "stopped_early", "wall_time_s", "cpu_time_s", "fresh_streams"} of a
-        finished run (CPU time None or absent where it was not recorded throughout;
-        fresh_streams, the steps at which a resume went on with a fresh episode stream, None
-        or absent for runs begun before it was recorded); {} before it ends."""
+        """{"steps", "stopped_early", "wall_time_s", "cpu_time_s", "fresh_streams",
+        "machines"} of a finished run (CPU time None or absent where it was not recorded
+        throughout; fresh_streams, the steps at which a resume went on with a fresh episode
+        stream, None or absent for runs begun before it was recorded; machines, each machine
+        it trained on from the step it began there (`machine.fingerprint`), absent for runs
+        that ended before it was recorded, its first from a later step than 0 for runs
+        resumed then); {} before it ends."""
         if not self.outcome_path.is_file():
             return {}
         outcome = read_json(self.outcome_path, "a run's outcome")
@@ -75,12 +78,13 @@ class RunDir:
 
     def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
                       cpu_time_s: float | None = None,
-                      fresh_streams: list[int] | None = None) -> None:
+                      fresh_streams: list[int] | None = None,
+                      machines: list[dict] | None = None) -> None:
         replace_atomically(self.outcome_path, lambda path: path.write_text(json.dumps(
             {"steps": steps, "stopped_early": stopped_early,
              "wall_time_s": round(wall_time_s, 2),
              "cpu_time_s": None if cpu_time_s is None else round(cpu_time_s, 2),
-             "fresh_streams": fresh_streams}) + "\n"))
+             "fresh_streams": fresh_streams, "machines": machines}) + "\n"))
 
     @property
     def expert_demos(self) -> pathlib.Path:
@@ -244,10 +248,10 @@ class RunDir:
 
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
-        "exact", "threads", "fresh_streams"} (no CPU time in checkpoints written before it
-        was recorded, no "exact" or "threads" in those written before resumes could be
-        exact, no "fresh_streams" in those written before it was recorded); {} without a
-        checkpoint."""
+        "exact", "threads", "fresh_streams", "machines"} (no CPU time in checkpoints written
+        before it was recorded, no "exact" or "threads" in those written before resumes
+        could be exact, no "fresh_streams" or "machines" in those written before each was
+        recorded); {} without a checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
         state = read_json(self.checkpoint_state, "a checkpoint's state")

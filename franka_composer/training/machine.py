@@ -1,0 +1,72 @@
+"""The machine a run trains on, as far as it decides the run's floating-point results.
+
+A resume is exact on the machine that wrote the checkpoint (`exact_resume`). Elsewhere the
+same code can compute other bits: the numerical libraries pick their kernels by the CPU's
+vector instructions, and their versions change the kernels. A run resumed on another
+machine goes on from its checkpoint exactly, but its course from there can differ from the
+one the first machine would have trained. So each checkpoint records its machine, a resume
+on a different one says so, and the run's outcome lists the machines it trained on.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import pathlib
+import platform
+import re
+
+#: The packages whose kernels compute a run: the physics, the networks, the sampling.
+LIBRARIES = ("numpy", "mujoco", "torch", "jax", "jaxlib", "stable_baselines3", "sbx-rl")
+#: The CPU flags that name vector instruction sets, which those libraries dispatch on.
+_VECTOR_FLAG = re.compile(r"^(sse|ssse|avx|fma|f16c|amx|asimd|sve|neon)")
+_CPUINFO = pathlib.Path("/proc/cpuinfo")
+
+
+def fingerprint() -> dict:
+    """{"cpu", "vector_isa", "python", "libraries"} of this machine: its CPU's model name,
+    the vector instruction sets it offers (None where /proc/cpuinfo does not say), and the
+    versions of Python and of `LIBRARIES` (None for one not installed)."""
+    cpu, flags = platform.processor() or platform.machine(), None
+    if _CPUINFO.is_file():
+        fields = dict(line.split(":", 1) for line in _CPUINFO.read_text().splitlines()
+                      if ":" in line)  # Every processor's lines alike: the last one's stand.
+        fields = {key.strip(): value.strip() for key, value in fields.items()}
+        cpu = fields.get("model name", cpu)
+        listed = fields.get("flags", fields.get("Features"))
+        if listed is not None:
+            flags = sorted(flag for flag in listed.split() if _VECTOR_FLAG.match(flag))
+    return {"cpu": cpu, "vector_isa": flags, "python": platform.python_version(),
+            "libraries": {name: _version(name) for name in LIBRARIES}}
+
+
+def _version(package: str) -> str | None:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def differences(before: dict, now: dict) -> list[str]:
+    """What differs between two fingerprints, in words ([] where nothing does)."""
+    said = []
+    if before.get("cpu") != now.get("cpu"):
+        said.append(f"CPU {before.get('cpu')!r} then, {now.get('cpu')!r} now")
+    isa_before, isa_now = before.get("vector_isa"), now.get("vector_isa")
+    if isa_before != isa_now:
+        if isa_before is None or isa_now is None:
+            said.append("vector instruction sets unknown on one of them")
+        else:
+            gone, added = sorted(set(isa_before) - set(isa_now)), sorted(
+                set(isa_now) - set(isa_before))
+            said.append("vector instruction sets" + (f" without {', '.join(gone)}" if gone
+                                                     else "") +
+                        (" and" if gone and added else "") +
+                        (f" with {', '.join(added)}" if added else "") + " now")
+    if before.get("python") != now.get("python"):
+        said.append(f"Python {before.get('python')} then, {now.get('python')} now")
+    libraries_before, libraries_now = before.get("libraries", {}), now.get("libraries", {})
+    for name in sorted(set(libraries_before) | set(libraries_now)):
+        if libraries_before.get(name) != libraries_now.get(name):
+            said.append(f"{name} {libraries_before.get(name) or 'absent'} then, "
+                        f"{libraries_now.get(name) or 'absent'} now")
+    return said
