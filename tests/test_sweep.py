@@ -144,6 +144,15 @@ def test_the_status_of_each_cell_is_read_from_its_directory(tmp_path):
     run.checkpoint_state.write_text(json.dumps({"steps": 2050, "fresh_streams": [1010, 2050]}))
     assert (cell_status(cells[2], tmp_path).state
             == "unfinished (fresh episode stream from 1,010, 2,050)")
+    # And one that went on on another machine, from the step it began there.
+    here = {"cpu": "AMD EPYC", "vector_isa": ["avx2"], "python": "3.11.7", "libraries": {}}
+    machines = [{"from_steps": 0, **here}, {"from_steps": 1010, **here, "cpu": "Intel"}]
+    run.checkpoint_state.write_text(json.dumps({"steps": 2050, "fresh_streams": [],
+                                                "machines": machines}))
+    assert cell_status(cells[2], tmp_path).state == "unfinished (another machine from 1,010)"
+    _write_run(tmp_path, "push-sac-seed0", [(0, 1, 0.0), (4000, 201, 0.6)],
+               (4000, False, 201, 201, [], machines[:1]))
+    assert cell_status(cells[0], tmp_path).state == "done"
 
 
 def test_the_evaluations_a_resume_keeps_end_at_the_checkpoint_until_the_run_ends(tmp_path):

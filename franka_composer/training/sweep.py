@@ -217,7 +217,8 @@ class CellStatus:
     #: "done", "stopped early", "running" (in this sweep, or training elsewhere: its lock is
     #: held), "queued" (waiting for a CPU), "failed" (this sweep's), "unfinished" (started,
     #: not training now) or "waiting" (not started); followed by the steps where it went on
-    #: with a fresh episode stream, if it did (`RunDir.read_outcome`'s fresh_streams).
+    #: with a fresh episode stream, if it did (`RunDir.read_outcome`'s fresh_streams), and
+    #: where it went on on another machine, if it did (its machines).
     state: str
     steps: int
     budget: int
@@ -237,14 +238,18 @@ def cell_status(cell: Cell, root: pathlib.Path, failed: bool = False,
     if cell_finished(run, cell):
         outcome = run.read_outcome()
         state = "stopped early" if outcome["stopped_early"] else "done"
-        fresh = outcome.get("fresh_streams")
+        fresh, machines = outcome.get("fresh_streams"), outcome.get("machines")
     else:
         running = running or run.trainer() is not None  # Also another sweep's, or a train.
         state = ("failed" if failed else "running" if running else "queued" if queued
                  else "unfinished" if run.config_path.exists() else "waiting")
-        fresh = run.read_state().get("fresh_streams")
+        state_file = run.read_state()
+        fresh, machines = state_file.get("fresh_streams"), state_file.get("machines")
     if fresh:  # Not the run an uninterrupted one would be, from there: said where it shows.
         state += f" (fresh episode stream from {', '.join(f'{s:,}' for s in fresh)})"
+    if machines and len(machines) > 1:  # Its course from there is that machine's.
+        began = ", ".join(f"{stretch['from_steps']:,}" for stretch in machines[1:])
+        state += f" (another machine from {began})"
     return CellStatus(cell.name, state, steps, cell.steps, rate,
                       rows[-1]["success_rate"] if rows else None)
 
