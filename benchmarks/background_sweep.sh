@@ -25,6 +25,39 @@ use_frozen_tree() {
   cd "$tree" || return 1
 }
 
+# machine_log note|changes FOLDER: the machines that ran FOLDER's runs, one line each time
+# one was started there (FOLDER/machines.jsonl, `franka_composer.training.machine`): runs
+# on frozen trees from before checkpoints recorded their machine keep it here. `note` adds
+# this machine and says, on stderr, what differs from the machine noted last (a resume
+# there is exact, but its course can part from the one that machine would have trained);
+# `changes` prints a line for each change the log holds. Run with the repository's own
+# package, before a frozen tree is put on PYTHONPATH.
+machine_log() {
+  "$BIN/python" - "$@" <<'PY'
+import datetime
+import json
+import pathlib
+import sys
+from franka_composer.training import machine
+action, log = sys.argv[1], pathlib.Path(sys.argv[2]) / "machines.jsonl"
+noted = [json.loads(line) for line in log.read_text().splitlines()] if log.is_file() else []
+if action == "note":
+    now = {"noted": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+           **machine.fingerprint()}
+    log.parent.mkdir(parents=True, exist_ok=True)
+    with log.open("a") as handle:
+        handle.write(json.dumps(now) + "\n")
+    noted = noted[-1:] + [now]
+for before, after in zip(noted, noted[1:]):
+    changed = machine.differences(before, after)
+    if changed:
+        print(f"{log}: another machine from {after['noted']} ({'; '.join(changed)}): its runs "
+              "resumed exactly, and their courses from there can differ from the ones the "
+              "machine before would have trained", file=sys.stderr if action == "note"
+              else sys.stdout)
+PY
+}
+
 # lower_session_priority: where Linux groups processes by session (autogroup), nice acts
 # only within the group, and the group's own niceness is what leaves the machine to other
 # work. Only a session of the script's own (`setsid SCRIPT run`), not the caller's terminal.
@@ -58,6 +91,7 @@ stop_sweep() {
 background_sweep() {
   case "$1" in
     run)
+      machine_log note "$RUNS" || return 1
       if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || return 1; fi
       lower_session_priority
       nice -n 10 "$BIN/franka-composer" "${sweep[@]}" --num-cpus "$WORKERS" --refresh 600 -- \
@@ -69,6 +103,7 @@ background_sweep() {
       ;;
     status)
       "$BIN/franka-composer" "${sweep[@]}" --status || return 1
+      machine_log changes "$RUNS"
       kept_ahead "$RUNS" "${KEPT:-$2}"
       ;;
     sync) "$BIN/franka-composer" "${sweep[@]}" --sync "${KEPT:-$2}" ;;

@@ -33,6 +33,7 @@ RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs}")
 RESULTS=$(realpath -m "${RESULTS:-results}")
 BIN=$(realpath -m "${BIN:-.venv/bin}")
 export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
+source benchmarks/background_sweep.sh
 cell=(--task pick_and_place --algo tqc --backend sbx --seed "$SEED" --total-steps 500000
       --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu
       --no-progress)
@@ -69,6 +70,7 @@ case "$1" in
     [ -d "$worktree" ] || git worktree add --detach "$worktree" "$tree" >/dev/null || exit 1
     resume=(); [ -d "$out/checkpoint" ] && resume=(--resume)
     mkdir -p "$RUNS/$folder"
+    machine_log note "$RUNS/$folder" || exit 1
     # Its own session, whose autogroup's niceness leaves the machine to other work.
     (cd "$worktree" && PYTHONPATH=$worktree setsid nohup bash -c \
       'echo 19 > /proc/self/autogroup 2>/dev/null; exec nice -n 10 "$@"' run \
@@ -98,7 +100,7 @@ case "$1" in
       echo "$2: $state; checkpoint at step ${steps:-none}; last evaluation (step,success):" \
            "${last:-none}"
     fi
-    source benchmarks/background_sweep.sh
+    machine_log changes "$RUNS/$folder"
     kept_ahead "$RUNS/$folder" "$RESULTS/$folder" "$(basename "$out")"
     ;;
 esac

@@ -697,6 +697,36 @@ def test_a_campaigns_status_names_the_kept_runs_its_runs_have_not_passed(tmp_pat
         "be kept there\n")
 
 
+def test_a_campaign_notes_each_machine_it_runs_on_and_says_where_one_changed(tmp_path):
+    """Runs on frozen trees older than the checkpoints' own record of their machine: the
+    campaign's folder keeps one line per start, and a start on a machine that differs from
+    the last one's is said at the start and by every later `status`."""
+    from franka_composer.training import machine
+
+    log = tmp_path / "runs" / "machines.jsonl"
+    assert _benchmark_sh(tmp_path, "reference_timing.sh", "run").stderr == ""
+    assert _benchmark_sh(tmp_path, "reference_timing.sh", "run").stderr == ""
+    noted = [json.loads(line) for line in log.read_text().splitlines()]
+    assert len(noted) == 2 and all(
+        {k: v for k, v in line.items() if k != "noted"} == machine.fingerprint()
+        for line in noted)
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
+    assert status.stdout.endswith("--status\n")  # One machine: nothing to say.
+    for line in noted:  # As if both starts had been elsewhere.
+        line["libraries"]["torch"] = "2.12.0"
+    log.write_text("".join(json.dumps(line) + "\n" for line in noted))
+    ran = _benchmark_sh(tmp_path, "reference_timing.sh", "run")
+    assert ran.returncode == 0 and ran.stdout.startswith("franka-composer sweep ")
+    now = json.loads(log.read_text().splitlines()[-1])["noted"]
+    torch_now = machine.fingerprint()["libraries"]["torch"]
+    said = (f"{log}: another machine from {now} (torch 2.12.0 then, {torch_now} now): its "
+            "runs resumed exactly, and their courses from there can differ from the ones the "
+            "machine before would have trained\n")
+    assert ran.stderr == said
+    status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
+    assert status.stdout.endswith("--status\n" + said)
+
+
 def test_reference_timing_sh_reports_the_algorithms_whose_every_seed_has_finished(tmp_path):
     """`report`: the tests over 20 and 200 episodes, the curves and the steps to 50/80/90 %
     of the algorithms whose three seeds sync kept finished; an algorithm still training is
