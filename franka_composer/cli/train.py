@@ -161,8 +161,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--buffer-size", type=positive_int, default=None,
                         help="replay buffer transitions (Table I: 1e6)")
     parser.add_argument("--learning-starts", type=non_negative_int, default=None,
-                        help="random-action steps before learning (SB3's default 100; with "
-                             "an update every step at least an episode's steps less one)")
+                        help="random-action steps before learning (SB3's default 100, which "
+                             "Table I keeps; the paper's curves imply 100000: the training "
+                             "guide; with an update every step at least an episode's steps "
+                             "less one)")
     parser.add_argument("--eval-every", type=positive_int, default=None,
                         help="steps between evaluations (Table I: 2000)")
     parser.add_argument("--eval-episodes", type=positive_int, default=None,
