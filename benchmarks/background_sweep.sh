@@ -28,8 +28,8 @@ use_frozen_tree() {
 # machine_log note|changes FOLDER: the machines that ran FOLDER's runs, one line each time
 # one was started there (FOLDER/machines.jsonl, `franka_composer.training.machine`): runs
 # on frozen trees from before checkpoints recorded their machine keep it here. `note` adds
-# this machine and says, on stderr, what differs from the machine noted last (a resume
-# there is exact, but its course can part from the one that machine would have trained);
+# this machine and says, on stderr, what differs from the machine noted last
+# (`machine.another_machine`: what that means for the runs resumed there);
 # `changes` prints a line for each change the log holds. Run with the repository's own
 # package, before a frozen tree is put on PYTHONPATH.
 machine_log() {
@@ -51,10 +51,9 @@ if action == "note":
 for before, after in zip(noted, noted[1:]):
     changed = machine.differences(before, after)
     if changed:
-        print(f"{log}: another machine from {after['noted']} ({'; '.join(changed)}): its runs "
-              "resumed exactly, and their courses from there can differ from the ones the "
-              "machine before would have trained", file=sys.stderr if action == "note"
-              else sys.stdout)
+        print(f"{log}: runs resumed from {after['noted']} on "
+              f"{machine.another_machine(changed)}",
+              file=sys.stderr if action == "note" else sys.stdout)
 PY
 }
 

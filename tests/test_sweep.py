@@ -719,9 +719,10 @@ def test_a_campaign_notes_each_machine_it_runs_on_and_says_where_one_changed(tmp
     assert ran.returncode == 0 and ran.stdout.startswith("franka-composer sweep ")
     now = json.loads(log.read_text().splitlines()[-1])["noted"]
     torch_now = machine.fingerprint()["libraries"]["torch"]
-    said = (f"{log}: another machine from {now} (torch 2.12.0 then, {torch_now} now): its "
-            "runs resumed exactly, and their courses from there can differ from the ones the "
-            "machine before would have trained\n")
+    said = (f"{log}: runs resumed from {now} on another machine (torch 2.12.0 then, "
+            f"{torch_now} now): a resume there is exact, but from there a run's floating-point "
+            "results, and so its course, can differ from the ones the machine before would "
+            "have computed\n")
     assert ran.stderr == said
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
     assert status.stdout.endswith("--status\n" + said)

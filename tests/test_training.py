@@ -513,10 +513,11 @@ def test_a_resume_on_another_machine_says_what_differs_and_records_it(tmp_path):
     state["machines"] = [{"from_steps": 0, **there}]
     RunDir(out).checkpoint_state.write_text(json.dumps(state))
     with pytest.warns(RuntimeWarning, match=re.escape(
-            "its checkpoint at step 100 was written on another machine (vector instruction "
+            "resumed from its checkpoint at step 100 on another machine (vector instruction "
             f"sets without avx10_2 now; torch 2.12.0 then, {here['libraries']['torch']} "
-            "now): the resume is exact, but from here the run's floating-point results, and "
-            "so its course, can differ")):
+            "now): a resume there is exact, but from there a run's floating-point results, "
+            "and so its course, can differ from the ones the machine before would have "
+            "computed (recorded as machines")):
         assert _train(out, "ddpg", 200, "--resume") == 0
     assert RunDir(out).read_outcome()["machines"] == [{"from_steps": 0, **there},
                                                       {"from_steps": 100, **here}]

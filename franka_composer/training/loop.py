@@ -264,10 +264,8 @@ def _machines_on_resume(run: RunDir, state: dict) -> list[dict]:
     changed = machine.differences(machines[-1], now)
     if not changed:
         return machines
-    warnings.warn(f"{run.root}: its checkpoint at step {state['steps']:,} was written on "
-                  f"another machine ({'; '.join(changed)}): the resume is exact, but from "
-                  "here the run's floating-point results, and so its course, can differ from "
-                  "the ones that machine would have computed (recorded as machines in its "
+    warnings.warn(f"{run.root}: resumed from its checkpoint at step {state['steps']:,} on "
+                  f"{machine.another_machine(changed)} (recorded as machines in its "
                   "checkpoint's state.json and its outcome.json)", RuntimeWarning,
                   stacklevel=2)
     return [*machines, {"from_steps": state["steps"], **now}]

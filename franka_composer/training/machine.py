@@ -70,3 +70,11 @@ def differences(before: dict, now: dict) -> list[str]:
             said.append(f"{name} {libraries_before.get(name) or 'absent'} then, "
                         f"{libraries_now.get(name) or 'absent'} now")
     return said
+
+
+def another_machine(changed: list[str]) -> str:
+    """What a change of machine means for a run resumed on it, said alike by a resumed run
+    and by the campaigns' logs of their machines: "another machine (what differs): ..."."""
+    return (f"another machine ({'; '.join(changed)}): a resume there is exact, but from there "
+            "a run's floating-point results, and so its course, can differ from the ones the "
+            "machine before would have computed")
