@@ -18,14 +18,15 @@
 # ~/franka_runs/reference-code, a checkout of panda_mujoco_gym at e9881d9), reference_env_sb3
 # (the same on SB3 in fp32, the paper's computation, in place of sbx), learning_starts (1e5
 # random steps first), reference_env_learning_starts (both: the reference code's own env,
-# 1e5 random steps first). SEED (default 0) picks the seed; RUNS (default ~/franka_runs)
-# holds the runs and the trees, RESULTS (default results/) what `keep` kept.
+# 1e5 random steps first), reference_physics_learning_starts (reference_physics, 1e5 random
+# steps first). SEED (default 0) picks the seed; RUNS (default ~/franka_runs) holds the
+# runs and the trees, RESULTS (default results/) what `keep` kept.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 case "${1:-}:${2:-}" in
   run:?*|stop:?*|keep:?*|status:?*) ;;
-  *) sed -n '2,22p' "$0"; exit 2 ;;
+  *) sed -n '2,23p' "$0"; exit 2 ;;
 esac
 SEED=${SEED:-0}
 [[ $SEED =~ ^[0-9]+$ ]] || { echo "SEED must be a whole number, not $SEED" >&2; exit 2; }
@@ -47,6 +48,9 @@ case "$2" in
     train=(python experiments/altered_runs.py unguarded train --timing reference) ;;
   reference_physics) tree=ee552b6 folder=reference-physics
     train=(python experiments/altered_runs.py reference_physics train --timing reference) ;;
+  reference_physics_learning_starts) tree=56ad82b folder=reference-physics-learning-starts
+    train=(python experiments/altered_runs.py reference_physics train --timing reference)
+    changed=(--learning-starts 100000) ;;
   reference_env|reference_env_sb3|reference_env_learning_starts) tree=369ca2c
     folder=reference-env
     train=(python experiments/reference_env_runs.py --reference-path
@@ -59,7 +63,8 @@ case "$2" in
   learning_starts) tree=1816633 folder=learning-starts
     train=(python -m franka_composer train --timing reference --learning-starts 100000) ;;
   *) echo "CHECK must be damped_block, unguarded, reference_physics, reference_env," \
-          "reference_env_sb3, learning_starts or reference_env_learning_starts, not $2" >&2
+          "reference_env_sb3, learning_starts, reference_env_learning_starts or" \
+          "reference_physics_learning_starts, not $2" >&2
      exit 2 ;;
 esac
 out=$RUNS/$folder/pick_and_place-tqc-seed$SEED

@@ -1235,15 +1235,16 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
         env={**os.environ, "RUNS": str(tmp_path), "SEED": "1"})
     assert completed.stdout.strip() == ("reference_env_sb3: not started "
                                         f"({tmp_path}/reference-env-sb3/pick_and_place-tqc-seed1)")
-    # Each check in a folder of its own: the reference env's with 1e5 random steps first too.
-    completed = subprocess.run(
-        ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status",
-         "reference_env_learning_starts"],
-        capture_output=True, text=True, check=True,
-        env={**os.environ, "RUNS": str(tmp_path), "RESULTS": str(tmp_path / "kept")})
-    assert completed.stdout.strip() == (
-        "reference_env_learning_starts: not started "
-        f"({tmp_path}/reference-env-learning-starts/pick_and_place-tqc-seed0)")
+    # Each check in a folder of its own: those with 1e5 random steps first too.
+    for check, folder in [("reference_env_learning_starts", "reference-env-learning-starts"),
+                          ("reference_physics_learning_starts",
+                           "reference-physics-learning-starts")]:
+        completed = subprocess.run(
+            ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status", check],
+            capture_output=True, text=True, check=True,
+            env={**os.environ, "RUNS": str(tmp_path), "RESULTS": str(tmp_path / "kept")})
+        assert completed.stdout.strip() == (
+            f"{check}: not started ({tmp_path}/{folder}/pick_and_place-tqc-seed0)")
     # Evaluations kept (RESULTS) beyond the run's: lost with its machine, to be retraced.
     kept = tmp_path / "kept" / "unguarded" / "pick_and_place-tqc-seed0"
     kept.mkdir(parents=True)
@@ -1264,8 +1265,9 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
     (["run"], "0", "experiments/pick_and_place_checks.sh run CHECK"),
     (["start", "damped_block"], "0", "experiments/pick_and_place_checks.sh run CHECK"),
     (["run", "damped"], "0", "CHECK must be damped_block, unguarded, reference_physics, "
-                             "reference_env, reference_env_sb3, learning_starts or "
-                             "reference_env_learning_starts, not damped"),
+                             "reference_env, reference_env_sb3, learning_starts, "
+                             "reference_env_learning_starts or "
+                             "reference_physics_learning_starts, not damped"),
     (["run", "reference_env"], "one", "SEED must be a whole number, not one"),
 ])
 def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, seed, message):
