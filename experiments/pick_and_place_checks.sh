@@ -19,14 +19,15 @@
 # (the same on SB3 in fp32, the paper's computation, in place of sbx), learning_starts (1e5
 # random steps first), reference_env_learning_starts (both: the reference code's own env,
 # 1e5 random steps first), reference_physics_learning_starts (reference_physics, 1e5 random
-# steps first). SEED (default 0) picks the seed; RUNS (default ~/franka_runs) holds the
-# runs and the trees, RESULTS (default results/) what `keep` kept.
+# steps first), damped_block_learning_starts (the block damped as there, 1e5 random steps
+# first: options of `train` alone). SEED (default 0) picks the seed; RUNS (default
+# ~/franka_runs) holds the runs and the trees, RESULTS (default results/) what `keep` kept.
 set -uo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 case "${1:-}:${2:-}" in
   run:?*|stop:?*|keep:?*|status:?*) ;;
-  *) sed -n '2,23p' "$0"; exit 2 ;;
+  *) sed -n '2,24p' "$0"; exit 2 ;;
 esac
 SEED=${SEED:-0}
 [[ $SEED =~ ^[0-9]+$ ]] || { echo "SEED must be a whole number, not $SEED" >&2; exit 2; }
@@ -62,9 +63,12 @@ case "$2" in
       changed=(--learning-starts 100000) ;;
   learning_starts) tree=1816633 folder=learning-starts
     train=(python -m franka_composer train --timing reference --learning-starts 100000) ;;
+  damped_block_learning_starts) tree=56ad82b folder=damped-block-learning-starts
+    train=(python -m franka_composer train --timing reference --learning-starts 100000
+           --object-damping 0.01) ;;
   *) echo "CHECK must be damped_block, unguarded, reference_physics, reference_env," \
-          "reference_env_sb3, learning_starts, reference_env_learning_starts or" \
-          "reference_physics_learning_starts, not $2" >&2
+          "reference_env_sb3, learning_starts, reference_env_learning_starts," \
+          "reference_physics_learning_starts or damped_block_learning_starts, not $2" >&2
      exit 2 ;;
 esac
 out=$RUNS/$folder/pick_and_place-tqc-seed$SEED

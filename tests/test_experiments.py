@@ -1238,7 +1238,8 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
     # Each check in a folder of its own: those with 1e5 random steps first too.
     for check, folder in [("reference_env_learning_starts", "reference-env-learning-starts"),
                           ("reference_physics_learning_starts",
-                           "reference-physics-learning-starts")]:
+                           "reference-physics-learning-starts"),
+                          ("damped_block_learning_starts", "damped-block-learning-starts")]:
         completed = subprocess.run(
             ["bash", str(EXPERIMENTS / "pick_and_place_checks.sh"), "status", check],
             capture_output=True, text=True, check=True,
@@ -1266,8 +1267,9 @@ def test_the_pick_and_place_checks_script_says_where_a_check_stands(tmp_path):
     (["start", "damped_block"], "0", "experiments/pick_and_place_checks.sh run CHECK"),
     (["run", "damped"], "0", "CHECK must be damped_block, unguarded, reference_physics, "
                              "reference_env, reference_env_sb3, learning_starts, "
-                             "reference_env_learning_starts or "
-                             "reference_physics_learning_starts, not damped"),
+                             "reference_env_learning_starts, "
+                             "reference_physics_learning_starts or "
+                             "damped_block_learning_starts, not damped"),
     (["run", "reference_env"], "one", "SEED must be a whole number, not one"),
 ])
 def test_the_pick_and_place_checks_script_names_a_bad_command(tmp_path, args, seed, message):
