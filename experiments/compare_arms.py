@@ -15,6 +15,14 @@ no spread), to set a run beside the curve it should follow:
 
     python experiments/compare_arms.py --arm reference-env 'results/reference-env/*' \
         --marks 200000 300000 400000 --window 380000 440000 --paper pick_and_place tqc
+
+`--windows STEP` adds a second table: each arm's mean success over consecutive windows
+(A, A + STEP], from step 0 to the last evaluation, at 0.1 % (each run's mean over its
+evaluations in the window, then the mean ± std over the arm's runs that evaluated there; a
+window a run stopped inside reads "(to Nk)"). RESULTS.md's per-5e4-step tables are its output:
+
+    python experiments/compare_arms.py --arm learning-starts 'results/learning-starts/*' \
+        --windows 50000 --paper pick_and_place tqc
 """
 
 from __future__ import annotations
@@ -64,27 +72,84 @@ def paper_row(curve: dict[int, float], marks: list[int],
     return cells
 
 
+def window_cell(runs: list[list[dict[str, float]]], start: int, end: int) -> str:
+    """The mean over runs of each run's mean success in (start, end], at 0.1 % (± their
+    standard deviation where the arm has more than one run, and how many runs where not all
+    evaluated there)."""
+    means, stopped = [], []
+    for rows in runs:
+        rates = [row["success_rate"] for row in rows if start < row["steps"] <= end]
+        if rates:
+            means.append(np.mean(rates))
+            if rows[-1]["steps"] < end:
+                stopped.append(int(rows[-1]["steps"]))
+    if not means:
+        return ""
+    cell = f"{100 * np.mean(means):.1f}"
+    if len(runs) > 1:
+        cell += f" ± {100 * np.std(means):.1f}"
+        if len(means) < len(runs):
+            cell += f" (n={len(means)})"
+    return f"{cell} (to {min(stopped) // 1000}k)" if stopped else cell
+
+
+def windows_table(arms: list[tuple[str, list[list[dict[str, float]]]]], step: int,
+                  paper: tuple[str, dict[int, float]] | None = None) -> str:
+    """Each arm's (and the paper's) mean success per window (A, A + step], to the last
+    evaluation of any arm."""
+    last = max(rows[-1]["steps"] for _, runs in arms for rows in runs if rows)
+    edges = list(range(0, int(np.ceil(last / step)) * step + 1, step))
+    heads = [f"{start // 1000}–{end // 1000}k" for start, end in zip(edges, edges[1:])]
+    lines = ["| mean success (%) per window | " + " | ".join(heads) + " |",
+             "|---|" + "---|" * len(heads)]
+    for name, runs in arms:
+        lines.append(f"| {name} | " + " | ".join(
+            window_cell(runs, start, end) for start, end in zip(edges, edges[1:])) + " |")
+    if paper:
+        name, curve = paper
+        points = [[{"steps": step, "success_rate": rate} for step, rate in sorted(curve.items())]]
+        lines.append(f"| {name} | " + " | ".join(
+            window_cell(points, start, end) for start, end in zip(edges, edges[1:])) + " |")
+    return "\n".join(lines)
+
+
+def read_arms(arms: list[tuple[str, str]]) -> list[tuple[str, list[list[dict[str, float]]]]]:
+    """Each arm's name and its runs' evaluations, one list per run directory its glob matches."""
+    read = []
+    for name, pattern in arms:
+        run_dirs = sorted(pathlib.Path(path) for path in glob.glob(pattern)
+                          if (pathlib.Path(path) / "eval.csv").is_file())
+        if not run_dirs:
+            raise SystemExit(f"arm {name!r}: no run directory (one with an eval.csv) "
+                             f"matches {pattern!r}")
+        read.append((name, [read_eval_rows(run / "eval.csv") for run in run_dirs]))
+    return read
+
+
+def paper_curve(task: str, algo: str) -> dict[int, float]:
+    curves = read_paper_curves(PAPER_CURVES)
+    if (task, algo) not in curves:
+        raise SystemExit(f"--paper: {PAPER_CURVES} has no curve for {task} {algo} (it has "
+                         + ", ".join(" ".join(key) for key in sorted(curves)) + ")")
+    return curves[task, algo]
+
+
 def table(arms: list[tuple[str, str]], marks: list[int],
           window: tuple[int, int] | None,
-          paper: tuple[str, str] | None = None) -> str:
+          paper: tuple[str, str] | None = None, windows: int | None = None) -> str:
     heads = [f"{mark // 1000}k" for mark in marks]
     if window:
         heads.append(f"mean {window[0] // 1000}k–{window[1] // 1000}k")
     lines = ["| arm | " + " | ".join(heads) + " |", "|---|" + "---|" * len(heads)]
-    for name, pattern in arms:
-        run_dirs = sorted(pathlib.Path(path) for path in glob.glob(pattern))
-        if not run_dirs:
-            raise SystemExit(f"arm {name!r}: no run directory matches {pattern!r}")
-        runs = [read_eval_rows(run / "eval.csv") for run in run_dirs]
+    read = read_arms(arms)
+    for name, runs in read:
         lines.append(f"| {name} | " + " | ".join(arm_row(runs, marks, window)) + " |")
-    if paper:
-        task, algo = paper
-        curves = read_paper_curves(PAPER_CURVES)
-        if (task, algo) not in curves:
-            raise SystemExit(f"--paper: {PAPER_CURVES} has no curve for {task} {algo} (it has "
-                             + ", ".join(" ".join(key) for key in sorted(curves)) + ")")
-        lines.append(f"| the paper's {task} {algo} | "
-                     + " | ".join(paper_row(curves[task, algo], marks, window)) + " |")
+    curve = paper_curve(*paper) if paper else None
+    paper_name = f"the paper's {paper[0]} {paper[1]}" if paper else ""
+    if curve:
+        lines.append(f"| {paper_name} | " + " | ".join(paper_row(curve, marks, window)) + " |")
+    if windows:
+        lines += ["", windows_table(read, windows, (paper_name, curve) if curve else None)]
     return "\n".join(lines)
 
 
@@ -97,12 +162,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--window", nargs=2, type=int, metavar=("START", "END"))
     parser.add_argument("--paper", nargs=2, metavar=("TASK", "ALGO"),
                         help="also the paper's published curve of this cell")
+    parser.add_argument("--windows", type=int, metavar="STEP",
+                        help="also each arm's mean success per window (A, A + STEP]")
     args = parser.parse_args(argv)
+    if args.windows is not None and args.windows <= 0:
+        parser.error(f"--windows: the step must be positive, not {args.windows}")
     if args.window and args.window[0] > args.window[1]:
         parser.error(f"--window: start {args.window[0]} is after end {args.window[1]}")
     print(table([tuple(arm) for arm in args.arm], args.marks,
                 tuple(args.window) if args.window else None,
-                tuple(args.paper) if args.paper else None))
+                tuple(args.paper) if args.paper else None, args.windows))
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ import pathlib
 import pickle
 import re
 import shutil
+import shlex
 import subprocess
 import sys
 
@@ -527,9 +528,56 @@ def test_compare_arms_sets_the_papers_curve_beside_the_arms(tmp_path):
         "| the paper's pick_and_place tqc | 26 % | 75 % | – | 99 % |")
 
 
+def test_compare_arms_windows_are_half_open_averaged_per_run_then_over_runs(tmp_path):
+    """A window (A, B] holds the evaluation at B, not the one at A; each run's mean comes
+    first, then the arm's mean over the runs that evaluated there; a run that stopped inside
+    a window says where."""
+    _write_runs(tmp_path / "a", {"seed0": {0: 0.9, 50_000: 0.1, 100_000: 0.3, 150_000: 0.5},
+                                 "seed1": {50_000: 0.3, 60_000: 0.6, 80_000: 0.9}})
+    (tmp_path / "a" / "final-test.md").write_text("not a run")
+    completed = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "compare_arms.py"), "--arm", "a", str(tmp_path / "a/*"),
+         "--marks", "50000", "--windows", "50000"], capture_output=True, text=True, check=True)
+    # 0–50k: seed0 0.1 (step 0 is outside), seed1 0.3 -> 20.0 ± 10.0; 50–100k: seed0 0.3,
+    # seed1 (0.6 + 0.9) / 2 = 0.75, stopped at 80k -> 52.5 ± 22.5; 100–150k: seed0 alone.
+    assert completed.stdout.splitlines()[-3:] == [
+        "| mean success (%) per window | 0–50k | 50–100k | 100–150k |",
+        "|---|---|---|---|",
+        "| a | 20.0 ± 10.0 | 52.5 ± 22.5 (to 80k) | 50.0 ± 0.0 (n=1) |",
+    ]
+
+
+def _results_window_tables() -> list[tuple[list[list[str]], str]]:
+    """RESULTS.md's per-5e4-step tables: each one's rows' cells (name left out) and the
+    compare_arms command in the note below it."""
+    text = (EXPERIMENTS.parent / "RESULTS.md").read_text()
+    tables = []
+    for block in text.split("| mean success of the evaluations per 5e4 steps")[1:]:
+        lines = block.split("\n\n")[0].splitlines()[2:]
+        note = " ".join(block.split("\n\n")[1].split())
+        command = next(part for part in note.split("`") if "compare_arms.py" in part)
+        tables.append(([[cell.strip() for cell in line.split("|")[2:-1]] for line in lines],
+                       command))
+    return tables
+
+
+@pytest.mark.parametrize("rows, command", _results_window_tables())
+def test_results_window_tables_are_the_output_of_the_command_beside_them(rows, command):
+    """Every cell of RESULTS.md's per-5e4-step tables, from the committed runs' eval.csv
+    and the paper's curve, by the command printed beside the table."""
+    assert command.startswith("python experiments/compare_arms.py ")
+    completed = subprocess.run([sys.executable, *shlex.split(command)[1:]],
+                               cwd=EXPERIMENTS.parent, capture_output=True, text=True,
+                               check=True)
+    printed = completed.stdout.split("\n\n")[1].splitlines()[2:]
+    assert [[cell.strip() for cell in line.split("|")[2:-1]] for line in printed] == rows
+
+
 @pytest.mark.parametrize("args, message", [
-    (["--arm", "a", "/nowhere/*"], "arm 'a': no run directory matches '/nowhere/*'"),
+    (["--arm", "a", "/nowhere/*"],
+     "arm 'a': no run directory (one with an eval.csv) matches '/nowhere/*'"),
     (["--arm", "a", "/nowhere/*", "--window", "5", "1"], "--window: start 5 is after end 1"),
+    (["--arm", "a", "/nowhere/*", "--windows", "0"], "--windows: the step must be positive, not 0"),
     (["--arm", "a", str(EXPERIMENTS.parent / "results/table2/*"), "--paper", "pick_and_place",
       "ppo"],
      "has no curve for pick_and_place ppo (it has pick_and_place ddpg,"),
