@@ -95,21 +95,23 @@ def window_cell(runs: list[list[dict[str, float]]], start: int, end: int) -> str
 
 def windows_table(arms: list[tuple[str, list[list[dict[str, float]]]]], step: int,
                   paper: tuple[str, dict[int, float]] | None = None) -> str:
-    """Each arm's (and the paper's) mean success per window (A, A + step], to the last
-    evaluation of any arm."""
-    last = max(rows[-1]["steps"] for _, runs in arms for rows in runs if rows)
-    edges = list(range(0, int(np.ceil(last / step)) * step + 1, step))
-    heads = [f"{start // 1000}–{end // 1000}k" for start, end in zip(edges, edges[1:])]
-    lines = ["| mean success (%) per window | " + " | ".join(heads) + " |",
-             "|---|" + "---|" * len(heads)]
-    for name, runs in arms:
-        lines.append(f"| {name} | " + " | ".join(
-            window_cell(runs, start, end) for start, end in zip(edges, edges[1:])) + " |")
+    """Each arm's (and the paper's, as an arm of one run) mean success per window
+    (A, A + step], to the last evaluation of any arm."""
+    last = max((rows[-1]["steps"] for _, runs in arms for rows in runs if rows), default=0)
+    if not last:
+        raise SystemExit("--windows: no arm has an evaluation after step 0")
     if paper:
         name, curve = paper
-        points = [[{"steps": step, "success_rate": rate} for step, rate in sorted(curve.items())]]
-        lines.append(f"| {name} | " + " | ".join(
-            window_cell(points, start, end) for start, end in zip(edges, edges[1:])) + " |")
+        arms = arms + [(name, [[{"steps": at, "success_rate": rate}
+                                for at, rate in sorted(curve.items())]])]
+    edges = list(range(0, int(np.ceil(last / step)) * step + 1, step))
+    windows = list(zip(edges, edges[1:]))
+    lines = ["| mean success (%) per window | "
+             + " | ".join(f"{start // 1000}–{end // 1000}k" for start, end in windows) + " |",
+             "|---|" + "---|" * len(windows)]
+    for name, runs in arms:
+        lines.append(f"| {name} | "
+                     + " | ".join(window_cell(runs, *window) for window in windows) + " |")
     return "\n".join(lines)
 
 
@@ -144,12 +146,12 @@ def table(arms: list[tuple[str, str]], marks: list[int],
     read = read_arms(arms)
     for name, runs in read:
         lines.append(f"| {name} | " + " | ".join(arm_row(runs, marks, window)) + " |")
-    curve = paper_curve(*paper) if paper else None
-    paper_name = f"the paper's {paper[0]} {paper[1]}" if paper else ""
-    if curve:
-        lines.append(f"| {paper_name} | " + " | ".join(paper_row(curve, marks, window)) + " |")
+    paper_arm = (f"the paper's {paper[0]} {paper[1]}", paper_curve(*paper)) if paper else None
+    if paper_arm:
+        name, curve = paper_arm
+        lines.append(f"| {name} | " + " | ".join(paper_row(curve, marks, window)) + " |")
     if windows:
-        lines += ["", windows_table(read, windows, (paper_name, curve) if curve else None)]
+        lines += ["", windows_table(read, windows, paper_arm)]
     return "\n".join(lines)
 
 

@@ -547,6 +547,15 @@ def test_compare_arms_windows_are_half_open_averaged_per_run_then_over_runs(tmp_
     ]
 
 
+def test_compare_arms_windows_refuse_runs_without_an_evaluation(tmp_path):
+    _write_runs(tmp_path / "a", {"seed0": {}})
+    completed = subprocess.run(
+        [sys.executable, str(EXPERIMENTS / "compare_arms.py"), "--arm", "a", str(tmp_path / "a/*"),
+         "--windows", "50000"], capture_output=True, text=True, check=False)
+    assert completed.returncode != 0
+    assert "--windows: no arm has an evaluation after step 0" in completed.stderr
+
+
 def _results_window_tables() -> list[tuple[list[list[str]], str]]:
     """RESULTS.md's per-5e4-step tables: each one's rows' cells (name left out) and the
     compare_arms command in the note below it."""
