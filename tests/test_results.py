@@ -139,7 +139,7 @@ def _section(text: str, title: str) -> str:
 def test_pick_and_place_at_the_reference_timing_reports_each_algorithm_once_finished():
     """No partial result: RESULTS.md's table gives an algorithm of `reference_timing.sh`
     only once its three seeds have finished (an outcome.json kept each); until then one
-    paragraph says it is running and states no success rate."""
+    paragraph says it is unfinished and states no success rate."""
     section = _section(RESULTS_MD.read_text(), "Pick-and-place at the reference timing")
     kept = TABLE2.parent / "reference-timing"
     outcomes = [path.parent.name for path in kept.glob("pick_and_place-*-seed*/outcome.json")]
@@ -148,7 +148,7 @@ def test_pick_and_place_at_the_reference_timing_reports_each_algorithm_once_fini
     running = [algo.upper() for algo in ("tqc", "sac", "ddpg")
                if algo in algorithms and sum(f"-{algo}-" in name for name in outcomes) < 3]
     rows = [line for line in section.splitlines() if line.startswith("|")]
-    told = [p for p in section.split("\n\n") if p.startswith("**Running.**")]
+    told = [p for p in section.split("\n\n") if p.startswith("**Unfinished.**")]
     assert [algo for algo in running if any(algo in row for row in rows)] == []
     if running:
         assert len(told) == 1 and "no result yet" in told[0] and "%" not in told[0]
