@@ -366,6 +366,24 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, mon
     assert len(whole[2]["actions"]) == ended
 
 
+@pytest.mark.parametrize("algo, backend", [("tqc", "sbx"), ("sac", "sb3")])
+def test_a_run_stopped_in_its_random_steps_resumes_as_the_uninterrupted_run_to_the_bit(
+        tmp_path, monkeypatch, algo, backend):
+    """Stopped among its `--learning-starts` steps of random actions (issue 37's checks
+    take 1e5; one stopped at 96,415), a run resumes drawing the actions the uninterrupted
+    run draws, and learns from the same step on."""
+    options = ["--backend", backend, "--learning-starts", "300", "--checkpoint-every", "100000"]
+    assert _train(tmp_path / "whole", algo, 400, *options) == 0
+    with monkeypatch.context() as patch:
+        _stop_asked_at(patch, 60)  # Inside the second episode, long before step 300.
+        assert _train(tmp_path / "stopped", algo, 400, *options) == 130
+    state = RunDir(tmp_path / "stopped").read_state()
+    assert state["exact"] and 60 < state["steps"] <= 100
+    assert _train(tmp_path / "stopped", algo, 400, *options, "--resume") == 0
+    whole = _assert_trained_alike(tmp_path / "whole", tmp_path / "stopped", algo, backend)
+    assert len(whole[2]["actions"]) == 400
+
+
 def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
     """Stopped by SIGTERM, a run with its progress bar closes the bar: one left open is
     closed by the garbage collector, at interpreter shutdown, where rich's close fails
