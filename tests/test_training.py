@@ -342,46 +342,32 @@ def _assert_trained_alike(whole, resumed, algo, backend):
     return whole
 
 
-@pytest.mark.parametrize("algo, backend, schedule", [
-    *((algo, backend, "step") for backend in ("sb3", "sbx") for algo in ALGOS),
-    ("sac", "sb3", "episode")])
-def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(tmp_path, monkeypatch,
-                                                                   algo, backend, schedule):
+@pytest.mark.parametrize("algo, backend, schedule, learning_starts, stop_at", [
+    *((algo, backend, "step", 100, 160) for backend in ("sb3", "sbx") for algo in ALGOS),
+    ("sac", "sb3", "episode", 100, 160),
+    # Among its random steps (issue 37's checks take 1e5; one was stopped at 96,415): it
+    # resumes drawing the actions the uninterrupted run draws.
+    ("tqc", "sbx", "step", 300, 60), ("sac", "sb3", "step", 300, 60)])
+def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(
+        tmp_path, monkeypatch, algo, backend, schedule, learning_starts, stop_at):
     """Stopped (SIGTERM, Ctrl-C) inside an episode, a run checkpoints at that episode's end
     and exits; resumed, it trains, evaluates and stores what the uninterrupted run does."""
     options = ["--backend", backend, "--checkpoint-every", "100000",
-               "--update-schedule", schedule]
+               "--update-schedule", schedule, "--learning-starts", str(learning_starts)]
     assert _train(tmp_path / "whole", algo, 400, *options) == 0
     with monkeypatch.context() as patch:
-        _stop_asked_at(patch, 160)  # Inside the fourth episode (learning began at 100).
+        _stop_asked_at(patch, stop_at)  # Asked inside an episode; it ends by stop_at + 40.
         assert _train(tmp_path / "stopped", algo, 400, *options) == 130
     state = RunDir(tmp_path / "stopped").read_state()
-    assert state["exact"] and 160 < state["steps"] <= 200
+    assert state["exact"] and stop_at < state["steps"] <= stop_at + 40
     assert RunDir(tmp_path / "stopped").checkpoint_generators.is_file()
-    assert _train(tmp_path / "stopped", algo, 400, "--resume") == 0
+    resume = ["--resume", "--learning-starts", str(learning_starts)]  # TINY's says 100.
+    assert _train(tmp_path / "stopped", algo, 400, *resume) == 0
     whole = _assert_trained_alike(tmp_path / "whole", tmp_path / "stopped", algo, backend)
     # The episode schedule trains on whole episodes: its run ends with its episode, at 401.
     ended = {"step": 400, "episode": 401}[schedule]
     assert [r["steps"] for r in whole[0]] == sorted({0, 100, 200, 300, 400, ended})
     assert len(whole[2]["actions"]) == ended
-
-
-@pytest.mark.parametrize("algo, backend", [("tqc", "sbx"), ("sac", "sb3")])
-def test_a_run_stopped_in_its_random_steps_resumes_as_the_uninterrupted_run_to_the_bit(
-        tmp_path, monkeypatch, algo, backend):
-    """Stopped among its `--learning-starts` steps of random actions (issue 37's checks
-    take 1e5; one stopped at 96,415), a run resumes drawing the actions the uninterrupted
-    run draws, and learns from the same step on."""
-    options = ["--backend", backend, "--learning-starts", "300", "--checkpoint-every", "100000"]
-    assert _train(tmp_path / "whole", algo, 400, *options) == 0
-    with monkeypatch.context() as patch:
-        _stop_asked_at(patch, 60)  # Inside the second episode, long before step 300.
-        assert _train(tmp_path / "stopped", algo, 400, *options) == 130
-    state = RunDir(tmp_path / "stopped").read_state()
-    assert state["exact"] and 60 < state["steps"] <= 100
-    assert _train(tmp_path / "stopped", algo, 400, *options, "--resume") == 0
-    whole = _assert_trained_alike(tmp_path / "whole", tmp_path / "stopped", algo, backend)
-    assert len(whole[2]["actions"]) == 400
 
 
 def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
