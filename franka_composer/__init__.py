@@ -2,8 +2,9 @@
 
 Six tasks: push, slide and pick_and_place (the paper's), reach, stack and flip (panda-gym's).
 `load(name)` gives a dm_env environment; importing this package also registers the
-Gymnasium ids `Franka{Push,Slide,PickAndPlace,Reach,Stack,Flip}{Sparse,Dense}-v0`, with `Osc`
-and `Joints` after the task name for the other controllers.
+Gymnasium ids `Franka{Push,Slide,PickAndPlace,Reach,Stack}{Sparse,Dense}-v0` and
+`FrankaFlip{Sparse,Dense}-v1`, with `Osc` and `Joints` after the task name for the other
+controllers.
 """
 
 import warnings as _warnings

@@ -289,3 +289,32 @@ def test_a_lifted_block_stays_in_a_hand_squeezing_as_weakly_as_the_reference_cod
         obs = step([0, 0, 1], -0.1)
     lifted = obs["achieved_goal"][2] - block[2]
     assert (lifted > 0.19) if held else (lifted < 0.01)
+
+
+@pytest.mark.parametrize("task, options, timing", [
+    ("push", {}, "timing = 'default'"), ("push", {"timing": "reference"}, "timing = 'reference'"),
+    ("push", {"control_timestep": 0.1}, "timing: none of its names"),
+    ("flip", {"control": "osc", "timing": "reference"}, "timing = 'reference'")])
+def test_an_env_page_gives_its_timing_among_the_options(task, options, timing):
+    """`timing` is an option of gym.make and load like the others (it sets three of them),
+    so the page's options and the unknown-option error name it."""
+    from franka_composer.adapters.pages import page
+
+    arguments = page(task_config(task, **options), ()).split("\nArguments\n", 1)[1]
+    assert arguments.split("\n\n")[1].lstrip().startswith(timing)
+    with pytest.raises(ValueError, match=r"valid task options: .*, terminate_on_success, "
+                                         r"timing, velocity_timestep"):
+        task_config(task, time=1)
+
+
+@pytest.mark.parametrize("task, says", [("push", True), ("pick_and_place", True),
+                                        ("stack", True), ("reach", False), ("flip", False)])
+def test_an_env_page_names_the_euler_convention_where_its_observation_has_euler_angles(
+        task, says):
+    """The objects' orientation is x-y-z extrinsic Euler angles here, intrinsic in the
+    reference code (docs/guide/physics.md); flip's is a quaternion, reach has no object."""
+    from franka_composer.adapters.pages import page
+
+    text = " ".join(page(task_config(task), ()).split())
+    assert ("the Euler angles of the observation's object orientation (x-y-z extrinsic here, "
+            "intrinsic there)" in text) == says

@@ -37,6 +37,9 @@ def _reference_differences(config: TaskConfig) -> str:
     differences += ["the guard that keeps the hand's target out of surfaces",
                     "the contact parameters", "the solver's settings (an elliptic friction "
                     "cone here, a pyramidal one there)"]
+    if config.objects and config.object_orientation == "euler":
+        differences.append("the Euler angles of the observation's object orientation (x-y-z "
+                           "extrinsic here, intrinsic there)")
     damped_there = REFERENCE_CODE_OBJECT_DAMPING.get(config.name, REFERENCE_OBJECT_DAMPING)
     if config.objects and damped_there and not config.objects[0].joint_damping:
         joints, them = (("the object's free joint", "it") if len(config.objects) == 1 else
@@ -62,8 +65,13 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
                "in one step; the fingers follow it)." if control.actuated_gripper
                else "The fingers are locked closed.")
     goals, start, unit = _goal_words(config)
-    options = [f"{name} = {value!r}" for name, value in config.options.items()
-               if name != "reward_type"]  # The id fixes it.
+    # `timing` names a set of the options below (or none of its names, when they were set
+    # one by one).
+    timing = (f"timing = {config.timing_name!r}" if config.timing_name else
+              "timing: none of its names (control_timestep, velocity_timestep and "
+              "weld_time_constant, below, were set otherwise)")
+    options = [timing] + [f"{name} = {value!r}" for name, value in config.options.items()
+                          if name != "reward_type"]  # The id fixes it.
     default, reference = TIMINGS["default"], TIMINGS["reference"]
     sections = [
         ("Action space", [

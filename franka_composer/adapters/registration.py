@@ -3,11 +3,11 @@ loop, no list.
 
 `Franka{Task}{Sparse,Dense}-v<version>` for every task under the default (mocap) controller (the
 paper's three are the reference implementation's ids, so users of `panda_mujoco_gym` switch
-by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v0` under the others,
-panda-gym's naming. The suffix is the task's version (`TaskConfig.version`): -v0, except
-flip's -v1 (reachable goals); an older suffix is not registered, so `gym.make` of it raises
-Gymnasium's "deprecated, use -v1" error. Each task has its own class, `Franka{Task}Env`, whose docstring is the
-task's documentation page (`pages.page`: spaces, observation table, rewards, episode rules,
+by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v<version>` under the
+others, panda-gym's naming. The suffix is the task's version (`TaskConfig.version`): -v0,
+except flip's -v1 (reachable goals); an older suffix is not registered, so `gym.make` of it
+raises Gymnasium's "deprecated, use -v1" error. Each task has its own class,
+`Franka{Task}Env`, whose docstring is the task's documentation page (`pages.page`: spaces, observation table, rewards, episode rules,
 version history).
 """
 

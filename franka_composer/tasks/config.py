@@ -289,7 +289,7 @@ class TaskConfig:
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
         listing the valid ones, a bad value one naming the option and what it accepts."""
         options = expand_timing(options)
-        check_names("task option", options, OPTIONS)
+        check_names("task option", options, [*OPTIONS, "timing"])
         config = self
         for name, value in options.items():
             option = OPTIONS[name]
@@ -392,7 +392,7 @@ def _replace_path(record, path: tuple[str, ...], value):
 
 
 #: Named timings (task option `timing`), as the options they set. "default": 0.05 s of
-#: physics per step (Fetch's and panda-gym's convention, the paper's stated dt), velocities
+#: physics per step (the paper's stated dt; Fetch and panda-gym step 0.04 s), velocities
 #: per step, a stiff weld that tracks within it. "reference": what the paper's code
 #: (`panda_mujoco_gym`) runs: ten `mj_step(nstep=25)` calls per step, 0.5 s in which the arm
 #: settles on its target and the fingers on theirs, with velocities multiplied by its stated
