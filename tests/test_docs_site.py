@@ -50,8 +50,9 @@ def test_each_task_page_lays_the_docstring_out_as_markdown(task):
     # The observation table is a table (unindented), not a code block.
     assert f"\n\n{layout_for(config).markdown_table()}\n\n" in page
     options = page.split("\n## Arguments\n", 1)[1].split("```python\n", 1)[1].split("\n```")[0]
-    assert options.splitlines() == [f"{name} = {value!r}" for name, value
-                                    in config.options.items() if name != "reward_type"]
+    assert options.splitlines() == [f"timing = {config.timing_name!r}"] + [
+        f"{name} = {value!r}" for name, value in config.options.items()
+        if name != "reward_type"]
     assert page.startswith(f"# {gen_task_pages.title(task)}\n\n```{{image}} "
                            f"../_static/tasks/{task}.gif\n")
 

@@ -293,7 +293,7 @@ def test_a_lifted_block_stays_in_a_hand_squeezing_as_weakly_as_the_reference_cod
 
 @pytest.mark.parametrize("task, options, timing", [
     ("push", {}, "timing = 'default'"), ("push", {"timing": "reference"}, "timing = 'reference'"),
-    ("push", {"control_timestep": 0.1}, "timing: none of its names"),
+    ("push", {"control_timestep": 0.1}, "# timing: none of its names"),
     ("flip", {"control": "osc", "timing": "reference"}, "timing = 'reference'")])
 def test_an_env_page_gives_its_timing_among_the_options(task, options, timing):
     """`timing` is an option of gym.make and load like the others (it sets three of them),

@@ -68,7 +68,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     # `timing` names a set of the options below (or none of its names, when they were set
     # one by one).
     timing = (f"timing = {config.timing_name!r}" if config.timing_name else
-              "timing: none of its names (control_timestep, velocity_timestep and "
+              "# timing: none of its names (control_timestep, velocity_timestep and "
               "weld_time_constant, below, were set otherwise)")
     options = [timing] + [f"{name} = {value!r}" for name, value in config.options.items()
                           if name != "reward_type"]  # The id fixes it.
