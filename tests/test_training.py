@@ -629,10 +629,24 @@ def test_a_resume_keeps_what_the_run_trained_and_its_evaluations(runs, tmp_path)
     copy = tmp_path / "copy"
     shutil.copytree(run.root, copy)
     (copy / "eval.csv").unlink()
+    files = {path.name: path.read_bytes() for path in copy.iterdir() if path.is_file()}
     with pytest.raises(ValueError, match=re.escape(
             f"{copy / 'eval.csv'} is missing: the run's evaluations up to its checkpoint would "
             "be lost; put it back to resume")):
         cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
+    # Refused before anything is written: not the raised budget into its config.json, nor a
+    # lock file it did not have.
+    assert {path.name: path.read_bytes() for path in copy.iterdir() if path.is_file()} == files
+    kept = tmp_path / "kept"  # As results/ keeps a run: its config and evaluations alone.
+    kept.mkdir()
+    for name in ("config.json", "eval.csv"):
+        shutil.copy(run.root / name, kept / name)
+    with pytest.raises(ValueError, match=re.escape(
+            f"{kept} has no complete checkpoint to resume from (it stopped before its first "
+            "one): delete it to start again")):
+        cli.main(["train", "--resume", "--out", str(kept), "--total-steps", "7777"])
+    assert sorted(path.name for path in kept.iterdir()) == ["config.json", "eval.csv"]
+    assert (kept / "config.json").read_bytes() == (run.root / "config.json").read_bytes()
 
 
 def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):
@@ -1354,6 +1368,10 @@ def test_the_weld_counts_only_under_mocap_control():
         "weld_time_constant": (0.01, 0.02)}
     assert config("mocap", None).timing_label == "0.5 s per step, velocities per 0.05 s"
     assert config("mocap", 0.02).timing_label == "reference timing"
+    # A mocap run beside an osc one (a resume, keep or sweep given the other): the controller
+    # differs, and only it (not a KeyError on the weld only one of them has).
+    for ours, theirs in (("mocap", "osc"), ("osc", "mocap")):
+        assert config(ours, 0.02).differing(config(theirs, 0.02)) == {"control": (ours, theirs)}
 
 
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])

@@ -125,7 +125,11 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
     run), so a resumed run does not quietly checkpoint less often than it was started to.
     `threads`: the CPU threads the caller limited the networks to (None: not limited),
     recorded in the checkpoints for a resume to compute with. One process at a time trains
-    a run: a second is refused (`RunDir.training_lock`)."""
+    a run: a second is refused (`RunDir.training_lock`). A resume with nothing to resume
+    from is refused before the lock, and any resume refused leaves the run's files as
+    they were."""
+    if resume:
+        run.check_resumable()
     with run.training_lock():
         return _train(run, resume=resume, total_steps=total_steps, device=device,
                       checkpoint_every=checkpoint_every, threads=threads, progress=progress)
@@ -134,10 +138,9 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
 def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
            checkpoint_every: int | None, threads: int | None, progress: bool):
     config = run.read_config()
-    if total_steps is not None:
+    if total_steps is not None:  # Saved once the run goes on with it (below).
         config = dataclasses.replace(
             config, hyperparameters=config.hyperparameters.replace(total_steps=total_steps))
-        run.write_config(config)
     hp = config.hyperparameters
     env = make_env(config.task, **config.env_options)
     eval_env = DummyVecEnv([lambda: make_env(config.task, **config.env_options)])
@@ -148,12 +151,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     state = run.read_state()
     outcome = run.read_outcome()
     if resume:
-        if not state:
-            raise ValueError(f"{run.root} has no complete checkpoint to resume from "
-                             "(it stopped before its first one): delete it to start again")
-        if not run.eval_csv.is_file():
-            raise ValueError(f"{run.eval_csv} is missing: the run's evaluations up to its "
-                             "checkpoint would be lost; put it back to resume")
+        run.check_resumable()
         rows = run.kept_evaluations()
         if outcome.get("stopped_early") or (outcome and hp.total_steps <= outcome["steps"]):
             # It has ended, by the stopping rule or at this budget: nothing to train, and
@@ -204,6 +202,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         stream = exact_resume.EpisodeStream(config.seed)  # SB3 seeds the env's first reset.
         fresh_streams = []
         machines = [{"from_steps": 0, **machine.fingerprint()}]
+    if total_steps is not None:
+        run.write_config(config)
     if hp.clip_q_targets:
         clip_target_critic(model, hp.gamma)
     if tensorboard:

@@ -241,6 +241,9 @@ class RunConfig:
                 del flat["weld_time_constant"]
             return flat
         ours, theirs = settings(self), settings(other)
+        if ("weld_time_constant" in ours) != ("weld_time_constant" in theirs):
+            # One controller has no weld: `control` differs, and says so.
+            ours.pop("weld_time_constant", None), theirs.pop("weld_time_constant", None)
         return {name: (ours[name], theirs[name]) for name in ours if ours[name] != theirs[name]}
 
     def differences(self, other: "RunConfig") -> list[str]:

@@ -246,6 +246,18 @@ class RunDir:
         replace_atomically(self.config_path, lambda path: path.write_text(
             json.dumps(config.to_dict(), indent=2) + "\n"))
 
+    def check_resumable(self) -> None:
+        """Refuses (ValueError) to resume a run with no complete checkpoint (counting one a
+        stop left unlinked, which `recover_checkpoint` links) or without its eval.csv."""
+        if not self.checkpoint_state.is_file() and not any(
+                steps_of(path / "state.json") is not None
+                for path in self.root.glob("checkpoint-*")):
+            raise ValueError(f"{self.root} has no complete checkpoint to resume from "
+                             "(it stopped before its first one): delete it to start again")
+        if not self.eval_csv.is_file():
+            raise ValueError(f"{self.eval_csv} is missing: the run's evaluations up to its "
+                             "checkpoint would be lost; put it back to resume")
+
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
         "exact", "threads", "fresh_streams", "machines"} (no CPU time in checkpoints written
