@@ -71,3 +71,16 @@ def test_the_benchmark_scripts_take_the_same_syntax(script, monkeypatch):
     with pytest.raises(StopIteration):
         module.main(["--tasks", "push,slide", "reach"])
     assert seen["tasks"] == ("push", "slide", "reach")
+
+
+@pytest.mark.parametrize("command, option", [
+    ("train", "--control-timestep"), ("demo", "--control-timestep"),
+    ("rollout", "--control-timestep"), ("train", "--object-damping"),
+    ("rollout", "--object-damping")])
+@pytest.mark.parametrize("text", ["abc", "nan", "inf"])
+def test_a_task_option_that_is_not_a_number_is_refused_as_typed(command, option, text,
+                                                                 capsys):
+    """The word given, not the NaN it would otherwise reach the task's range check as."""
+    with pytest.raises(SystemExit):
+        build_parser().parse_args([command, option, text])
+    assert f"argument {option}: must be a finite number, got {text!r}" in capsys.readouterr().err

@@ -44,6 +44,19 @@ def test_options_beside_a_preset_override_it_and_the_label_says_what_changed():
     assert dataclasses.replace(plain, preset="fast") == _config("--preset", "fast")
 
 
+def test_a_presets_demonstrations_and_bounded_targets_give_way_to_the_users(tmp_path):
+    """--demos stands in for the preset's recorded expert (not refused as both), and
+    --no-clip-q-targets undoes its bounded targets."""
+    dataset = tmp_path / "push.npz"
+    config = _config("--preset", "fast", "--demos", str(dataset))
+    assert (config.demos, config.expert_demos) == (str(dataset), None)
+    assert config.variant == "fast preset, demos push.npz, no expert demos"
+    unclipped = _config("--preset", "fast", "--no-clip-q-targets")
+    assert not unclipped.hyperparameters.clip_q_targets
+    assert unclipped.variant == "fast preset, clip_q_targets False"
+    assert _config("--algo", "sac", "--no-clip-q-targets") == _config("--algo", "sac")
+
+
 def test_a_presets_run_keeps_its_name_in_config_json():
     config = _config("--preset", "fast", "--task", "push")
     assert config.to_dict()["preset"] == "fast"

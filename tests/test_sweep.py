@@ -418,8 +418,14 @@ def test_bad_train_options_and_budgets_are_refused_by_the_parsers(tmp_path, caps
             "--seeds", "0"]
     with pytest.raises(ValueError, match=re.escape(
             "the options after -- go to each cell's train, which does not take --bogus "
-            "(franka-composer train --help lists its options)")):
+            "(franka-composer train --help lists its options; give them in full)")):
         cli.main([*base, "--steps", "10", "--", "--bogus"])
+    # An abbreviation train would take is refused: --tas would set the cell's --task, --ou
+    # its --out (where the exact spellings are refused as set by the sweep).
+    for option in ("--tas", "--ou", "--total-st"):
+        with pytest.raises(ValueError, match=re.escape(
+                f"which does not take {option} slide (franka-composer train --help")):
+            cli.main([*base, "--steps", "10", "--", option, "slide"])
     with pytest.raises(SystemExit):
         cli.main([*base, "--steps", "shove=10"])
     assert "unknown task 'shove' in --steps" in capsys.readouterr().err

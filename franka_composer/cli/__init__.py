@@ -34,6 +34,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def command_parser(name: str) -> argparse.ArgumentParser:
+    """The parser of the subcommand `name` alone: its options as `franka-composer NAME`
+    takes them."""
+    subparsers = argparse.ArgumentParser(prog="franka-composer").add_subparsers()
+    importlib.import_module(f"franka_composer.cli.{name}").add_parser(subparsers)
+    return subparsers.choices[name]
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     return int(args.func(args) or 0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import pathlib
 
 from franka_composer.validation import check_writable
@@ -14,6 +15,15 @@ def number(text: str) -> float:
         return float(text)
     except ValueError:
         return float("nan")
+
+
+def finite_number(text: str) -> float:
+    """`text` as a finite float, for a task option whose own check then says which range it
+    must be in (a word would otherwise reach that check as NaN)."""
+    value = number(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    return value
 
 
 def _whole_number(text: str, minimum: int, what: str) -> int:
@@ -193,7 +203,8 @@ def add_timing(parser: argparse.ArgumentParser, control_timestep_help: str) -> N
     other; `timing_options` reads them."""
     from franka_composer.tasks.config import TIMINGS
 
-    parser.add_argument("--control-timestep", type=number, default=None, metavar="SECONDS",
+    parser.add_argument("--control-timestep", type=finite_number, default=None,
+                        metavar="SECONDS",
                         help=control_timestep_help)
     parser.add_argument("--timing", choices=tuple(TIMINGS), default=None,
                         help="a named timing instead of --control-timestep: 'default' "
@@ -205,7 +216,8 @@ def add_timing(parser: argparse.ArgumentParser, control_timestep_help: str) -> N
 def add_object_damping(parser: argparse.ArgumentParser, default: str) -> None:
     """--object-damping DAMPING: the task option `object_damping` (None when not given);
     `default` says what is damped then."""
-    parser.add_argument("--object-damping", type=number, default=None, metavar="DAMPING",
+    parser.add_argument("--object-damping", type=finite_number, default=None,
+                        metavar="DAMPING",
                         help=f"damp the objects' free joints (N s/m and N m s/rad; default: "
                              f"{default}); 0.01 is the paper's code's block, which a push "
                              "slides where an undamped one can tip over (docs/guide/"

@@ -14,8 +14,9 @@ def add_parser(subparsers) -> None:
                     "(runs of the same task, algorithm and setup), with median ± std shaded, "
                     "one panel per task and one line per algorithm and setup, as in the "
                     "paper's Fig. 4. A run that stopped early (--stop-at-success) is held "
-                    "at the mean of its last 5 evaluations over the steps its cell's other "
-                    "seeds go on to.")
+                    "at the mean of the evaluations its stopping rule counted (train's "
+                    "--stop-after: 5 in the campaigns) over the steps its cell's other seeds "
+                    "go on to.")
     add_run_dirs(parser)
     parser.add_argument("--wall-clock", action="store_true",
                         help="each run's wall-clock minutes on the x axis, not environment "

@@ -50,7 +50,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--reward-type", choices=("sparse", "dense"), default="sparse",
                         help="reward stored with each step (default: sparse)")
     parser.add_argument("--dataset-id", default=None,
-                        help="Minari dataset id (default: franka_composer/<task>/expert-v0)")
+                        help="Minari dataset id (default: franka_composer/<task>[-<control>]/"
+                             "<expert|policy>[-noisy]-v0, the control named unless mocap, "
+                             "-noisy with --action-noise)")
     parser.add_argument("--out", type=pathlib.Path, required=True,
                         help="the .npz file, or the folder of a Minari or RLDS dataset")
     parser.set_defaults(func=run)

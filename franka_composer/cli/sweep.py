@@ -37,7 +37,9 @@ def add_parser(subparsers) -> None:
                              "by --status and --sync)")
     parser.add_argument("--grid", choices=sorted(GRIDS),
                         help="a named grid: table2 is the paper's Table II with this suite's "
-                             "budgets and the early-stopping rule")
+                             "budgets and the early-stopping rule, SAC in bf16, TQC on sbx "
+                             "and slide's networks 256,256,256 with batch 512 "
+                             "(docs/guide/training.md)")
     add_tasks_argument(parser, None, "the grid's tasks (with --algos, --seeds and --steps)")
     parser.add_argument("--algos", nargs="+", choices=ALGOS, metavar="ALGO")
     parser.add_argument("--seeds", nargs="+", type=training_seed, metavar="SEED")
@@ -133,14 +135,18 @@ def _check_trained_as(run, config) -> None:
 
 def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace:
     """The `train` arguments of `cell` under `out` with `train_args`, read by train's own
-    parser; an option it does not take is a ValueError saying it came after --."""
-    from franka_composer.cli import build_parser
+    parser; an option it does not take is a ValueError saying it came after --. Options are
+    taken as spelled, not abbreviated: `--tas` would otherwise be the --task the sweep sets."""
+    from franka_composer.cli import command_parser
     from franka_composer.training.sweep import train_command
 
-    args, unknown = build_parser().parse_known_args(train_command(cell, out, train_args)[3:])
+    parser = command_parser("train")
+    parser.allow_abbrev = False
+    args, unknown = parser.parse_known_args(train_command(cell, out, train_args)[4:])
     if unknown:
         raise ValueError(f"the options after -- go to each cell's train, which does not take "
-                         f"{' '.join(unknown)} (franka-composer train --help lists its options)")
+                         f"{' '.join(unknown)} (franka-composer train --help lists its "
+                         "options; give them in full)")
     return args
 
 

@@ -139,7 +139,8 @@ def add_parser(subparsers) -> None:
                         help="where the networks run: auto picks cuda when torch sees a GPU")
     parser.add_argument("--no-terminate-on-success", dest="terminate_on_success",
                         action="store_false", default=None,
-                        help="episodes always last 50 steps (Fetch semantics). The paper's "
+                        help="episodes always last the task's time limit (50 steps; stack "
+                             "and flip 100: Fetch semantics). The paper's "
                              "ids end an episode on success, which makes HER relabelling "
                              "inexact: a relabelled transition keeps the stored done (the "
                              "success that ended an episode stays terminal under goals it "
@@ -169,11 +170,12 @@ def add_parser(subparsers) -> None:
                         help="steps between evaluations (Table I: 2000)")
     parser.add_argument("--eval-episodes", type=positive_int, default=None,
                         help="deterministic episodes per evaluation (Table I: 15)")
-    parser.add_argument("--clip-q-targets", action="store_true", default=None,
+    parser.add_argument("--clip-q-targets", action=argparse.BooleanOptionalAction, default=None,
                         help="clamp the target critic's values to the returns the sparse "
                              "reward allows, [-1/(1-gamma), 0], as OpenAI baselines' HER "
                              "does (not Table I's; sb3 backend): keeps a critic trained on "
-                             "--demos from diverging (RESULTS.md)")
+                             "--demos from diverging (RESULTS.md); --no-clip-q-targets "
+                             "undoes a --preset's")
     parser.add_argument("--stop-at-success", type=_rate, default=None, metavar="RATE",
                         help="stop early once --stop-after consecutive evaluations all reach "
                              "this success rate in (0, 1] (default: never; the Table II "
@@ -241,8 +243,10 @@ def with_defaults(args: argparse.Namespace) -> argparse.Namespace:
     (the preset's hyperparameters come in through `run_config`)."""
     from franka_composer.training.presets import TRAINING_PRESETS
 
-    defaults = {**RUN_DEFAULTS,
-                **(TRAINING_PRESETS[args.preset].run_fields() if args.preset else {})}
+    preset = TRAINING_PRESETS[args.preset].run_fields() if args.preset else {}
+    if args.demos is not None:  # The user's demonstrations in place of the preset's.
+        preset.pop("expert_demos", None)
+    defaults = {**RUN_DEFAULTS, **preset}
     return argparse.Namespace(**{**vars(args), **{
         name: value for name, value in defaults.items() if getattr(args, name) is None}})
 
