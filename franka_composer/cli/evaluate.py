@@ -22,9 +22,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--episodes", type=positive_int, default=20,
                         help="test episodes per model (paper: 20)")
     parser.add_argument("--seed", type=episode_seed, default=2024,
-                        help="seed of the test episodes (the same for every run)")
+                        help="seed of the test episodes, the same for every run (default: "
+                             "2024, the final tests' in RESULTS.md)")
     parser.add_argument("--device", choices=DEVICES, default="auto",
-                        help="where the policy runs")
+                        help="where the policy runs (default: auto, cuda where torch sees "
+                             "a GPU)")
     parser.add_argument("--out", type=output_file, default=None,
                         help="also write the Markdown table (and per-seed notes) here")
     parser.set_defaults(func=run)

@@ -22,8 +22,9 @@ def add_parser(subparsers) -> None:
                         help="each run's wall-clock minutes on the x axis, not environment "
                              "steps: how recipes whose steps cost differently compare")
     parser.add_argument("--out", type=figure_file, default="curves.png",
-                        help="image file to write, in the format its extension names (png, pdf, svg "
-                             "or another matplotlib writes)")
+                        help="image file to write (default: curves.png here), in the format "
+                             "its extension names (png, pdf, svg or another matplotlib "
+                             "writes)")
     parser.set_defaults(func=run)
 
 

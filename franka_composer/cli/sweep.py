@@ -41,8 +41,10 @@ def add_parser(subparsers) -> None:
                              "and slide's networks 256,256,256 with batch 512 "
                              "(docs/guide/training.md)")
     add_tasks_argument(parser, None, "the grid's tasks (with --algos, --seeds and --steps)")
-    parser.add_argument("--algos", nargs="+", choices=ALGOS, metavar="ALGO")
-    parser.add_argument("--seeds", nargs="+", type=training_seed, metavar="SEED")
+    parser.add_argument("--algos", nargs="+", choices=ALGOS, metavar="ALGO",
+                        help=f"the grid's algorithms ({', '.join(ALGOS)})")
+    parser.add_argument("--seeds", nargs="+", type=training_seed, metavar="SEED",
+                        help="the grid's seeds, one cell each")
     parser.add_argument("--steps", type=_budgets, metavar="N|TASK=N,...",
                         help="each cell's step budget, or one per task (push=250000,...)")
     parser.add_argument("--cells", nargs="+", metavar="PATTERN", default=None,
