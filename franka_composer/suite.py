@@ -26,15 +26,15 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
       reward_type: "sparse" (0 at the goal, else -1) or "dense" (-distance).
       seed: a non-negative int (any size: `franka_composer.seeding`), a
         `np.random.RandomState`, or None; the only randomness of the episodes.
-      renderable: False leaves the Panda's visual meshes out of the model (~40 MB less per
+      renderable: False leaves the Panda's visual meshes out of the model (~50 MB less per
         env, for processes that never render; `physics.render` then shows no arm). The
         simulation is bit-identical either way: the visual geoms have no mass or contacts.
         None: renderable only where the camera observations draw the visual meshes.
       time_limit: seconds of physics before an episode times out, rounded up to whole
         control steps; by default the task's `max_episode_steps` control periods (2.5 s,
         50 steps, for push; 25 s under `timing="reference"`); None: no time limit.
-      **task_kwargs: overrides of the task's `TaskConfig` fields, e.g.
-        `terminate_on_success=False`, `distance_threshold=0.03`.
+      **task_kwargs: task options (the names of `franka_composer.tasks.OPTIONS`, and
+        `timing`), e.g. `terminate_on_success=False`, `distance_threshold=0.03`.
 
     Raises:
       ValueError: unknown task name or option, naming the valid ones; a seed that is not a

@@ -4,6 +4,8 @@ back the stored observations exactly."""
 
 from __future__ import annotations
 
+import re
+
 import minari
 import numpy as np
 import pytest
@@ -208,6 +210,20 @@ def test_bad_rollout_options_are_refused_before_anything_is_written(tmp_path, ca
         main(["rollout", "--task", "push", "--out", str(tmp_path / "x"), *argv])
     assert message in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("arguments, message", [
+    ({"task": "nope"}, "unknown task 'nope'; valid tasks: push, slide"),
+    ({"reward_type": "shaped"}, "unknown reward_type 'shaped'; valid reward_types: sparse, dense"),
+    ({"control": "ik"}, "unknown control 'ik'; valid controls: mocap, osc, joints")])
+def test_record_refuses_a_task_reward_or_controller_it_does_not_know(tmp_path, arguments,
+                                                                      message):
+    """By name, as every other argument of `record` (not a KeyError from the id's parts),
+    before anything is written."""
+    arguments = {"task": "push", **arguments}
+    with pytest.raises(ValueError, match=re.escape(message)):
+        record(arguments.pop("task"), 1, tmp_path / "x.npz", **arguments)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_dataset_is_not_written_over_another_or_onto_a_file(tmp_path):

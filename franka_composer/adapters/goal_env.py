@@ -1,7 +1,8 @@
 """A thin Gymnasium `GoalEnv`-style adapter over the Composer suite, for HER learners.
 
 It only reshapes what the task exposes: the flat `observation` is built by the task's
-`observation_layout` (velocities times the control period), the goals are the task's
+`observation_layout` (velocities times `TaskConfig.velocity_period`: the control period
+unless `velocity_timestep` sets another), the goals are the task's
 achieved/desired goal observables, the reward is the timestep's (the task's
 reward function on those goals: the same function `compute_reward`, which HER calls to
 relabel, runs) and `is_success` is the task's.

@@ -22,6 +22,7 @@ from franka_composer.adapters.pages import page
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.rewards import REWARD_TYPES
+from franka_composer.validation import check_choice
 
 ENTRY_POINT = "franka_composer.adapters.registration:make_registered"
 
@@ -33,7 +34,11 @@ def _camel(task: str) -> str:
 def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`; with `osc` ->
     `FrankaPickAndPlaceOscDense-v0`. The suffix is the task's `TaskConfig.version` (flip's
-    is 1: its goals changed)."""
+    is 1: its goals changed). An unknown task, reward type or controller is a ValueError
+    naming the valid ones."""
+    check_choice("task", task, ALL_TASKS)
+    check_choice("reward_type", reward_type, REWARD_TYPES)
+    check_choice("control", control, CONTROLS)
     controller = "" if control == "mocap" else control.capitalize()
     version = TASK_CONFIGS[task].version
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"

@@ -40,8 +40,10 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     expert, or by the policy trained in `policy_dir`, with N(0, `action_noise`) added to each
     action, in `format` under `out` (a file for npz, a folder otherwise). `options` are task
     options (`gym.make(id, **options)`). Returns {"episodes", "steps", "success_rate",
-    "path"}; every argument is checked before anything is written."""
+    "path"} (and "dataset_id" for minari); every argument is checked before anything is
+    written."""
     check_choice("format", format, FORMATS)
+    env_id(task, reward_type, control)  # Checks the three, naming the valid ones.
     check_number("episodes", episodes, minimum=1, integer=True)
     check_number("seed", seed, minimum=0, integer=True)
     out = pathlib.Path(out)

@@ -1,4 +1,5 @@
-"""Scripted expert policies, one per task, acting only on the public observation dict.
+"""Scripted expert policies, one per task, acting on the public observation dict (in the
+pixel modes, on the state the task reads, never on the images).
 
 They prove the tasks are solvable through the action interface and generate
 demonstrations: `rollout(env, make_expert(env), episodes=100).save("push.npz")`.

@@ -53,7 +53,8 @@ class Expert(abc.ABC):
     """A scripted policy for one task's env: `reset()` at each episode start, then
     `expert(obs) -> action`, `obs` as the env returned it. Built by `make_expert(env)`;
     `expert_input` turns observations into the goal dict `act` reads (by default only
-    Gymnasium and dm_env observations with the state)."""
+    Gymnasium goal dicts with the state; `make_expert` gives one that reads dm_env's and
+    the pixel modes' too)."""
 
     def __init__(self, layout: ObservationLayout, config: TaskConfig,
                  expert_input: ExpertInput | None = None) -> None:

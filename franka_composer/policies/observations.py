@@ -26,7 +26,8 @@ class ExpertInput:
 
     Args:
       layout: the task's observation layout.
-      composer_goal_key: the Composer observable holding the desired goal ("goal").
+      composer_goal_key: the Composer observable holding the desired goal, for dm_env
+        observations ("goal", as `make_expert` gives it; None: Gymnasium goal dicts only).
       read_state: () -> the state vector now, for observations without it (None: such an
         observation is a ValueError saying how to get an expert that reads it).
     """

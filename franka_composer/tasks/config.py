@@ -313,7 +313,8 @@ class TaskConfig:
     @property
     def time_limit(self) -> float:
         """Seconds an episode lasts unless it ends on success: `max_episode_steps` control
-        periods (2.5 s at the default timing, 25 s at the reference one)."""
+        periods (a 50-step task's: 2.5 s at the default timing, 25 s at the reference one;
+        stack's and flip's 100 steps twice that)."""
         return self.max_episode_steps * self.control_timestep
 
     @property

@@ -31,7 +31,8 @@ class ObservationField(NamedTuple):
 
 class ObservationLayout:
     """The fields of the flat observation vector, in order; velocities are multiplied by
-    `velocity_period` (the control period: displacements per step, as in Fetch)."""
+    `velocity_period` (`TaskConfig.velocity_period`: the control period, displacements per
+    step as in Fetch, unless `velocity_timestep` sets another)."""
 
     def __init__(self, fields, velocity_period: float) -> None:
         self.fields: tuple[ObservationField, ...] = tuple(fields)
@@ -69,8 +70,8 @@ class ObservationLayout:
         return np.asarray(vector)[..., self.slice(name)]
 
     def flatten(self, observables: Mapping[str, np.ndarray]) -> np.ndarray:
-        """The vector from Composer observables (SI units): concatenated, velocities scaled
-        to per step. One concatenation and one multiply: this runs every step."""
+        """The vector from Composer observables (SI units): concatenated, velocities
+        multiplied by the velocity period. One concatenation and one multiply: this runs every step."""
         vector = np.concatenate([observables[key].ravel() for key in self.keys],
                                 dtype=OBSERVATION_DTYPE)
         vector *= self.scale
