@@ -629,6 +629,7 @@ def test_a_resume_keeps_what_the_run_trained_and_its_evaluations(runs, tmp_path)
     copy = tmp_path / "copy"
     shutil.copytree(run.root, copy)
     (copy / "eval.csv").unlink()
+    (copy / "training.lock").unlink()  # Copied from the run: a refusal must not make one.
     files = {path.name: path.read_bytes() for path in copy.iterdir() if path.is_file()}
     with pytest.raises(ValueError, match=re.escape(
             f"{copy / 'eval.csv'} is missing: the run's evaluations up to its checkpoint would "
@@ -669,14 +670,20 @@ def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):
     assert run.eval_csv.read_text() == before
 
 
-def test_no_terminate_on_success_reaches_the_env(tmp_path):
+def test_no_terminate_on_success_reaches_the_env(tmp_path, monkeypatch):
+    """The envs the run trains and evaluates on run to the time limit, not only its
+    config.json saying so."""
+    from franka_composer.training import loop
+
+    built = []
+    real_make_env = loop.make_env
+    monkeypatch.setattr(loop, "make_env", lambda task, **options: built.append(
+        real_make_env(task, **options)) or built[-1])
     out = tmp_path / "fetch_semantics"
     assert _train(out, "ddpg", 100, "--no-terminate-on-success") == 0
-    config = RunDir(out).read_config()
-    assert config.terminate_on_success is False
-    env = make_env("push", terminate_on_success=config.terminate_on_success)
-    assert env.unwrapped.task.terminate_on_success is False
-    env.close()
+    assert RunDir(out).read_config().terminate_on_success is False
+    assert len(built) == 2  # The training env and the evaluation env.
+    assert [env.unwrapped.task.terminate_on_success for env in built] == [False, False]
 
 
 def test_a_randomised_run_trains_resumes_and_evaluates_on_randomised_envs(tmp_path, capsys,
