@@ -205,6 +205,26 @@ def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
     env.close()
 
 
+@pytest.mark.slow
+def test_the_controller_press_the_controllers_page_records():
+    """docs/guide/controllers.md's table, as `controller_press.py` measures it on
+    pick-and-place seed 0: the guarded controllers hold the specification's bounds (object
+    within 2 mm of its height, under 0.3 m/s), the joints controller, without the guard,
+    does not."""
+    module = load_script(EXPERIMENTS / "controller_press.py")
+    readings = {control: module.press("pick_and_place", control, 0, 80, "default")
+                for control in ("mocap", "osc", "joints")}
+    for control in ("mocap", "osc"):
+        reading = readings[control]
+        assert reading["sank_mm"] < 2 and reading["rose_mm"] < 2
+        assert reading["fastest_m_s"] < 0.3 and reading["moved_mm"] < 1
+        assert reading["peak_force_n"] < 136 and reading["into_floor_mm"] < 2
+    joints = readings["joints"]
+    assert joints["rose_mm"] == pytest.approx(8.20, abs=0.01)
+    assert joints["fastest_m_s"] == pytest.approx(0.537, abs=0.001)
+    assert joints["moved_mm"] == pytest.approx(72.5, abs=0.1)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--move-z", "2"], "--move-z must be an action in [-1, 1], got 2"),
     (["--seeds", "-1"], "argument --seeds: must be an integer >= 0, got '-1'"),

@@ -6,6 +6,9 @@ the joint's range; the gripper as under every controller. The servos are Menager
 stiffness and force limits), with their damping lowered so that a step reaches its target
 within the step (`entities/panda.py`, `SERVO_DERIVATIVE_TIME`), and the links compensate
 their own weight, as the real Panda's joint controller does: the servos only move the arm.
+The surface guard that keeps mocap's and osc's targets out of surfaces does not act on these
+targets: a press in joint space is bounded by the servos' force limits alone, and can shove
+or lift an object (docs/guide/controllers.md, experiments/controller_press.py).
 """
 
 from __future__ import annotations
