@@ -55,7 +55,8 @@ def make_env(task: str, *, terminate_on_success: bool = True,
     `environment`, that suite's (`ENVIRONMENTS`).
 
     `terminate_on_success=True` is the paper's ids; False gives Fetch semantics (episodes
-    always last 50 steps), for which HER's relabelled rewards and `done` flags are exact.
+    always last the task's time limit, 50 steps, stack's and flip's 100), for which HER's
+    relabelled rewards and `done` flags are exact.
     `randomization`: a preset's name (`randomization.PRESETS`), or None.
     `control_timestep`: seconds per step, or None for the task's; `velocity_timestep`: the
     seconds velocities are multiplied by, or None for the control period;
