@@ -225,6 +225,23 @@ def test_the_controller_press_the_controllers_page_records():
     assert joints["moved_mm"] == pytest.approx(72.5, abs=0.1)
 
 
+@pytest.mark.slow
+def test_osc_tracking_the_controllers_page_records():
+    """docs/guide/controllers.md's osc cell, as `osc_tracking.py` measures it: mid-square a
+    full +x is tracked as from the neutral pose; at x 0.75 the arm, at its torque limits,
+    turns the hand back."""
+    import franka_composer
+
+    module = load_script(EXPERIMENTS / "osc_tracking.py")
+    env = franka_composer.load("reach", seed=0, control="osc", terminate_on_success=False,
+                               time_limit=None)
+    middle, _ = module.shares(env, (0.6, 0.2), 0, 1)
+    edge, end = module.shares(env, (0.75, 0.2), 0, 1)
+    assert np.round(middle) == pytest.approx([76, 95, 90], abs=0.5)
+    assert np.round(edge) == pytest.approx([69, 39, -42], abs=0.5)
+    assert end[0] == pytest.approx(0.783, abs=0.001)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--move-z", "2"], "--move-z must be an action in [-1, 1], got 2"),
     (["--seeds", "-1"], "argument --seeds: must be an integer >= 0, got '-1'"),
