@@ -7,8 +7,8 @@ by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v<version>`
 others, panda-gym's naming. The suffix is the task's version (`TaskConfig.version`): -v0,
 except flip's -v1 (reachable goals); an older suffix is not registered, so `gym.make` of it
 raises Gymnasium's "deprecated, use -v1" error. Each task has its own class,
-`Franka{Task}Env`, whose docstring is the task's documentation page (`pages.page`: spaces, observation table, rewards, episode rules,
-version history).
+`Franka{Task}Env`, whose docstring is the task's documentation page (`pages.page`: spaces,
+observation table, rewards, episode rules, version history).
 """
 
 from __future__ import annotations

@@ -43,7 +43,7 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     "path"} (and "dataset_id" for minari); every argument is checked before anything is
     written."""
     check_choice("format", format, FORMATS)
-    env_id(task, reward_type, control)  # Checks the three, naming the valid ones.
+    registered = env_id(task, reward_type, control)  # Checks the three by name.
     check_number("episodes", episodes, minimum=1, integer=True)
     check_number("seed", seed, minimum=0, integer=True)
     out = pathlib.Path(out)
@@ -60,7 +60,7 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     metadata = {"task": task, "control": control, "reward_type": reward_type,
                 "source": source, "seed": seed, "action_noise": float(action_noise),
                 "options": readable_options(options)}
-    env = gym.make(env_id(task, reward_type, control), **options)
+    env = gym.make(registered, **options)
     try:
         check_episodes_end(env)  # Before anything is written.
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)

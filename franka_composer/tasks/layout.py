@@ -71,7 +71,8 @@ class ObservationLayout:
 
     def flatten(self, observables: Mapping[str, np.ndarray]) -> np.ndarray:
         """The vector from Composer observables (SI units): concatenated, velocities
-        multiplied by the velocity period. One concatenation and one multiply: this runs every step."""
+        multiplied by the velocity period. One concatenation and one multiply: this runs
+        every step."""
         vector = np.concatenate([observables[key].ravel() for key in self.keys],
                                 dtype=OBSERVATION_DTYPE)
         vector *= self.scale

@@ -150,8 +150,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     run.recover_checkpoint()
     state = run.read_state()
     outcome = run.read_outcome()
-    if resume:
-        run.check_resumable()
+    if resume:  # `train` has checked it is resumable.
         rows = run.kept_evaluations()
         if outcome.get("stopped_early") or (outcome and hp.total_steps <= outcome["steps"]):
             # It has ended, by the stopping rule or at this budget: nothing to train, and

@@ -233,17 +233,18 @@ class RunConfig:
 
     def differing(self, other: "RunConfig") -> dict[str, tuple]:
         """What makes `other` a different run from this one: {setting: (ours, theirs)};
-        the step budget is not among them (a run may go on to a larger one)."""
+        the step budget is not among them (a run may go on to a larger one), nor the weld
+        unless both controllers have one (where one has none, `control` differs)."""
+        weld_counts = all("weld_time_constant" in config._timing_that_acts
+                          for config in (self, other))
+
         def settings(config: RunConfig) -> dict:
             flat = {**config.to_dict(), **config.hyperparameters.to_dict()}
             del flat["hyperparameters"], flat["total_steps"]
-            if "weld_time_constant" not in config._timing_that_acts:
+            if not weld_counts:
                 del flat["weld_time_constant"]
             return flat
         ours, theirs = settings(self), settings(other)
-        if ("weld_time_constant" in ours) != ("weld_time_constant" in theirs):
-            # One controller has no weld: `control` differs, and says so.
-            ours.pop("weld_time_constant", None), theirs.pop("weld_time_constant", None)
         return {name: (ours[name], theirs[name]) for name in ours if ours[name] != theirs[name]}
 
     def differences(self, other: "RunConfig") -> list[str]:

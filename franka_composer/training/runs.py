@@ -189,13 +189,16 @@ class RunDir:
         aside and linking its successor, links the newest complete one again."""
         if self.checkpoint.exists():
             return
-        complete = {path: steps_of(path / "state.json")
-                    for path in self.root.glob("checkpoint-*")}
-        complete = {path: steps for path, steps in complete.items() if steps is not None}
+        complete = self._complete_checkpoints()
         if complete:
             newest = max(complete, key=complete.get)
             self.checkpoint.unlink(missing_ok=True)  # A link to nothing.
             self.checkpoint.symlink_to(newest.name)
+
+    def _complete_checkpoints(self) -> dict[pathlib.Path, int]:
+        """The checkpoint folders whose state was written, with their steps."""
+        steps = {path: steps_of(path / "state.json") for path in self.root.glob("checkpoint-*")}
+        return {path: count for path, count in steps.items() if count is not None}
 
     def _unused_checkpoint_name(self, steps: int) -> pathlib.Path:
         return self.root / f"checkpoint-{steps}-{uuid.uuid4().hex[:8]}"
@@ -249,9 +252,8 @@ class RunDir:
     def check_resumable(self) -> None:
         """Refuses (ValueError) to resume a run with no complete checkpoint (counting one a
         stop left unlinked, which `recover_checkpoint` links) or without its eval.csv."""
-        if not self.checkpoint_state.is_file() and not any(
-                steps_of(path / "state.json") is not None
-                for path in self.root.glob("checkpoint-*")):
+        recoverable = not self.checkpoint.exists() and self._complete_checkpoints()
+        if not self.checkpoint_state.is_file() and not recoverable:
             raise ValueError(f"{self.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
         if not self.eval_csv.is_file():
