@@ -21,7 +21,8 @@ import time
 from franka_composer.cli.options import positive_int
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training import ALGOS, PRECISIONS, hyperparameters
-from franka_composer.training.models import DEVICES, build_model, make_env, resolve_device
+from franka_composer.training.models import (DEVICES, build_model, make_env, quiet_logger,
+                                            resolve_device)
 from franka_composer.training.precision import autocast
 
 FILL_STEPS = 1000
@@ -46,7 +47,8 @@ def time_gradient_steps(task: str, algo: str, steps: int, rounds: int,
     env = make_env(task)
     model = build_model(task, algo, hp, env, seed=0, device=device)
     synchronize = torch.cuda.synchronize if device == "cuda" else lambda: None
-    model.learn(total_timesteps=FILL_STEPS)  # Fills the buffer; sets up SB3's logger.
+    model.set_logger(quiet_logger())
+    model.learn(total_timesteps=FILL_STEPS)  # Fills the buffer.
     best = {precision: float("inf") for precision in PRECISIONS}
     for _ in range(rounds):
         for precision in PRECISIONS:

@@ -44,6 +44,13 @@ OBJECT_TASKS = tuple(t for t in franka_composer.ALL_TASKS
                      if franka_composer.tasks.TASK_CONFIGS[t].objects)
 
 
+@pytest.fixture(autouse=True, scope="session")
+def _sb3_logs_in_pytests_folder(tmp_path_factory):
+    """SB3 models the tests build themselves log into pytest's folder, not into an
+    SB3-<time> folder per learn() in the system's temporary directory."""
+    os.environ["SB3_LOGDIR"] = str(tmp_path_factory.mktemp("sb3-logs"))
+
+
 @pytest.fixture(params=franka_composer.ALL_TASKS)
 def task_name(request) -> str:
     """Every registered task: a new task is tested the day it is added."""

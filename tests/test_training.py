@@ -6,6 +6,7 @@ import json
 import os
 import re
 import shutil
+import tempfile
 
 import numpy as np
 import pytest
@@ -285,6 +286,22 @@ def test_resume_continues_step_count_buffer_and_csv(tmp_path, monkeypatch):
     outcome = RunDir(out).read_outcome()
     assert 0 < state["cpu_time_s"] < outcome["cpu_time_s"]
     assert state["wall_time_s"] < outcome["wall_time_s"]
+
+
+def test_a_run_and_its_resume_leave_nothing_in_the_temporary_directory(tmp_path,
+                                                                      monkeypatch):
+    # SB3's default logger makes an empty SB3-<time> folder there on every learn(); torch
+    # keeps its one compile cache there, made once.
+    temporary = tmp_path / "temporary"
+    temporary.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temporary))
+    monkeypatch.delenv("SB3_LOGDIR", raising=False)
+    out = tmp_path / "run"
+    assert _train(out, "sac", 150, "--checkpoint-every", "100") == 0
+    assert _train(out, "sac", 250, "--resume") == 0
+    assert RunDir(out).read_outcome()["steps"] == 250
+    assert [path.name for path in temporary.iterdir()
+            if not path.name.startswith("torchinductor_")] == []
 
 
 def _stop_asked_at(monkeypatch, steps: int) -> None:

@@ -23,7 +23,7 @@ from franka_composer.atomic_files import replace_atomically
 from franka_composer.training import demos, exact_resume, machine
 from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
                                                 StoppedAtCheckpoint, StoppingRule, WallClock)
-from franka_composer.training.models import build_model, load_model, make_env
+from franka_composer.training.models import build_model, load_model, make_env, quiet_logger
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.run_config import RunConfig
@@ -207,6 +207,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         clip_target_critic(model, hp.gamma)
     if tensorboard:
         model.tensorboard_log = tensorboard
+    else:
+        model.set_logger(quiet_logger())
 
     evaluation = Evaluation(eval_env, run, clock, every=hp.eval_every,
                             episodes=hp.eval_episodes, stop_success_rate=hp.stop_success_rate,

@@ -139,6 +139,14 @@ def policy_kwargs(algo: str, hp: Hyperparameters, backend: str = "sb3") -> dict:
     return kwargs
 
 
+def quiet_logger():
+    """SB3's logger, writing nowhere. Without a logger of its own, each `learn()` makes an
+    empty `SB3-<time>` folder in the system's temporary directory."""
+    from stable_baselines3.common.logger import Logger
+
+    return Logger(folder=None, output_formats=[])
+
+
 def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed: int,
                 device: str = "auto", tensorboard_log: str | None = None,
                 backend: str = "sb3"):
