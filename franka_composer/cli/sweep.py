@@ -140,11 +140,11 @@ def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace
     parser; an option it does not take is a ValueError saying it came after --. Options are
     taken as spelled, not abbreviated: `--tas` would otherwise be the --task the sweep sets."""
     from franka_composer.cli import command_parser
-    from franka_composer.training.sweep import train_command
+    from franka_composer.training.sweep import train_arguments
 
     parser = command_parser("train")
     parser.allow_abbrev = False
-    args, unknown = parser.parse_known_args(train_command(cell, out, train_args)[4:])
+    args, unknown = parser.parse_known_args(train_arguments(cell, out, train_args))
     if unknown:
         raise ValueError(f"the options after -- go to each cell's train, which does not take "
                          f"{' '.join(unknown)} (franka-composer train --help lists its "

@@ -95,12 +95,19 @@ def train_command(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...], *
                   resume: bool = False) -> list[str]:
     """The `train` command that starts the cell, or resumes it from its checkpoint (run in
     `cell_environment()`)."""
-    command = [sys.executable, "-m", "franka_composer", "train", "--out",
-               str(root / cell.name), "--total-steps", str(cell.steps), "--no-progress"]
+    return [sys.executable, "-m", "franka_composer", "train",
+            *train_arguments(cell, root, train_args, resume=resume)]
+
+
+def train_arguments(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...], *,
+                    resume: bool = False) -> list[str]:
+    """`train_command`'s arguments to `train`."""
+    arguments = ["--out", str(root / cell.name), "--total-steps", str(cell.steps),
+                 "--no-progress"]
     if resume:
-        return command + ["--resume", *_resume_args(train_args)]
-    return command + ["--task", cell.task, "--algo", cell.algo, "--seed", str(cell.seed),
-                      *cell.options, *train_args]
+        return arguments + ["--resume", *_resume_args(train_args)]
+    return arguments + ["--task", cell.task, "--algo", cell.algo, "--seed", str(cell.seed),
+                        *cell.options, *train_args]
 
 
 def cell_environment() -> dict[str, str]:
