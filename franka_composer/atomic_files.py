@@ -11,7 +11,9 @@ def replace_atomically(path: pathlib.Path, write) -> None:
     """`write(partial)` writes the file beside `path` (the same suffix), which then takes
     `path`'s place in one step: a run killed while writing leaves the file it had whole,
     or none, never half of one; a write that fails takes its partial file with it."""
-    partial = path.with_name(f"{path.stem}.partial{path.suffix}")
+    # Hidden and named after the whole file name, so that it is no file of the user's
+    # (keep.npz's partial file is not keep.partial.npz).
+    partial = path.with_name(f".{path.name}.partial{path.suffix}")
     try:
         write(partial)
         sync_to_disk(partial)

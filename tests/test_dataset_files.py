@@ -61,7 +61,11 @@ def test_a_recorded_npz_says_what_it_was_recorded_with_and_loads_whole(recorded)
 
 @pytest.mark.parametrize("damage, message", [
     (lambda path: path.write_bytes(b""), "is not a readable npz file (truncated or damaged?): "
-                                         "EOFError"),
+                                         "ValueError: it is empty"),
+    # Not numpy's "pickled data ... load it unsafely with allow_pickle".
+    (lambda path: path.write_bytes(b"garbage" * 50), "is not a readable npz file (truncated or "
+                                                    "damaged?): ValueError: it is not an npz "
+                                                    "(zip) archive: it begins b'garbag'"),
     (lambda path: path.write_bytes(path.read_bytes()[:2000]), "is not a readable npz file "
                                                                "(truncated or damaged?): "
                                                                "BadZipFile"),
@@ -137,6 +141,44 @@ def test_demonstrations_whose_actions_the_env_cannot_take_are_refused(recorded, 
                        f"{scaled[:first].min():g} to {scaled[:first].max():g})")
 
 
+def test_non_finite_numbers_and_flags_neither_true_nor_false_are_refused(recorded, push_env,
+                                                                          tmp_path):
+    """A NaN observation reached the critic's targets (the run failed at its first gradient
+    step, naming no file), and a NaN success flag counted as a success."""
+    source = recorded / "push.npz"
+    with np.load(source) as data:
+        arrays = {key: data[key].copy() for key in ("observation", "desired_goal", "reward",
+                                                     "is_success")}
+    arrays["observation"][5, 2] = np.nan
+    arrays["desired_goal"][7] = np.inf
+    arrays["reward"][3] = np.nan
+    success = arrays["is_success"].astype(np.float64)
+    success[4] = np.nan
+    _refused(_rewrite(source, tmp_path / "observation.npz", observation=arrays["observation"]),
+             push_env, "episode 0 has a non-finite observation in row 5")
+    _refused(_rewrite(source, tmp_path / "goal.npz", desired_goal=arrays["desired_goal"]),
+             push_env, "episode 0 has a non-finite desired_goal in row 7")
+    _refused(_rewrite(source, tmp_path / "reward.npz", reward=arrays["reward"]), push_env,
+             "episode 0 has a non-finite reward in row 3 (nan)")
+    _refused(_rewrite(source, tmp_path / "success.npz", is_success=success), push_env,
+             "episode 0 has is_success values other than true and false (nan at step 4)")
+    with pytest.raises(ValueError, match="non-finite observation in row 5"):
+        main(["train", "--task", "push", "--demos", str(tmp_path / "observation.npz"),
+              "--out", str(tmp_path / "run")])
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_dataset_that_is_not_there_or_whose_options_are_no_mapping_is_refused(
+        recorded, push_env, tmp_path):
+    _refused(tmp_path / "missing.npz", push_env, "missing.npz does not exist")
+    _refused(tmp_path / "missing-folder", push_env, "missing-folder does not exist")
+    metadata = dict(Trajectories.load(recorded / "push.npz").metadata, options="x")
+    listed = _rewrite(recorded / "push.npz", tmp_path / "options.npz",
+                      metadata=np.array(json.dumps(metadata)))
+    _refused(listed, push_env, "says it was recorded with the options 'x', which are not a "
+                               "mapping of option names to values (damaged metadata?)")
+
+
 def test_an_npz_from_before_metadata_is_refused_saying_how_to_record_it_again(recorded,
                                                                               push_env,
                                                                               tmp_path):
@@ -183,6 +225,30 @@ def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env
                                 "RuntimeError: INTERNAL: Failed to parse riegeli record")
 
 
+def test_an_unreadable_rlds_dataset_says_so_once(recorded, tmp_path, monkeypatch):
+    """envlogger's Reader, its backend failing to open, was left without one and raised
+    again when collected ("Exception ignored in: Reader.__del__ ... no attribute
+    '_backend'") after the error."""
+    import gc
+    import shutil
+    import sys
+
+    from franka_composer.datasets import rlds_format
+
+    ignored = []
+    monkeypatch.setattr(sys, "unraisablehook", ignored.append)
+    emptied = tmp_path / "emptied"
+    shutil.copytree(recorded / "rlds", emptied)
+    (emptied / "metadata.riegeli").write_bytes(b"")
+    with pytest.raises(ValueError, match="is not a readable RLDS dataset"):
+        rlds_format.read(emptied)
+    with pytest.raises(ValueError, match=f"^{re.escape(str(tmp_path / 'nope'))} does not "
+                                         "exist$"):
+        rlds_format.read(tmp_path / "nope")
+    gc.collect()
+    assert ignored == []
+
+
 def test_an_rlds_episode_cut_at_the_time_limit_is_a_truncation_not_a_termination(tmp_path,
                                                                                  push_env):
     """Its LAST step's discount is 1: the buffer bootstraps there (it read every LAST step
@@ -213,11 +279,18 @@ def test_an_npz_recording_interrupted_while_writing_leaves_the_old_file(recorded
         savez(file, **dict(list(arrays.items())[:3]))  # Some of the arrays, then a stop.
         raise KeyboardInterrupt
 
+    # A file of the user's named as the partial file was (push.partial.npz): left alone.
+    theirs = tmp_path / "push.partial.npz"
+    theirs.write_bytes(b"the user's")
     monkeypatch.setattr(np, "savez_compressed", interrupted)
     with pytest.raises(KeyboardInterrupt):
         record("push", 1, out, seed=3)
     assert out.read_bytes() == before
-    assert sorted(path.name for path in tmp_path.iterdir()) == ["push.npz"]
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["push.npz", "push.partial.npz"]
+    monkeypatch.setattr(np, "savez_compressed", savez)
+    record("push", 1, out, seed=3)
+    assert len(Trajectories.load(out)) == 1
+    assert theirs.read_bytes() == b"the user's"
 
 
 def test_demonstrations_whose_rewards_the_task_does_not_give_are_refused(tmp_path, push_env):
@@ -250,6 +323,13 @@ def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch
     with pytest.raises(RuntimeError, match="the policy failed"):
         record("push", 3, tmp_path / "out" / "rlds", format="rlds", seed=0)
     assert list(tmp_path.iterdir()) == []  # "out" too, which it made.
+    # Into an empty folder of the user's: the folder stays, empty.
+    (tmp_path / "empty").mkdir()
+    calls.clear()
+    with pytest.raises(RuntimeError, match="the policy failed"):
+        record("push", 3, tmp_path / "empty", format="rlds", seed=0)
+    assert [path.name for path in tmp_path.iterdir()] == ["empty"]
+    assert list((tmp_path / "empty").iterdir()) == []
 
 
 def test_an_rlds_dataset_of_another_task_is_refused_before_its_observations_are_read(
@@ -286,6 +366,40 @@ def test_a_minari_dataset_of_another_env_is_refused_by_its_id(tmp_path, push_env
     env.close()
     _refused(tmp_path / "pendulum" / "random-v0", push_env,
              "is a Minari dataset of Pendulum-v1, not of a franka_composer task")
+
+
+def test_a_minari_dataset_without_its_env_spec_is_refused_saying_how_to_record_it(
+        recorded, push_env, tmp_path):
+    """Not "(an npz written before...?)" with a command that refuses a Minari --out."""
+    import shutil
+
+    path = tmp_path / "no-spec"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", path)
+    metadata = json.loads((path / "data" / "metadata.json").read_text())
+    metadata["env_spec"] = None
+    (path / "data" / "metadata.json").write_text(json.dumps(metadata))
+    _refused(path, push_env, "does not say which task, control, reward_type it was recorded "
+                             "with, so it cannot be checked against this run (a Minari dataset "
+                             "without its env spec?): record it again, e.g. franka-composer "
+                             "rollout --task push --control mocap --format minari --out "
+                             "NEW_FOLDER")
+
+
+@pytest.mark.parametrize("dataset_id", ["foo", "bad id", "push/expert"])
+def test_a_minari_id_minari_would_refuse_is_refused_before_recording(tmp_path, monkeypatch,
+                                                                      dataset_id):
+    """Minari checks the id when it makes the dataset, after every episode was recorded."""
+    import franka_composer.datasets as datasets
+
+    def never(*args, **kwargs):
+        raise AssertionError("recording began")
+
+    monkeypatch.setattr(datasets, "make_policy", never)
+    with pytest.raises(ValueError, match=re.escape(
+            f"--dataset-id {dataset_id!r} is not a Minari dataset id: [namespace/]name-v"
+            "<version>, e.g. franka_composer/push/expert-v0")):
+        record("push", 100, tmp_path / "out", format="minari", dataset_id=dataset_id)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_the_folder_rollout_wrote_minari_datasets_into_names_them(recorded, push_env):

@@ -55,8 +55,8 @@ def test_a_sweep_checks_what_it_forwards_to_train_before_ray_starts(tmp_path, mo
     out = tmp_path / "sweep"
     base = ["sweep", "--out", str(out), "--tasks", "push", "--algos", "sac", "--seeds", "0",
             "1", "--steps", "100", "--", "--timing", "reference"]
-    with pytest.raises(ValueError, match=re.escape(f"{tmp_path / 'missing.npz'} is not a "
-                                                   "dataset")):
+    with pytest.raises(ValueError, match=re.escape(f"{tmp_path / 'missing.npz'} does not "
+                                                   "exist")):
         cli.main([*base, "--demos", str(tmp_path / "missing.npz")])
     with pytest.raises(ValueError, match="--buffer-size 40 is smaller than one push episode"):
         cli.main([*base, "--buffer-size", "40"])

@@ -49,7 +49,7 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     out = pathlib.Path(out)
     source = source_name(policy_dir, action_noise)
     if format == "minari":
-        dataset_id = dataset_id or default_dataset_id(task, control, source)
+        dataset_id = _check_dataset_id(dataset_id or default_dataset_id(task, control, source))
     elif dataset_id is not None:
         raise ValueError("--dataset-id names a Minari dataset: give it with --format minari")
     _check_destination(out, format, dataset_id)
@@ -90,6 +90,20 @@ def readable_options(options: dict) -> dict:
     that made them."""
     return {name: value if isinstance(value, (bool, int, float, str, type(None)))
             else repr(value) for name, value in options.items()}
+
+
+def _check_dataset_id(dataset_id) -> str:
+    """Minari's form for an id, versioned, checked before the episodes are recorded (Minari
+    checks it when it makes the dataset, after them)."""
+    from minari.dataset.minari_dataset import parse_dataset_id
+
+    try:
+        parse_dataset_id(dataset_id)  # A TypeError for an id without a version.
+    except (ValueError, TypeError):
+        raise ValueError(f"--dataset-id {dataset_id!r} is not a Minari dataset id: "
+                         "[namespace/]name-v<version>, e.g. franka_composer/push/expert-v0"
+                         ) from None
+    return dataset_id
 
 
 def _check_json_options(options: dict) -> None:

@@ -64,8 +64,13 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
                     steps += 1
                 successes += bool(task.success)
     except BaseException:
-        if made:  # A recording cut short is no dataset: nothing of it is left behind.
+        # A recording cut short is no dataset: nothing of it is left behind, in a folder
+        # it made or in the empty one it was given (`record` takes no other).
+        if made:
             shutil.rmtree(made, ignore_errors=True)
+        else:
+            for entry in root.iterdir():
+                shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
         raise
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
 
@@ -78,8 +83,16 @@ def read(root: pathlib.Path) -> dict:
     read as none), or an episode that is not one FIRST step, MID steps and one LAST step
     (its index files cut short join or split episodes), is a ValueError naming `root`."""
     envlogger = _envlogger()
+    from envlogger.backends.riegeli_backend_reader import RiegeliBackendReader
+
+    if not pathlib.Path(root).is_dir():
+        raise ValueError(f"{root} does not exist" if not pathlib.Path(root).exists()
+                         else f"{root} is a file, and an RLDS dataset is a folder")
     try:
-        with envlogger.Reader(data_directory=str(root)) as reader:
+        # The backend first: a Reader whose backend fails to open is left without one,
+        # and says so again (AttributeError) when it is collected.
+        backend = RiegeliBackendReader(data_directory=str(root))
+        with envlogger.Reader(backend=backend) as reader:
             metadata = reader.metadata()
             read_episodes = [(list(steps), info) for steps, info in
                              zip(reader.episodes, reader.episode_metadata())]

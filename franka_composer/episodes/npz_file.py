@@ -30,6 +30,9 @@ from franka_composer.episodes.record import GOAL_KEYS, STEP_KEYS, check_episodes
 
 #: The key holding `metadata`, a JSON string.
 METADATA_KEY = "metadata"
+#: How an npz (a zip archive: a local file header, or an empty archive's end record) and
+#: a .npy file begin.
+_ZIP_MAGIC, _NPY_MAGIC = (b"PK\x03\x04", b"PK\x05\x06"), b"\x93NUMPY"
 #: What numpy raises on a damaged archive: truncated, emptied, garbage, or a bad member.
 _DAMAGED = (zipfile.BadZipFile, zlib.error, EOFError, OSError, ValueError)
 
@@ -55,6 +58,12 @@ def read(path: str | os.PathLike) -> tuple[list[dict[str, np.ndarray]], dict]:
     """The episodes `write` wrote and their metadata ({} in files from before it was
     recorded); a ValueError naming `path` and what is wrong if the file is not whole."""
     try:
+        with open(path, "rb") as file:
+            magic = file.read(len(_NPY_MAGIC))
+        if not magic.startswith(_ZIP_MAGIC) and magic != _NPY_MAGIC:
+            # numpy would take it for a pickle, and say to load it unsafely.
+            raise ValueError(f"it is not an npz (zip) archive: it begins {magic!r}" if magic
+                             else "it is empty")
         data = np.load(path)
         if not isinstance(data, np.lib.npyio.NpzFile):  # A .npy file under an .npz name.
             raise ValueError("it holds one array, not an npz archive")

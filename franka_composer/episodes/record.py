@@ -20,6 +20,8 @@ OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
 GOAL_KEYS = ("achieved_goal", "desired_goal")
 #: Per-step arrays (one entry per action taken).
 STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
+#: The per-step arrays that are true or false.
+FLAG_KEYS = ("is_success", "terminated", "truncated")
 
 
 def check_episodes(path, episodes: list[dict]) -> None:
@@ -42,6 +44,7 @@ def check_episodes(path, episodes: list[dict]) -> None:
             if len(episode[key]) != steps:
                 raise ValueError(f"{path}: episode {index} has {len(episode[key])} rows of "
                                  f"{key} for {steps} actions")
+        _check_values(path, index, episode)
         ends = np.flatnonzero(np.asarray(episode["terminated"], dtype=bool)
                               | np.asarray(episode["truncated"], dtype=bool))
         if ends.tolist() != [steps - 1]:
@@ -49,3 +52,21 @@ def check_episodes(path, episodes: list[dict]) -> None:
                              f"{ends.tolist()} by its terminated and truncated flags, not at "
                              f"its last, {steps - 1}: its episode boundaries do not match "
                              "its arrays")
+
+
+def _check_values(path, index: int, episode: dict) -> None:
+    """Every number in the episode a real one and every flag true or false: a NaN
+    observation or reward would reach a critic's targets, and a NaN flag would count as
+    true (`bool(nan)`)."""
+    for key, values in episode.items():
+        values = np.asarray(values)
+        if key in FLAG_KEYS:
+            if values.dtype != bool and not np.isin(values, (0, 1)).all():
+                step = int(np.flatnonzero(~np.isin(values, (0, 1)))[0])
+                raise ValueError(f"{path}: episode {index} has {key} values other than true "
+                                 f"and false ({values[step].item()!r} at step {step})")
+        elif values.dtype.kind == "f" and not np.isfinite(values).all():
+            row = int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(
+                axis=1))[0])
+            raise ValueError(f"{path}: episode {index} has a non-finite {key} in row {row} "
+                             f"({values[row].tolist() if values.ndim < 3 else 'an image'})")

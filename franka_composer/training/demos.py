@@ -30,6 +30,8 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     rewards, and against its observation space: anything else is a ValueError naming the
     file and what is wrong."""
     path = pathlib.Path(path)
+    if not path.exists():
+        raise ValueError(f"{path} does not exist")
     if path.is_file() and path.suffix == ".npz":
         episodes = _npz_episodes(path, env)
     elif (path / "metadata.riegeli").is_file():
@@ -59,7 +61,7 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     return episodes
 
 
-def _check_recorded_as_trained(path, recorded: dict, env) -> None:
+def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
     """The transitions go into the buffer as they are, so they must be of the task and the
     controller being trained, with the sparse rewards training uses: `recorded`, what the
     dataset says it was recorded with, is checked before its observations are read as the
@@ -68,11 +70,12 @@ def _check_recorded_as_trained(path, recorded: dict, env) -> None:
     control = config.control.kind
     unsaid = [key for key in ("task", "control", "reward_type") if key not in recorded]
     if unsaid:
+        again = (f"--out {path}" if format == "npz"
+                 else f"--format {format} --out NEW_FOLDER")
         raise ValueError(f"{path} does not say which {', '.join(unsaid)} it was recorded "
-                         "with, so it cannot be checked against this run (an npz written "
-                         "before franka_composer recorded them?): record it again, e.g. "
-                         f"franka-composer rollout --task {config.name} --control {control} "
-                         f"--out {path}")
+                         f"with, so it cannot be checked against this run ({_UNSAID[format]}):"
+                         f" record it again, e.g. franka-composer rollout --task "
+                         f"{config.name} --control {control} {again}")
     if recorded["task"] != config.name:
         raise ValueError(f"{path} holds demonstrations of {recorded['task']}, not "
                          f"{config.name}")
@@ -89,6 +92,12 @@ def _check_recorded_as_trained(path, recorded: dict, env) -> None:
                          f"{_dynamics(config)}: its transitions are of other dynamics")
 
 
+#: Why a dataset of each format may not say what it was recorded with.
+_UNSAID = {"npz": "an npz written before franka_composer recorded them?",
+           "minari": "a Minari dataset without its env spec?",
+           "rlds": "an RLDS dataset written without franka_composer's metadata?"}
+
+
 #: The task options that say how long a step is and what it does (`tasks.config.TIMINGS`),
 #: and how the objects move under it.
 _DYNAMICS_OPTIONS = ("timing", "control_timestep", "velocity_timestep", "weld_time_constant",
@@ -100,6 +109,9 @@ def _recorded_config(path, recorded: dict):
     "options" in npz and RLDS metadata, beside the id in a Minari env spec); none given is
     the task's own, as every dataset recorded before they existed had."""
     given = (recorded["options"] if "options" in recorded else recorded) or {}
+    if not isinstance(given, dict):
+        raise ValueError(f"{path} says it was recorded with the options {given!r}, which "
+                         "are not a mapping of option names to values (damaged metadata?)")
     dynamics = {name: given[name] for name in _DYNAMICS_OPTIONS if given.get(name) is not None}
     try:
         return TASK_CONFIGS[recorded["task"]].replace(control=recorded["control"], **dynamics)
@@ -167,7 +179,7 @@ def _check_rewards_are_the_tasks(path, episodes: list[dict], env) -> None:
 
 def _npz_episodes(path: pathlib.Path, env) -> list[dict]:
     trajectories = Trajectories.load(path)
-    _check_recorded_as_trained(path, trajectories.metadata, env)
+    _check_recorded_as_trained(path, trajectories.metadata, env, "npz")
     return trajectories.episodes
 
 
@@ -184,14 +196,15 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
     if env_spec is not None and env_spec.id not in ENV_IDS:
         raise ValueError(f"{path} is a Minari dataset of {env_spec.id}, not of a "
                          "franka_composer task")
-    _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env)
+    _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env, "minari")
     try:
         return [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
                  "action": np.asarray(episode.actions, dtype=np.float32),
                  "reward": np.asarray(episode.rewards, dtype=np.float64),
-                 "terminated": np.asarray(episode.terminations, dtype=bool),
-                 "truncated": np.asarray(episode.truncations, dtype=bool),
-                 "is_success": np.asarray(episode.infos["is_success"][1:], dtype=bool)}
+                 # The flags as stored: `check_episodes` refuses any but true and false.
+                 "terminated": np.asarray(episode.terminations),
+                 "truncated": np.asarray(episode.truncations),
+                 "is_success": np.asarray(episode.infos["is_success"][1:])}
                 for episode in dataset.iterate_episodes()]
     except Exception as error:
         raise _unreadable_minari(path, error) from None
@@ -220,7 +233,7 @@ def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
     adapter = env.unwrapped
     task, episodes = adapter.task, []
     dataset = rlds_format.read(path)
-    _check_recorded_as_trained(path, dict(dataset["metadata"] or {}), env)
+    _check_recorded_as_trained(path, dict(dataset["metadata"] or {}), env, "rlds")
     for episode in dataset["episodes"]:
         observations = [adapter.goal_observation(o) for o in episode["observations"]]
         steps = len(episode["actions"])
