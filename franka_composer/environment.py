@@ -30,6 +30,7 @@ import numpy as np
 from dm_control import composer
 
 from franka_composer import render_owner
+from franka_composer.validation import check_number
 
 #: No time limit (Composer's own default).
 NO_LIMIT = float("inf")
@@ -61,8 +62,11 @@ class GoalEnvironment(composer.Environment):
         """Seconds of physics before an episode times out (whole control steps; inf: none)."""
         return self._episode_steps * self.control_timestep()
 
-    def set_episode_steps(self, steps: int) -> None:
-        """Makes episodes time out after `steps` control steps, from the next step on."""
+    def set_episode_steps(self, steps: int | None) -> None:
+        """Makes episodes time out after `steps` control steps (a whole number >= 1; None:
+        never), from the next step on."""
+        steps = NO_LIMIT if steps is None else check_number("steps", steps, minimum=1,
+                                                            integer=True)
         self._episode_steps = steps
         self._time_limit = composer_time_limit(steps, self.control_timestep())
 

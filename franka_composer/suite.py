@@ -9,6 +9,7 @@ from franka_composer import seeding
 from franka_composer.environment import GoalEnvironment, check_time_limit
 from franka_composer.fast_path import make_environment
 from franka_composer.tasks import build_task, task_config
+from franka_composer.validation import check_bool
 
 #: Times Composer retries an episode whose initialisation raised EpisodeInitializationError.
 MAX_RESET_ATTEMPTS = 10
@@ -48,6 +49,8 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
     It is a `fast_path.FastEnvironment` where the installed dm_control allows, else Composer's stock stepping (`GoalEnvironment`), with
     the same trajectories; `FRANKA_COMPOSER_FAST_PATH=0` forces the stock path.
     """
+    if renderable is not None:
+        check_bool("renderable", renderable)
     if seed is not None and not isinstance(seed, np.random.RandomState):
         seed = seeding.random_state(seed)
     config = task_config(name, reward_type=reward_type, **task_kwargs)

@@ -177,6 +177,21 @@ def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name, c
     env.close()  # Closing twice is harmless.
 
 
+def test_rgb_array_list_collects_the_frames_as_for_any_gymnasium_env():
+    """gym.make wraps RenderCollection around an env whose entry point lists its render
+    modes; the function entry point listed none, and the mode was refused."""
+    from gymnasium.wrappers import RenderCollection
+
+    env = gym.make("FrankaPushSparse-v0", render_mode="rgb_array_list", width=48, height=32)
+    assert isinstance(env, RenderCollection) and env.unwrapped.render_mode == "rgb_array"
+    env.reset(seed=0)
+    env.step(np.zeros(3, np.float32))
+    env.step(np.zeros(3, np.float32))
+    frames = env.render()
+    assert [frame.shape for frame in frames] == [(32, 48, 3)] * 3  # The reset's, two steps'.
+    env.close()
+
+
 def test_bad_render_arguments_raise_clear_errors():
     with pytest.raises(ValueError, match="unknown render_mode 'video'"):
         gym.make("FrankaPushSparse-v0", render_mode="video").unwrapped

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import copy
 import pickle
+import re
 
+import dm_env
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -102,10 +104,43 @@ def test_good_options_are_normalised_to_floats_and_tuples():
     (dict(height=0), r"height must be an int in \[1, 1024\], got 0"),
     (dict(render_mode="video"), "unknown render_mode 'video'; valid render_modes: None, "
                                 "human, rgb_array"),
+    # load's own parameters, which the adapter sets: a seed was taken and had no effect,
+    # the others were load() "got multiple values" TypeErrors.
+    (dict(seed=3), "seed is not an option of the Gymnasium env: seed the episodes with "
+                   r"env.reset\(seed=...\)"),
+    (dict(renderable=False), "renderable is not an option of the Gymnasium env: render_mode "
+                             "sets it"),
+    (dict(name="slide"), "name is not an option of the Gymnasium env: the id"),
 ])
 def test_bad_make_arguments_are_refused_at_construction(options, message):
     with pytest.raises(ValueError, match=message):
         gym.make("FrankaPushSparse-v0", **options).unwrapped
+
+
+def test_loads_renderable_and_an_envs_episode_steps_take_what_they_say_and_none_else():
+    with pytest.raises(ValueError, match="renderable must be True or False, got 'yes'"):
+        franka_composer.load("push", renderable="yes")
+    env = franka_composer.load("push")
+    for steps, message in ((0, "steps must be >= 1, got 0"), (-1, "steps must be >= 1"),
+                           (2.5, "steps must be a whole number >= 1, got 2.5")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            env.set_episode_steps(steps)
+    assert env.episode_steps == 50  # Unchanged by the refusals.
+    env.set_episode_steps(None)
+    assert env.episode_steps is None and env.time_limit == float("inf")
+    env.set_episode_steps(3)
+    env.reset()
+    assert [env.step(np.zeros(3)).step_type for _ in range(3)][-1] == dm_env.StepType.LAST
+
+
+def test_a_vector_of_another_size_is_no_observation_of_the_layout():
+    layout = franka_composer.load("push").task.observation_layout
+    with pytest.raises(ValueError, match=re.escape("an observation of this layout has 18 "
+                                                   "values, got one of shape (5,)")):
+        layout.read(np.zeros(5), "object_position")
+    batch = np.arange(36.0).reshape(2, 18)
+    np.testing.assert_array_equal(layout.read(batch, "object_position"),
+                                  batch[:, layout.slice("object_position")])
 
 
 def test_an_id_that_names_a_controller_keeps_it_and_a_plain_id_takes_any():

@@ -24,6 +24,14 @@ from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_choice
 
+#: `suite.load`'s parameters that the adapter sets itself, and how a Gymnasium user sets
+#: what they stand for.
+_SET_BY_THE_ADAPTER = {
+    "seed": "seed the episodes with env.reset(seed=...)",
+    "renderable": "render_mode sets it (an env without one leaves the visual meshes out)",
+    "name": "the id (or task=) names the task",
+}
+
 #: dtype of rewards (observations: `layout.OBSERVATION_DTYPE`, the same).
 REWARD_DTYPE = np.float64
 
@@ -56,6 +64,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
                  camera: str = "workspace", **task_kwargs: Any) -> None:
         EzPickle.__init__(self, task, reward_type, render_mode, width, height, camera,
                           **task_kwargs)
+        _check_not_loads_own(task_kwargs)
         # Every rendering argument is checked before anything is built or reaches MuJoCo.
         if render_mode is not None:
             check_choice("render_mode", render_mode, tuple(self.metadata["render_modes"]),
@@ -251,3 +260,11 @@ def _check_display() -> None:
         raise RuntimeError("render_mode='human' needs a display, and none was found (neither "
                            "DISPLAY nor WAYLAND_DISPLAY is set): use render_mode='rgb_array' "
                            "for headless frames, or set DISPLAY")
+
+
+def _check_not_loads_own(options: dict) -> None:
+    """A ValueError for a `suite.load` parameter the adapter sets itself, before Python
+    says `load()` got it twice, or it is taken and has no effect (a seed)."""
+    for name, instead in _SET_BY_THE_ADAPTER.items():
+        if name in options:
+            raise ValueError(f"{name} is not an option of the Gymnasium env: {instead}")

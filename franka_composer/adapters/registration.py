@@ -102,6 +102,11 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
     return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
 
+#: What `gym.make` reads off the entry point: its render modes, so that it wraps
+#: "rgb_array_list" (and "human" where needed) as for any env class.
+make_registered.metadata = FrankaGoalEnv.metadata
+
+
 def register_envs() -> None:
     """Registers every id once (re-importing is harmless)."""
     for id_, registered in ENV_IDS.items():

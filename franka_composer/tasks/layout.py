@@ -66,8 +66,13 @@ class ObservationLayout:
                            f"{', '.join(self._slices)}") from None
 
     def read(self, vector, name: str) -> np.ndarray:
-        """Field `name` of `vector` (any leading batch shape)."""
-        return np.asarray(vector)[..., self.slice(name)]
+        """Field `name` of `vector` (any leading batch shape); a ValueError for a vector
+        that is not of this layout's size, which would read as a shorter or empty field."""
+        vector = np.asarray(vector)
+        if vector.shape[-1:] != (self.size,):
+            raise ValueError(f"an observation of this layout has {self.size} values, got one "
+                             f"of shape {vector.shape}")
+        return vector[..., self.slice(name)]
 
     def flatten(self, observables: Mapping[str, np.ndarray]) -> np.ndarray:
         """The vector from Composer observables (SI units): concatenated, velocities
