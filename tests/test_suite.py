@@ -6,6 +6,7 @@ import os
 import unittest
 
 import dm_env
+import gymnasium as gym
 import numpy as np
 import pytest
 from dm_env import test_utils
@@ -150,6 +151,20 @@ def test_flip_goals_are_a_face_up_at_a_yaw_within_the_range():
     narrow = franka_composer.load("flip", seed=4, goal_yaw_range=0.1)
     assert max(abs(_face_up_and_yaw(narrow.reset().observation["goal"])[1])
                for _ in range(100)) <= 0.1 + 1e-9
+
+
+def test_flip_episodes_start_solved_as_often_as_its_page_says():
+    """1/6 x 0.2/0.3: the upright face drawn at a yaw within the success angle; the page
+    states it so that a policy's success is read against it."""
+    from franka_composer.adapters.registration import TASK_ENV_CLASSES
+
+    page = " ".join(TASK_ENV_CLASSES["flip"].__doc__.split())
+    assert "11.1% of episodes start solved" in page
+    env = gym.make("FrankaFlipSparse-v1")
+    solved = sum(env.reset(seed=seed)[1]["is_success"] for seed in range(900))
+    # Binomial(900, 1/9): mean 100, standard deviation 9.4.
+    assert 72 <= solved <= 128, solved
+    env.close()
 
 
 def test_flip_goals_come_from_the_seed_alone():
