@@ -339,3 +339,95 @@ def test_a_control_step_longer_than_mujoco_steps_in_one_call_is_refused():
             "1000000000.0")):
         franka_composer.load("push", control_timestep=1e9)
     assert franka_composer.load("push", control_timestep=2.0).control_timestep() == 2.0
+
+
+def test_report_and_evaluate_refuse_to_write_over_a_runs_own_files(tmp_path):
+    """`report RUN --out RUN/eval.csv` replaced the run's evaluations with the table."""
+    run = _run(tmp_path / "run")
+    before = {path.name: path.read_bytes() for path in run.root.iterdir()}
+    for command, own in (("report", run.eval_csv), ("evaluate", run.config_path),
+                         ("report", run.checkpoint / "state.json")):
+        with pytest.raises(ValueError, match=f"^--out {re.escape(str(own))} is one of the run "
+                                             f"{re.escape(str(run.root))}'s own files: give "
+                                             "another file$"):
+            cli.main([command, str(run.root), "--out", str(own)])
+    assert {path.name: path.read_bytes() for path in run.root.iterdir()} == before
+    assert cli.main(["report", str(run.root), "--out", str(run.root / "report.md")]) == 0
+
+
+def test_keep_refuses_to_keep_a_run_into_another(tmp_path):
+    """The copy went inside the other run's folder, a run within a run."""
+    run, other = _run(tmp_path / "a"), _run(tmp_path / "b", seed=1)
+    for into, words in ((other.root, "is the run"), (other.root / "kept", "is inside the run")):
+        with pytest.raises(ValueError, match=f"^--into {re.escape(str(into))} {words} "
+                                             f"{re.escape(str(other.root))}: give a folder "
+                                             "outside the runs$"):
+            cli.main(["keep", str(run.root), "--into", str(into)])
+    assert sorted(os.listdir(other.root)) == ["config.json", "eval.csv", "outcome.json"]
+
+
+def test_sweep_refuses_status_with_sync_and_too_many_threads_before_ray(tmp_path,
+                                                                        monkeypatch):
+    import ray
+
+    monkeypatch.setattr(ray, "init", lambda *args, **kwargs: pytest.fail("Ray started"))
+    out = tmp_path / "sweep"
+    with pytest.raises(ValueError, match="^--status shows the cells and --sync copies their "
+                                         "results: give one of them$"):
+        cli.main(_sweep(out, "--status", "--sync", str(tmp_path / "kept")))
+    cpus = len(os.sched_getaffinity(0))
+    with pytest.raises(ValueError, match=f"^--threads {cpus + 1} is more than the {cpus} CPUs "
+                                         "this process may use$"):
+        cli.main(_sweep(out, "--", "--threads", str(cpus + 1)))
+    assert not out.exists() and not (tmp_path / "kept").exists()
+
+
+def test_a_sweep_whose_ray_does_not_start_leaves_no_folder(tmp_path, monkeypatch):
+    """`--address auto` with no cluster running: Ray's error, and no empty --out left."""
+    import ray
+
+    def no_cluster(*args, **kwargs):
+        raise ConnectionError("Could not find any running Ray instance.")
+
+    monkeypatch.setattr(ray, "init", no_cluster)
+    out = tmp_path / "sweep"
+    with pytest.raises(ConnectionError, match="Could not find any running Ray instance"):
+        cli.main(_sweep(out, "--address", "auto"))
+    assert not out.exists()
+
+
+def test_a_presets_setting_that_the_options_cannot_take_names_the_preset(tmp_path):
+    with pytest.raises(ValueError, match=re.escape(
+            "precision bf16 (the fast preset's; --precision fp32 with it trains in fp32) runs "
+            "the networks under torch.autocast: it needs backend sb3, not sbx")):
+        cli.main(["train", "--task", "push", "--preset", "fast", "--backend", "sbx", "--out",
+                  str(tmp_path / "run")])
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_run_that_would_never_update_its_networks_is_warned_of():
+    from franka_composer.cli import command_parser
+    from franka_composer.cli.train import check_new_run
+
+    args = command_parser("train").parse_args(["--task", "push", "--learning-starts", "1000",
+                                               "--total-steps", "200"])
+    with pytest.warns(RuntimeWarning, match=re.escape(
+            "--learning-starts 1000 is not below --total-steps 200: the run takes random "
+            "actions only and never updates its networks")):
+        check_new_run(args)
+
+
+def test_raising_the_budget_of_a_run_whose_dataset_is_gone_says_why_it_is_needed(tmp_path):
+    """It said only that the dataset does not exist."""
+    gone = tmp_path / "gone.npz"
+    run = RunDir(tmp_path / "run")
+    run.write_config(RunConfig("push", "sac", 0, hyperparameters("push", "sac").replace(
+        total_steps=2000), demos=str(gone)))
+    run.eval_csv.write_text(HEADER + "0,1,0.0,-1\n")
+    run.checkpoint.mkdir()
+    run.checkpoint_state.write_text(json.dumps({"steps": 1000}))
+    with pytest.raises(ValueError, match=re.escape(
+            f"--total-steps 3000: {run.root} keeps the demonstrations of {gone} in its replay "
+            "buffer, and that dataset is not there to count them (whether more steps would "
+            "overwrite them): put it back, or resume without --total-steps")):
+        cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "3000"])

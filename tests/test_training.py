@@ -636,6 +636,55 @@ def test_a_new_run_that_fails_before_its_first_checkpoint_leaves_nothing(tmp_pat
     assert not made.exists() and list(given.iterdir()) == []  # The folder given stays.
 
 
+def test_a_new_run_stopped_before_its_first_checkpoint_leaves_nothing_and_says_so(
+        tmp_path, monkeypatch, capsys):
+    """SIGTERM while the run records its expert's demonstrations (before training) killed
+    it and left config.json and the lock: a folder that could be neither started again
+    nor resumed. Ctrl-C there said a checkpoint was saved."""
+    import signal
+
+    from franka_composer.training import demos
+
+    def stopped(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("SIGTERM did not stop the run")
+
+    def unhandled(signum, frame):
+        raise AssertionError("the run left SIGTERM to the default, which kills the process")
+
+    monkeypatch.setattr(demos, "record_expert", stopped)
+    out = tmp_path / "run"
+    previous = signal.signal(signal.SIGTERM, unhandled)
+    try:
+        assert _train(out, "sac", 200, "--expert-demos", "2") == 130
+        assert signal.getsignal(signal.SIGTERM) is unhandled  # Restored after the run.
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert not out.exists()
+    assert capsys.readouterr().out == ("interrupted before its first checkpoint: nothing of "
+                                       "the run is kept; the same command starts it again\n")
+    monkeypatch.undo()
+    assert _train(out, "sac", 200, "--expert-demos", "2") == 0  # Starts again.
+
+
+def test_a_resume_of_a_run_training_before_its_first_checkpoint_says_it_is_training(
+        tmp_path):
+    """It said the run had stopped before its first checkpoint: delete it."""
+    from franka_composer.training.run_config import RunConfig
+
+    out = tmp_path / "run"
+    run = RunDir(out)
+    run.write_config(RunConfig("push", "sac", 1, hyperparameters("push", "sac")))  # As begun.
+    with run.training_lock():
+        with pytest.raises(ValueError, match=re.escape(
+                f"{out} is being trained by process {os.getpid()} on ")):
+            cli.main(["train", "--resume", "--out", str(out)])
+    with pytest.raises(ValueError, match=re.escape(
+            f"{out} has no complete checkpoint to resume from (it stopped before its first "
+            "one): delete it to start again")):
+        cli.main(["train", "--resume", "--out", str(out)])
+
+
 def test_a_resume_keeps_what_the_run_trained_and_its_evaluations(runs, tmp_path):
     run = RunDir(runs["sac"])
     steps, config = run.read_state()["steps"], run.config_path.read_text()

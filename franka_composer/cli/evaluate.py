@@ -37,10 +37,11 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.policy_file import check_trained, trained_on_its_task
     from franka_composer.training.report import (RunResult, markdown_table, seeds_note,
                                                  with_variant)
-    from franka_composer.training.runs import RunDir
+    from franka_composer.training.runs import RunDir, check_out_apart
     from franka_composer.training.sweep import run_directories
 
     roots = run_directories(args.runs)
+    check_out_apart(args.out, roots)
     for run in map(RunDir, roots):  # Every run named before the first is played, not after.
         run.read_config()
         check_trained(run)

@@ -40,13 +40,16 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.learning_report import (THRESHOLDS, markdown_table,
                                                           read_paper_curves, read_run)
+    from franka_composer.training.runs import check_out_apart
     from franka_composer.training.sweep import run_directories
 
     if args.paper_curves is not None and not args.paper_curves.is_file():
         raise ValueError(f"--paper-curves: {args.paper_curves} is not a file")
     paper = read_paper_curves(args.paper_curves) if args.paper_curves else None
     thresholds = tuple(sorted(set(args.thresholds))) if args.thresholds else THRESHOLDS
-    table = markdown_table([read_run(root) for root in run_directories(args.runs)], paper,
+    roots = run_directories(args.runs)
+    check_out_apart(args.out, roots)
+    table = markdown_table([read_run(root) for root in roots], paper,
                            wall_clock=args.wall_clock, thresholds=thresholds)
     print(table, end="")
     if args.out:

@@ -182,6 +182,9 @@ def run(args: argparse.Namespace) -> int:
                                                 sync_cells)
 
     cells, rule = cells_of(args)
+    if args.status and args.sync:
+        raise ValueError("--status shows the cells and --sync copies their results: give "
+                         "one of them")
     if args.status:
         print(status_table([cell_status(cell, args.out) for cell in cells]))
         return 0

@@ -6,6 +6,8 @@ import argparse
 import contextlib
 import os
 import pathlib
+import signal
+import warnings
 
 from franka_composer.cli.options import (add_object_damping, add_timing, non_negative_int,
                                          number, output_folder, positive_int,
@@ -17,6 +19,7 @@ from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UP
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
+from franka_composer.training.signals import interrupt_on
 
 
 #: The run's settings when their options are not given: filled in here, not by argparse, so
@@ -277,13 +280,14 @@ def run_config(args: argparse.Namespace):
 
 def check_new_run(args: argparse.Namespace):
     """The run these `train` arguments start, once everything that would refuse it has been
-    found out, before its directory exists: a missing sbx, --device cuda without CUDA, a
-    replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
+    found out, before its directory exists: more --threads than CPUs, a missing sbx,
+    --device cuda without CUDA, a replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
     each cell's options with it before Ray starts."""
     from franka_composer.tasks import TASK_CONFIGS
     from franka_composer.training.models import algorithm_class, resolve_device
 
     settings = with_defaults(args)
+    _check_threads(args.threads)
     algorithm_class(settings.algo, settings.backend)
     resolve_device(args.device)
     config = run_config(args)
@@ -301,6 +305,10 @@ def check_new_run(args: argparse.Namespace):
         raise ValueError("--stop-after counts evaluations for --stop-at-success RATE, and "
                          "no --stop-at-success was given")
     _check_demos(settings, hp.buffer_size, total_steps)
+    if hp.learning_starts >= total_steps:
+        warnings.warn(f"--learning-starts {hp.learning_starts} is not below --total-steps "
+                      f"{total_steps}: the run takes random actions only and never updates "
+                      "its networks", RuntimeWarning, stacklevel=2)
     return config
 
 
@@ -348,6 +356,11 @@ def _check_budget(args: argparse.Namespace, run_dir) -> None:
     config = run_dir.read_config()
     if config.demos is None and config.expert_demos is None:
         return
+    if config.demos is not None and not pathlib.Path(config.demos).exists():
+        raise ValueError(f"--total-steps {args.total_steps}: {run_dir.root} keeps the "
+                         f"demonstrations of {config.demos} in its replay buffer, and that "
+                         "dataset is not there to count them (whether more steps would "
+                         "overwrite them): put it back, or resume without --total-steps")
     from franka_composer.training import demos
 
     transitions = demos.transitions(config.task, config.expert_demos, config.demos,
@@ -361,13 +374,20 @@ def _check_budget(args: argparse.Namespace, run_dir) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from franka_composer.training import loop
-    from franka_composer.training.runs import RunDir
-
     settings = with_defaults(args)
     out = args.out or pathlib.Path("runs") / (
         f"{settings.task}-{settings.algo}-seed{settings.seed}")
     _check_threads(args.threads)
+    # SIGTERM before training begins (a scheduler, timeout) stops the run as Ctrl-C does, so
+    # a new run leaves nothing; once it trains, the loop checkpoints on it.
+    with interrupt_on(signal.SIGTERM):
+        return _run(args, out)
+
+
+def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
+    from franka_composer.training import loop
+    from franka_composer.training.runs import RunDir
+
     made_folder = False
     if args.resume:
         run_dir = RunDir(out)
@@ -388,8 +408,13 @@ def run(args: argparse.Namespace) -> int:
                                device=args.device, checkpoint_every=args.checkpoint_every,
                                threads=threads, progress=args.progress)
     except KeyboardInterrupt:
-        print(f"interrupted: checkpoint saved; continue with "
-              f"franka-composer train --resume --out {run_dir.root}")
+        steps = run_dir.read_state().get("steps") if run_dir.root.is_dir() else None
+        if steps is None:
+            print("interrupted before its first checkpoint: nothing of the run is kept; the "
+                  "same command starts it again")
+        else:
+            print(f"interrupted: its checkpoint at step {steps:,} is kept; continue with "
+                  f"franka-composer train --resume --out {run_dir.root}")
         return 130
     early = " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
         "stopped_early") else ""

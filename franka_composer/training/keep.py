@@ -121,3 +121,7 @@ def check_kept_apart(roots, kept: pathlib.Path, option: str) -> None:
         if root in inside.parents:
             raise ValueError(f"{option} {kept} is inside the run {root}: give a folder "
                              "outside the runs")
+    for folder in (inside, *inside.parents):
+        if RunDir(folder).config_path.is_file():  # Another run, kept or training.
+            raise ValueError(f"{option} {kept} is {'' if folder == inside else 'inside '}"
+                             f"the run {folder}: give a folder outside the runs")

@@ -99,12 +99,13 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
 
 @contextlib.contextmanager
 def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool, made_folder: bool):
-    """Where a `new` run fails (an error, not an interrupt) before its first checkpoint,
-    what it wrote is removed, and its folder if `start` made it: a second try with the same
-    --out then starts afresh instead of being refused as a run without a checkpoint."""
+    """Where a `new` run fails or is stopped before its first checkpoint (while it records
+    its expert's demonstrations, say), what it wrote is removed, and its folder if `start`
+    made it: a second try with the same --out then starts afresh instead of being refused
+    as a run without a checkpoint. A run stopped once training began has checkpointed."""
     try:
         yield
-    except Exception:
+    except BaseException:
         if new and not run.read_state():
             for path in run.root.iterdir():
                 if path.is_dir():

@@ -106,7 +106,11 @@ class RunConfig:
         if self.randomization is not None:
             check_choice("randomization", self.randomization, tuple(PRESETS), also="None")
         if self.precision != "fp32" and self.backend != "sb3":
-            raise ValueError(f"precision {self.precision} runs the networks under "
+            preset = (TRAINING_PRESETS[self.preset].settings if self.preset is not None
+                      else {})
+            whose = (f" (the {self.preset} preset's; --precision fp32 with it trains in "
+                     "fp32)" if preset.get("precision") == self.precision else "")
+            raise ValueError(f"precision {self.precision}{whose} runs the networks under "
                              f"torch.autocast: it needs backend sb3, not {self.backend} "
                              "(which trains in JAX)")
         if self.expert_demos is not None:

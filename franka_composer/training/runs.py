@@ -136,6 +136,18 @@ class RunDir:
     def lock_path(self) -> pathlib.Path:
         return self.root / "training.lock"
 
+    def holds(self, path: pathlib.Path) -> bool:
+        """Whether `path` is one of the run's own files (or inside its checkpoints or its
+        TensorBoard folder): what a command writing elsewhere must not write over."""
+        path, root = pathlib.Path(path).resolve(), self.root.resolve()
+        if path.parent != root and root not in path.parents:
+            return False
+        top = path.relative_to(root).parts[0]
+        own = {p.name for p in (self.config_path, self.eval_csv, self.outcome_path,
+                                self.expert_demos, self.final_model, self.policy_file,
+                                self.lock_path, self.checkpoint, self.tensorboard)}
+        return top in own or top.startswith(f"{self.checkpoint.name}-")
+
     def trainer(self) -> str | None:
         """Who is training this run now ("process PID on HOST"), or None: `training_lock`
         tried in passing (shared, not waited for, let go at once; a trainer taking it
@@ -254,6 +266,11 @@ class RunDir:
         stop left unlinked, which `recover_checkpoint` links) or without its eval.csv."""
         recoverable = not self.checkpoint.exists() and self._complete_checkpoints()
         if not self.checkpoint_state.is_file() and not recoverable:
+            trainer = self.trainer()
+            if trainer is not None:  # Not stopped: training, before its first checkpoint.
+                raise ValueError(f"{self.root} is being trained by {trainer} (no checkpoint "
+                                 "yet): let it end, or stop it (SIGTERM checkpoints it) "
+                                 "before resuming")
             raise ValueError(f"{self.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
         if not self.eval_csv.is_file():
@@ -424,3 +441,12 @@ def append_eval_row(path: pathlib.Path, row: dict[str, float]) -> None:
         f.write(text.getvalue())
         f.flush()
         os.fsync(f.fileno())
+
+
+def check_out_apart(out: pathlib.Path | None, roots) -> None:
+    """A ValueError where `out` (a command's --out) is one of the files of the runs at
+    `roots`: `evaluate RUN --out RUN/eval.csv` wrote its table over the run's evaluations."""
+    for root in roots:
+        if out is not None and RunDir(pathlib.Path(root)).holds(out):
+            raise ValueError(f"--out {out} is one of the run {root}'s own files: give "
+                             "another file")

@@ -309,7 +309,6 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
         raise ValueError(f"a sweep's cells must differ: {', '.join(repeated)} repeat")
     if address is not None:
         check_ray_address(address)
-    root.mkdir(parents=True, exist_ok=True)
     todo = [cell for cell in cells if not cell_finished(RunDir(root / cell.name), cell)]
     failed: set[str] = set()
     if todo:
@@ -319,6 +318,7 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
             # authentication, and a sweep on a laptop need not open them to its network.
             local = {} if address else dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1")
             ray.init(address=address, include_dashboard=False, log_to_driver=False, **local)
+        root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
         remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
         submitted = time.time()
         pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
