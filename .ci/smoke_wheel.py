@@ -22,6 +22,10 @@ import zipfile
 SDIST_FILES = ("setup.cfg", "pyproject.toml", "README.md", "MANIFEST.in",
                "franka_composer/__init__.py", "franka_composer/py.typed")
 REQUIRED_IF_PRESENT = ("LICENSE", "NOTICE", "CHANGELOG.md", "CITATION.cff")
+#: Folders the sdist leaves out: the test suite reads the checkout's results/, docs/ and
+#: benchmarks/, so a part of it in the sdist could not run (setuptools adds tests/test*.py
+#: by default, without conftest.py).
+SDIST_LEFT_OUT = ("tests/",)
 #: Files the wheel holds (PEP 561's marker: the type hints reach users' type checkers).
 WHEEL_FILES = ("franka_composer/__init__.py", "franka_composer/py.typed")
 
@@ -34,7 +38,8 @@ def one(dist: pathlib.Path, pattern: str) -> pathlib.Path:
 
 
 def missing_from_archives(dist: pathlib.Path, checkout: pathlib.Path) -> list[str]:
-    """What the sdist and the wheel in `dist` lack, as 'archive: file' lines."""
+    """What the sdist and the wheel in `dist` lack, as 'archive: file' lines, and what the
+    sdist holds of the folders it leaves out ('archive: holds file')."""
     sdist, wheel = one(dist, "*.tar.gz"), one(dist, "*.whl")
     with tarfile.open(sdist) as archive:
         # Members are "<name>-<version>/<path>".
@@ -44,7 +49,9 @@ def missing_from_archives(dist: pathlib.Path, checkout: pathlib.Path) -> list[st
     wanted = list(SDIST_FILES) + [name for name in REQUIRED_IF_PRESENT
                                   if (checkout / name).exists()]
     return ([f"{sdist.name}: {name}" for name in wanted if name not in in_sdist]
-            + [f"{wheel.name}: {name}" for name in WHEEL_FILES if name not in in_wheel])
+            + [f"{wheel.name}: {name}" for name in WHEEL_FILES if name not in in_wheel]
+            + [f"{sdist.name}: holds {name}" for name in sorted(in_sdist)
+               if name.startswith(SDIST_LEFT_OUT)])
 
 
 def check_installed_wheel() -> str:
@@ -77,7 +84,8 @@ def main(argv: list[str]) -> int:
     dist = pathlib.Path(argv[0]).resolve()
     missing = missing_from_archives(dist, checkout=pathlib.Path(__file__).resolve().parents[1])
     if missing:
-        raise SystemExit("missing from the release:\n" + "\n".join(missing))
+        raise SystemExit("missing from the release (or held where it should not be):\n"
+                         + "\n".join(missing))
     version = check_installed_wheel()
     command = pathlib.Path(sys.executable).parent / "franka-composer"
     printed = subprocess.run([str(command), "--version"], capture_output=True, text=True,

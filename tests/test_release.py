@@ -50,6 +50,12 @@ def test_the_release_check_names_each_file_the_archives_lack(tmp_path):
     complete = tmp_path / "complete"
     _release(complete, [*smoke.SDIST_FILES, "LICENSE"], smoke.WHEEL_FILES)
     assert smoke.missing_from_archives(complete, checkout) == []
+    # setuptools adds tests/test*.py to an sdist by default, without conftest.py.
+    with_tests = tmp_path / "with-tests"
+    _release(with_tests, [*smoke.SDIST_FILES, "LICENSE", "tests/test_suite.py"],
+             smoke.WHEEL_FILES)
+    assert smoke.missing_from_archives(with_tests, checkout) == [
+        "franka_composer-0.1.0.tar.gz: holds tests/test_suite.py"]
 
 
 def test_the_package_ships_py_typed():
