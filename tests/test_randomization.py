@@ -211,6 +211,20 @@ def test_an_observation_delay_returns_the_reading_of_k_steps_before(monkeypatch,
     assert not np.array_equal(late[10][0]["observation"], now[10][0]["observation"])
 
 
+@pytest.mark.parametrize("steps_late", [2, 3])
+def test_a_delayed_joints_observation_holds_no_live_joint_angles(steps_late):
+    """The joint angles were read as a view of qpos, which Composer's delay buffered: for
+    the first steps the observation showed the live angles, then went back to the reset's."""
+    plain = _make(control="joints", terminate_on_success=False)
+    delayed = _make(control="joints", randomization={"observation_delay": steps_late},
+                    terminate_on_success=False)
+    actions = np.ones((8, 7), np.float32)
+    now, late = _rollout(plain, 0, 8, actions), _rollout(delayed, 0, 8, actions)
+    for step, (obs, _, _) in enumerate(late):
+        np.testing.assert_array_equal(obs["observation"],
+                                      now[max(step - steps_late, 0)][0]["observation"])
+
+
 def test_observation_noise_has_its_spread_per_field_and_leaves_the_goals_exact():
     noise = {"position_noise": distributions.Normal(0.0, 0.002),
              "velocity_noise": distributions.Normal(0.0, 0.01)}

@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 from dm_control import composer, mjcf
 from dm_control.composer import define
-from dm_control.composer.observation import observable
 
 from franka_composer import assets
 from franka_composer.entities.features import ArrayFeature
@@ -299,11 +298,13 @@ class PandaObservables(composer.Observables):
 
     @define.observable
     def joints_pos(self):
-        return observable.MJCFFeature("qpos", self._entity.joints)
+        # An ArrayFeature, whose readings are new arrays: MJCFFeature's are a view of qpos
+        # for consecutive joints, and a delayed observation buffered the view (live angles).
+        return ArrayFeature("qpos", self._entity.joints)
 
     @define.observable
     def joints_vel(self):
-        return observable.MJCFFeature("qvel", self._entity.joints)
+        return ArrayFeature("qvel", self._entity.joints)
 
 
 def _remove_visual_geoms(root: mjcf.RootElement) -> None:
