@@ -5,11 +5,12 @@ HER relabelling stay exact (franka_composer/randomization/, tasks/goal_task.py).
 from __future__ import annotations
 
 import pickle
+import re
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from dm_control.composer.variation import distributions
+from dm_control.composer.variation import distributions, noises
 
 import franka_composer
 from franka_composer import fast_path
@@ -244,6 +245,50 @@ def test_observation_noise_has_its_spread_per_field_and_leaves_the_goals_exact()
     np.testing.assert_array_equal(layout.read(errors, "object_orientation"), 0.0)
 
 
+def test_composers_noise_wrappers_act_on_the_reading_as_its_corruptors_do():
+    """noises.Additive(d) on a reading gave the reading twice plus the noise (the wrapper's
+    value, the reading plus d's draw, was added to the reading again); on the action, a
+    move twice as long."""
+    plain = _make("pick_and_place").reset(seed=0)[0]["observation"]
+    for noise, expected in ((noises.Additive(distributions.Normal(0.0, 1e-9)), 1.0),
+                            (noises.Multiplicative(distributions.Uniform(1.5, 1.5)), 1.5)):
+        obs = _make("pick_and_place", randomization={"position_noise": noise}).reset(
+            seed=0)[0]["observation"]
+        np.testing.assert_allclose(obs[:3], expected * plain[:3], rtol=1e-6, atol=1e-8)
+    moves = []
+    for randomization in (None, {"action_noise": noises.Additive(
+            distributions.Normal(0.0, 1e-12))}):
+        env = franka_composer.load("push", seed=0, randomization=randomization)
+        env.reset()
+        start = env.physics.bind(env.task.panda.tcp_site).xpos.copy()
+        env.step(np.array([0.3, 0.0, 0.0]))
+        moves.append(env.physics.bind(env.task.panda.tcp_site).xpos - start)
+    np.testing.assert_allclose(moves[1], moves[0], atol=1e-9)
+
+
+def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():
+    """It was refused: the option probed it about white."""
+    colour = np.array(franka_composer.load("push").task.prop.rgba[:3])
+    env = _make(randomization={"object_rgb": noises.Multiplicative(
+        distributions.Uniform(0.9, 1.1))})
+    drawn = np.array(env.reset(seed=0)[1]["randomization"]["object_rgb"][0])
+    assert np.all((drawn >= 0.9 * colour - 1e-12) & (drawn <= 1.1 * colour + 1e-12))
+    assert not np.allclose(drawn, colour)
+    # About the colour, out of [0, 1] (its blue is 0.9): refused as the task is made.
+    with pytest.raises(ValueError, match=re.escape(
+            "randomization 'object_rgb' is a colour and must draw numbers in [0, 1]")):
+        _make(randomization={"object_rgb": noises.Multiplicative(
+            distributions.Uniform(0.9, 1.5))})
+
+
+def test_a_light_direction_offset_that_cancels_a_light_is_refused_by_name():
+    env = _make(randomization={"light_direction": (0.0, 0.0, 1.0)})
+    with pytest.raises(ValueError, match=re.escape(
+            "randomization 'light_direction' drew [0.0, 0.0, 1.0], which cancels a light's "
+            "direction [0.0, 0.0, -1.0]: offsets must leave every direction some length")):
+        env.reset(seed=0)
+
+
 def test_action_noise_moves_the_target_by_the_noise():
     env = franka_composer.load("push", seed=0, randomization={
         "action_noise": distributions.Normal(0.0, 0.1)})
@@ -295,6 +340,14 @@ def test_her_relabelled_rewards_are_exact_under_randomisation():
      "'observation_delay' must draw a whole number of control steps in [0, 50]"),
     ({"camera_position": 0.01}, "'camera_position' must draw 3 finite numbers"),
     ({"position_noise": float("nan")}, "'position_noise' is noise added to each reading"),
+    # A fixed number of components: a finger width is one number, a quaternion four.
+    ({"position_noise": [0.1, 0.2, 0.3]}, "'position_noise' is noise added to each reading, "
+                                          "one finite number per component (a distribution "
+                                          "without a size, or one number): added to a "
+                                          "reading of 1 number(s), it makes 3"),
+    ({"action_noise": [0.1] * 5}, "'action_noise' is noise added to each reading, one "
+                                  "finite number per component"),
+
     # A distribution that cannot draw at all (numpy's own errors name no parameter).
     ({"position_noise": distributions.Normal(0.0, -1.0)},
      "randomization 'position_noise' cannot draw from Normal(args=(), kwargs={'loc': 0.0, "

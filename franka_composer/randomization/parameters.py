@@ -5,8 +5,10 @@ A randomisation is data: a mapping from these names to `composer.variation` dist
 by calling its distribution with `initial_value` set to the parameter's nominal value in its
 own terms (`Parameter.nominal`: 1 for a factor, the object's colour for `object_rgb`, zeros
 for an offset), so `Uniform(0.8, 1.2)` and `noises.Multiplicative(Uniform(0.8, 1.2))` both
-work. A noise parameter is the distribution of what is added to each reading (or action),
-drawn afresh every control step.
+work. A noise parameter's distribution (or constant) draws what is added to each reading
+(or action), one number per component, afresh every control step; a `composer.variation`
+that is not a plain distribution (`noises.Additive`, `noises.Multiplicative`) is applied to
+the reading as a Composer corruptor is (`noisy`).
 
 Samples are checked before anything reaches MuJoCo: a factor must be finite and > 0, a
 colour within [0, 1], a delay a whole number of control steps >= 0.
@@ -17,6 +19,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+from dm_control.composer import variation
+from dm_control.composer.variation import distributions, variation_values
 
 #: The groups, in the order their streams are split off (`randomizer.py`): each group
 #: draws from its own stream, so randomising one never changes what another draws.
@@ -82,6 +86,25 @@ class Parameter:
                                  f"steps in [0, {MAX_DELAY}], drew {value!r}")
             return int(array)
         return array if shape else float(array)
+
+
+def noisy(distribution, value: np.ndarray, random_state) -> np.ndarray:
+    """`value` (a reading or an action) with the noise `distribution` gives it: a plain
+    distribution or a constant draws what is added (one number per component: Composer
+    sizes a draw to `initial_value`); another variation, a noise wrapper, is applied to the
+    value itself (`noises.Additive(d)` gives value + d's draw, `noises.Multiplicative(d)`
+    value times it), as Composer's corruptors apply them."""
+    drawn = variation_values.evaluate(distribution, value, value, random_state)
+    if relative(distribution):
+        return np.asarray(drawn, dtype=np.float64)
+    return value + drawn
+
+
+def relative(distribution) -> bool:
+    """Whether `distribution` draws from the value it is called with (a noise wrapper: any
+    composer.variation but a plain distribution), not independently of it."""
+    return isinstance(distribution, variation.Variation) and not isinstance(
+        distribution, distributions.Distribution)
 
 
 def _real(value) -> bool:

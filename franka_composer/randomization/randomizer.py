@@ -21,10 +21,10 @@ import hashlib
 
 import mujoco
 import numpy as np
-from dm_control.composer.variation import noises, variation_values
+from dm_control.composer.variation import variation_values
 
-from franka_composer.randomization.parameters import GROUPS, PARAMETERS
-from franka_composer.randomization.settings import RandomizationSettings
+from franka_composer.randomization.parameters import GROUPS, PARAMETERS, noisy
+from franka_composer.randomization.settings import PROBE_DRAWS, RandomizationSettings
 
 
 class Randomizer:
@@ -54,8 +54,19 @@ class Randomizer:
         for observable, noise in sensed:
             if noise is not None and noise in self._ranges:
                 observable.corruptor = _StepNoise(self._ranges[noise], self)
-        action_noise = self._ranges.get("action_noise")
-        self._action_noise = None if action_noise is None else noises.Additive(action_noise)
+        self._action_noise = self._ranges.get("action_noise")
+        self._probe_object_colours()
+
+    def _probe_object_colours(self) -> None:
+        """`object_rgb` drawn from each object's own colour (`noises.Multiplicative` jitter
+        about it) is checked here, where the colours are known, as the option checks the
+        other parameters: a draw outside [0, 1] is refused before anything is built."""
+        colour = self._ranges.get("object_rgb")
+        probe = np.random.RandomState(0)
+        for prop in self._props if colour is not None else ():
+            nominal = PARAMETERS["object_rgb"].nominal(prop.rgba)
+            for _ in range(PROBE_DRAWS):
+                self._draw("object_rgb", colour, nominal, probe)
 
     @property
     def values(self) -> dict:
@@ -135,8 +146,7 @@ class Randomizer:
         self._tick += 1
         if self._action_noise is None:
             return action
-        return np.asarray(self._action_noise(initial_value=action, current_value=action,
-                                             random_state=self._streams["action"]),
+        return np.asarray(noisy(self._action_noise, action, self._streams["action"]),
                           dtype=np.float64)
 
     def _split_streams(self, random_state: np.random.RandomState) -> None:
@@ -201,7 +211,14 @@ class Randomizer:
                 nominal["panda_material_rgba"][:, :3] * tint)
         if "light_direction" in values:
             direction = nominal["light_dir"] + values["light_direction"]
-            direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+            length = np.linalg.norm(direction, axis=1, keepdims=True)
+            if not (length > 1e-6).all():
+                raise ValueError(f"randomization 'light_direction' drew "
+                                 f"{np.asarray(values['light_direction']).tolist()}, which "
+                                 "cancels a light's "
+                                 f"direction {nominal['light_dir'][np.argmin(length)].tolist()}"
+                                 ": offsets must leave every direction some length")
+            direction /= length
             ptr.light_dir[nominal["lights"]] = direction
             # A tracking light (Menagerie's "top", trackcom) keeps the world direction it has
             # at qpos0, light_dir0: the same here, its body being aligned with the world.
@@ -236,8 +253,7 @@ class _StepNoise:
     def __call__(self, value, random_state=None):
         randomizer = self._randomizer
         if self._tick != randomizer.tick:
-            self._noise = variation_values.evaluate(self._distribution, value, value,
-                                                    randomizer.stream("sensing"))
+            self._noise = noisy(self._distribution, value, randomizer.stream("sensing")) - value
             self._tick = randomizer.tick
         return value + self._noise
 

@@ -14,7 +14,7 @@ from typing import Any, Mapping
 import numpy as np
 from dm_control.composer.variation import distributions, variation_values
 
-from franka_composer.randomization.parameters import PARAMETERS
+from franka_composer.randomization.parameters import PARAMETERS, noisy, relative
 from franka_composer.validation import check_choice, check_names
 
 #: Each preset: parameter -> (distribution class, its arguments, why this range).
@@ -136,20 +136,29 @@ def _settings(name: str, mapping: Mapping, label: str) -> RandomizationSettings:
         if not (callable(distribution) or _constant(distribution)):
             raise ValueError(f"{name} {parameter!r} must be a composer.variation distribution "
                              f"or a constant, got {distribution!r}")
-        nominal = spec.nominal() if spec.episode else np.zeros(3)
         for _ in range(PROBE_DRAWS):
-            sample = _probe_draw(name, parameter, distribution, nominal, probe)
             if spec.episode:
+                sample = _probe_draw(name, parameter, distribution, spec.nominal(), probe)
+                if spec.per_object and spec.kind == "colour" and relative(distribution):
+                    # About each object's own colour: its range is probed from that
+                    # colour where it is known (`Randomizer`); here its shape, finite.
+                    sample = np.clip(sample, 0.0, 1.0)
                 spec.check(parameter, sample)
             else:
-                _check_noise(parameter, sample)
+                # Readings of one number (a finger width) and of seven (joint angles).
+                for reading in (np.ones(1), np.ones(7)):
+                    _check_noise(parameter, reading, _probe_draw(
+                        name, parameter, distribution, reading, probe, noise=True))
     return RandomizationSettings(ranges, label)
 
 
-def _probe_draw(name: str, parameter: str, distribution, nominal, probe):
-    """One draw of `distribution`; whatever it raises (numpy's bare "scale < 0", an
-    OverflowError for a NaN or infinite bound) becomes a ValueError naming the parameter."""
+def _probe_draw(name: str, parameter: str, distribution, nominal, probe, noise=False):
+    """One draw of `distribution` (for a `noise`, the noisy `nominal` reading); whatever
+    it raises (numpy's bare "scale < 0", an OverflowError for a NaN or infinite bound, a
+    draw that does not fit the reading) becomes a ValueError naming the parameter."""
     try:
+        if noise:
+            return noisy(distribution, nominal, probe)
         return variation_values.evaluate(distribution, nominal, nominal, probe)
     except Exception as error:  # pylint: disable=broad-except
         raise ValueError(f"{name} {parameter!r} cannot draw from {distribution!r}: "
@@ -161,8 +170,18 @@ def _constant(value) -> bool:
                                                                                       bool)
 
 
-def _check_noise(parameter: str, sample) -> None:
+def _check_noise(parameter: str, reading: np.ndarray, sample) -> None:
+    """The noisy `reading` must be finite numbers of its shape: noise draws one number per
+    component of whatever reading it is added to (a distribution without a size, or one
+    number), not a fixed number of them (a finger width is one number, the joint angles
+    seven)."""
     array = np.asarray(sample)
-    if array.dtype.kind not in "iuf" or not np.isfinite(array).all() or array.ndim > 1:
-        raise ValueError(f"randomization {parameter!r} is noise added to each reading and "
-                         f"must draw finite numbers, drew {sample!r}")
+    what = (f"randomization {parameter!r} is noise added to each reading, one finite number "
+            "per component (a distribution without a size, or one number)")
+    if array.dtype.kind not in "iuf":
+        raise ValueError(f"{what}: it drew {sample!r}")
+    if array.shape != reading.shape:
+        raise ValueError(f"{what}: added to a reading of {reading.size} number(s), it makes "
+                         f"{array.size}")
+    if not np.isfinite(array).all():
+        raise ValueError(f"{what}: it drew {(array - reading).tolist()}")
