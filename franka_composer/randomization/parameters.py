@@ -89,15 +89,21 @@ class Parameter:
 
 
 def noisy(distribution, value: np.ndarray, random_state) -> np.ndarray:
-    """`value` (a reading or an action) with the noise `distribution` gives it: a plain
-    distribution or a constant draws what is added (one number per component: Composer
-    sizes a draw to `initial_value`); another variation, a noise wrapper, is applied to the
-    value itself (`noises.Additive(d)` gives value + d's draw, `noises.Multiplicative(d)`
-    value times it), as Composer's corruptors apply them."""
+    """`value` (a reading or an action) with the noise `distribution` gives it
+    (`noise`)."""
+    return value + noise(distribution, value, random_state)
+
+
+def noise(distribution, value: np.ndarray, random_state) -> np.ndarray:
+    """What the noise `distribution` adds to `value`: a plain distribution or a constant
+    draws it (one number per component: Composer sizes a draw to `initial_value`); another
+    variation, a noise wrapper, is applied to the value itself (`noises.Additive(d)` gives
+    value + d's draw, `noises.Multiplicative(d)` value times it), as Composer's corruptors
+    apply them, and adds the difference."""
     drawn = variation_values.evaluate(distribution, value, value, random_state)
     if relative(distribution):
-        return np.asarray(drawn, dtype=np.float64)
-    return value + drawn
+        return np.asarray(drawn, dtype=np.float64) - value
+    return drawn
 
 
 def relative(distribution) -> bool:

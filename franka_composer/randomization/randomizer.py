@@ -23,7 +23,7 @@ import mujoco
 import numpy as np
 from dm_control.composer.variation import variation_values
 
-from franka_composer.randomization.parameters import GROUPS, PARAMETERS, noisy
+from franka_composer.randomization.parameters import GROUPS, PARAMETERS, noise, noisy
 from franka_composer.randomization.settings import PROBE_DRAWS, RandomizationSettings
 
 
@@ -51,9 +51,9 @@ class Randomizer:
         # Counts resets and control steps: readings within one tick share their noise.
         self._tick = 0
         self._sensed = [observable for observable, _ in sensed]
-        for observable, noise in sensed:
-            if noise is not None and noise in self._ranges:
-                observable.corruptor = _StepNoise(self._ranges[noise], self)
+        for observable, parameter in sensed:
+            if parameter is not None and parameter in self._ranges:
+                observable.corruptor = _StepNoise(self._ranges[parameter], self)
         self._action_noise = self._ranges.get("action_noise")
         self._probe_object_colours()
 
@@ -253,7 +253,7 @@ class _StepNoise:
     def __call__(self, value, random_state=None):
         randomizer = self._randomizer
         if self._tick != randomizer.tick:
-            self._noise = noisy(self._distribution, value, randomizer.stream("sensing")) - value
+            self._noise = noise(self._distribution, value, randomizer.stream("sensing"))
             self._tick = randomizer.tick
         return value + self._noise
 
