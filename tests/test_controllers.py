@@ -3,6 +3,8 @@ numbers (controllers/, entities/panda.py). Pressing under osc is in test_contact
 
 from __future__ import annotations
 
+import re
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -59,6 +61,12 @@ def test_bad_controls_and_actions_are_refused_clearly():
     with pytest.raises(ValueError, match="scripted experts act on dx, dy, dz, which the "
                                          "joints controller does not take"):
         make_expert(gym.make("FrankaPushJointsSparse-v0"))
+    # Its actions were of the wrong length, a broadcast error at the first step.
+    for id_, actuated in (("FrankaPushSparse-v0", True), ("FrankaPickAndPlaceSparse-v0", False)):
+        with pytest.raises(ValueError, match=re.escape(
+                f"expert acts with the gripper {'locked' if actuated else 'actuated'}, as the "
+                f"task defines it, and this env has actuated_gripper={actuated}")):
+            make_expert(gym.make(id_, actuated_gripper=actuated))
 
 
 def test_osc_motors_have_the_real_panda_torque_limits():

@@ -16,6 +16,7 @@ from franka_composer.policies.reach import ReachExpert
 from franka_composer.policies.rollout import Trajectories, rollout
 from franka_composer.policies.slide import SlideExpert
 from franka_composer.policies.stack import StackExpert
+from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.validation import check_choice
 
 #: The expert class for each task name in `franka_composer.ALL_TASKS`.
@@ -44,10 +45,21 @@ def make_expert(env) -> Expert:
     task = unwrapped.task
     expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
     check_expert_control(task.config.control)
+    _check_expert_gripper(task.config)
     composer_env = getattr(unwrapped, "composer_env", unwrapped)
     expert_input = ExpertInput(task.observation_layout, task.desired_goal_key,
                                read_state=lambda: task.state_vector(composer_env.physics))
     return expert(task.observation_layout, task.config, expert_input)
+
+
+def _check_expert_gripper(config) -> None:
+    """A ValueError where the gripper is not as the task defines it: each expert acts with
+    the task's own (its actions' length and last component follow from it)."""
+    own = TASK_CONFIGS[config.name].control.actuated_gripper
+    if config.control.actuated_gripper != own:
+        raise ValueError(f"the {config.name} expert acts with the gripper "
+                         f"{'actuated' if own else 'locked'}, as the task defines it, and this "
+                         f"env has actuated_gripper={config.control.actuated_gripper}")
 
 
 def check_expert_control(control) -> None:
