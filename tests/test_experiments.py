@@ -242,6 +242,21 @@ def test_osc_tracking_the_controllers_page_records():
     assert end[0] == pytest.approx(0.783, abs=0.001)
 
 
+def test_joint_tracking_the_controllers_page_records():
+    """docs/guide/controllers.md's joints cell, as `joint_tracking.py` measures it: joint 2
+    covers 83 % of a full command from rest, then 115-124 % held; joint 6, 97 then 98-99."""
+    import franka_composer
+
+    module = load_script(EXPERIMENTS / "joint_tracking.py")
+    env = franka_composer.load("push", seed=0, control="joints", terminate_on_success=False,
+                               time_limit=None)
+    shoulder = module.shares(env, [1], 1, 5)[:, 0]
+    wrist = module.shares(env, [5], 1, 5)[:, 0]
+    assert round(shoulder[0]) == 83 and (round(shoulder[1:].min()), round(
+        shoulder[1:].max())) == (115, 124)
+    assert round(wrist[0]) == 97 and (round(wrist[1:].min()), round(wrist[1:].max())) == (98, 99)
+
+
 @pytest.mark.parametrize("args, message", [
     (["--move-z", "2"], "--move-z must be an action in [-1, 1], got 2"),
     (["--seeds", "-1"], "argument --seeds: must be an integer >= 0, got '-1'"),
