@@ -507,8 +507,9 @@ def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path,
     assert sweep.returncode == 130, output
     assert "interrupted: each running cell saved a checkpoint" in output
     assert run.read_state()["steps"] >= 200
-    assert "interrupted: checkpoint saved" in cell_log(Cell("push", "sac", 0, 100000),
-                                                       out).read_text()
+    assert (f"interrupted: its checkpoint at step {run.read_state()['steps']:,} is kept; "
+            f"continue with franka-composer train --resume --out {run.root}") in cell_log(
+        Cell("push", "sac", 0, 100000), out).read_text()
     # "--" first: a pattern that starts with "--" is otherwise read as pgrep's option.
     left = subprocess.run(["pgrep", "-f", "--", f"--out {run.root}"], capture_output=True,
                           text=True)
