@@ -23,7 +23,7 @@ import time
 from importlib import metadata
 
 from franka_composer.adapters.registration import env_id
-from franka_composer.cli.options import add_tasks_argument, positive_int
+from franka_composer.cli.options import add_tasks_argument, output_file, positive_int
 from franka_composer.tasks import ALL_TASKS
 
 #: Issue 5's targets: (JSON path within a task's result, comparison, bound).
@@ -76,8 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--memory-envs", type=positive_int, default=10,
                         help="envs made after the first, in a fresh process, to measure the "
                         "resident memory each adds, without and with rendering (default 10)")
-    parser.add_argument("--out", default="results.json",
-                        help="JSON file for every figure (default: results.json)")
+    parser.add_argument("--out", type=output_file, default=pathlib.Path("results.json"),
+                        help="JSON file for every figure, checked before anything is "
+                             "measured (default: results.json)")
     return parser
 
 
@@ -106,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         result["targets"] = check_targets(result)
         results["tasks"][task] = result
     results["machine"]["load_average_after"] = os.getloadavg()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
     with open(args.out, "w") as file:
         json.dump(results, file, indent=2)
     print(format_table(results))
@@ -200,9 +202,11 @@ def _number(value, digits: int = 0) -> str:
 
 def format_table(results: dict) -> str:
     """The stdout report: one row per task, then each target's verdict."""
+    workers = next(iter(results["tasks"].values()), {}).get("vector_steps_per_s", {})
     header = ("| task | random steps/s (with / without resets) | floor | ratio "
               "| expert steps/s (with / without) | floor | ratio | reset ms | reward(1024) us "
-              "| RSS MB | MB/env (no render / render) | cold s | render ms | vector 1 / 2 workers |")
+              "| RSS MB | MB/env (no render / render) | cold s | render ms | vector "
+              f"{' / '.join(workers) or '-'} workers |")
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for task, result in results["tasks"].items():
         cells = [task]

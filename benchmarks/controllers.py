@@ -18,7 +18,8 @@ from franka_composer.tasks import ALL_TASKS
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tasks_argument(parser, ALL_TASKS, "tasks to time (default: all)")
     parser.add_argument("--steps", type=positive_int, default=2000)
     parser.add_argument("--rounds", type=positive_int, default=3)

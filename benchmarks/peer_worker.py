@@ -116,7 +116,8 @@ def prepare(suite: str, reference_path: pathlib.Path | None) -> tuple[dict, dict
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--suite", choices=SUITES, required=True)
     parser.add_argument("--reference-path", type=pathlib.Path)
     args = parser.parse_args(argv)

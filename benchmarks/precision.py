@@ -64,7 +64,8 @@ def time_gradient_steps(task: str, algo: str, steps: int, rounds: int,
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default="push", choices=ALL_TASKS)
     parser.add_argument("--algos", nargs="+", default=["sac", "tqc", "ddpg"], choices=ALGOS)
     parser.add_argument("--steps", type=positive_int, default=100)

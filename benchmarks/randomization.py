@@ -42,7 +42,8 @@ SETTINGS = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tasks_argument(parser, ("push", "pick_and_place"),
                        "tasks to time (default: push, pick_and_place)")
     parser.add_argument("--steps", type=positive_int, default=1000)

@@ -171,7 +171,8 @@ def write(cells: list[dict], out: pathlib.Path) -> None:
 def main(argv=None) -> int:
     import franka_composer
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=20,
                         help="seeded episodes per task, policy and step (default: 20)")
     add_tasks_argument(parser, franka_composer.ALL_TASKS, "tasks to study (default: all)")

@@ -108,7 +108,8 @@ def table(means: np.ndarray, stds: np.ndarray, threshold: float) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=pathlib.Path, metavar="RUN_DIR")
     parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")
     parser.add_argument("--episodes", type=positive_int, default=20)

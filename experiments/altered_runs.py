@@ -91,7 +91,7 @@ def install(alteration: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        description=__doc__.splitlines()[0],
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage="%(prog)s ALTERATION {train,evaluate} [franka-composer's options]")
     parser.add_argument("alteration", choices=tuple(ALTERATIONS))
     parser.add_argument("command", choices=("train", "evaluate"))

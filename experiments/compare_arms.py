@@ -156,7 +156,8 @@ def table(arms: list[tuple[str, str]], marks: list[int],
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--arm", nargs=2, action="append", required=True,
                         metavar=("NAME", "GLOB"), help="an arm: its name, its runs' directories")
     parser.add_argument("--marks", nargs="+", type=int,

@@ -106,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     from franka_composer.controllers import CONTROLS
     from franka_composer.tasks.config import TIMINGS
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--tasks", nargs="+", default=["push", "slide", "pick_and_place"],
                         choices=("push", "slide", "pick_and_place"))
     parser.add_argument("--controls", nargs="+", default=list(CONTROLS), choices=CONTROLS)

@@ -83,7 +83,8 @@ def play(policy, env, episodes: int, seed: int) -> tuple[float, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--reference-path", type=pathlib.Path, required=True, metavar="DIR")
     parser.add_argument("runs", type=pathlib.Path, nargs="*", metavar="RUN_DIR")
     parser.add_argument("--expert", action="store_true",

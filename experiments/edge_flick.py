@@ -138,7 +138,8 @@ def main(argv: list[str] | None = None) -> int:
     import franka_composer  # noqa: F401  (registers the ids)
     from franka_composer.tasks.config import TIMINGS, expand_timing
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--timing", default="default", choices=tuple(TIMINGS))
     parser.add_argument("--seeds", type=episode_seed, nargs="+", default=[0, 1])
     parser.add_argument("--weld-time-constant", type=positive_number, metavar="SECONDS",

@@ -136,7 +136,8 @@ def play(root: pathlib.Path, undone: set[str], episodes: int, seed: int):
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", type=pathlib.Path, metavar="RUN_DIR")
     parser.add_argument("--only", nargs="+", choices=tuple(DIFFERENCES), metavar="NAME",
                         help="these differences alone, and together (default: each)")

@@ -67,7 +67,8 @@ def group_rows(rows: np.ndarray) -> list[tuple[str, int, float, float]]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR")
     parser.add_argument("--episodes", type=positive_int, default=200)
     parser.add_argument("--seed", type=episode_seed, default=100)

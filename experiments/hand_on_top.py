@@ -106,7 +106,8 @@ def episodes_of(run_root: pathlib.Path, episodes: int, seed: int) -> tuple[dict,
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", type=pathlib.Path, nargs="+", metavar="RUN_DIR")
     parser.add_argument("--episodes", type=positive_int, default=200)
     parser.add_argument("--seed", type=episode_seed, default=100)

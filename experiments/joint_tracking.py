@@ -37,7 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     import franka_composer
     from franka_composer.tasks.config import TIMINGS
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--timing", default="default", choices=tuple(TIMINGS))
     parser.add_argument("--steps", type=positive_int, default=5)
     args = parser.parse_args(argv)

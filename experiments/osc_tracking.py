@@ -45,7 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     import franka_composer
     from franka_composer.tasks.config import TIMINGS
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--timing", default="default", choices=tuple(TIMINGS))
     args = parser.parse_args(argv)
     env = franka_composer.load("reach", seed=0, control="osc", terminate_on_success=False,

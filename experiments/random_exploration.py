@@ -157,7 +157,8 @@ def table(results: dict[str, list[dict]]) -> str:
 def comparison_parser(doc: str, suites, episodes: int) -> argparse.ArgumentParser:
     """The arguments of every comparison with the reference code: --episodes (default
     `episodes`), --seed, --reference-path, and a worker's hidden --suite (one of `suites`)."""
-    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser = argparse.ArgumentParser(description=doc,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=episodes)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--reference-path", type=pathlib.Path, metavar="DIR")

@@ -181,7 +181,7 @@ def install(specs: dict) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        description=__doc__.splitlines()[0],
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
         usage="%(prog)s --reference-path DIR {train,evaluate} [franka-composer's options]")
     parser.add_argument("--reference-path", type=pathlib.Path, required=True, metavar="DIR")
     parser.add_argument("command", choices=COMMANDS)

@@ -186,7 +186,8 @@ def draw_beside_floor(runs: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default="push", choices=ALL_TASKS)
     parser.add_argument("--control", default="mocap", choices=CONTROLS)
     parser.add_argument("--seed", type=int, default=0)

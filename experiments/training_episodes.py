@@ -178,7 +178,8 @@ def table(first_step: np.ndarray, measures: list[Measure], window: int) -> list[
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", type=pathlib.Path, nargs="+", metavar="RUN_DIR")
     parser.add_argument("--window", type=positive_int, default=50_000,
                         help="training steps per row")

@@ -33,8 +33,14 @@ class HeadlessGLError(RuntimeError):
 
 
 def check_can_render() -> None:
-    """A `HeadlessGLError` where dm_control renders through GLFW and there is no display:
-    its GL calls would fail deep inside (MjrContext has no _ptr)."""
+    """A `HeadlessGLError` where rendering is off (`MUJOCO_GL=disable`: dm_control's "No
+    OpenGL rendering backend is available" from deep inside), or dm_control renders through
+    GLFW and there is no display (its GL calls would fail inside: MjrContext has no _ptr)."""
+    if os.environ.get("MUJOCO_GL") == "disable":
+        raise HeadlessGLError(
+            "this process cannot render: MUJOCO_GL=disable turns rendering off. Unset it (or "
+            "set egl or osmesa) before Python starts, or do not render: render_mode=None, "
+            "observation_mode='state', demo --no-video")
     render = sys.modules.get("dm_control._render")
     if getattr(render, "BACKEND", None) != "glfw" or has_display():
         return

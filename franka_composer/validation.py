@@ -17,7 +17,8 @@ def check_choice(kind: str, value, choices: Sequence[str], *, also: str | None =
     if isinstance(value, str) and value in choices:
         return value
     valid = ", ".join(([also] if also else []) + list(choices))
-    raise ValueError(f"unknown {kind} {value!r}; valid {kind}s: {valid}")
+    kinds = kind if kind.endswith("s") else f"{kind}s"  # camera_meshes is one already.
+    raise ValueError(f"unknown {kind} {value!r}; valid {kinds}: {valid}")
 
 
 def check_names(kind: str, names: Iterable[str], valid: Iterable[str]) -> None:

@@ -51,6 +51,17 @@ def test_the_full_benchmark_writes_every_figure(tmp_path):
     # Measured 20 and 71 MB: the visual meshes are most of an env.
     assert 0 < lean["per_additional_env_mb"] < full["per_additional_env_mb"]
     assert "| push |" in completed.stdout and str(out) in completed.stdout
+    assert "| vector 1 workers |" in completed.stdout  # The workers measured, not "1 / 2".
+
+
+def test_the_benchmark_refuses_an_out_it_cannot_write_before_measuring(tmp_path, capsys):
+    """It measured everything, then failed to write (a folder, a path under a file)."""
+    bench = load_script(BENCHMARKS / "bench.py")
+    (tmp_path / "file").write_text("")
+    for out in (tmp_path, tmp_path / "file" / "r.json"):
+        with pytest.raises(SystemExit):
+            bench.build_parser().parse_args(["--out", str(out)])
+        assert "argument --out:" in capsys.readouterr().err
 
 
 def test_the_quick_bench_command_times_each_task(capsys):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import imageio.v2 as imageio
 import pytest
 
@@ -78,3 +80,28 @@ def test_count_options_take_whole_positive_numbers_and_name_a_bad_one(capsys):
     with pytest.raises(SystemExit):
         main(["evaluate", "runs/x", "--episodes", "0"])
     assert "--episodes: must be a positive integer, got '0'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    # ffmpeg wrote an empty video of an odd size, and the demo said it wrote them.
+    (["--width", "33"], "--width 33: the videos are H.264 (yuv420p), whose frames have even "
+                        "sizes; give an even size, or --no-video"),
+    (["--width", "97", "--height", "61"], "--width 97 and --height 61: the videos"),
+])
+def test_demo_refuses_a_video_size_h264_cannot_take_before_any_episode(argv, message,
+                                                                       tmp_path):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        main(["demo", "--tasks", "reach", "--episodes", "1", "--out", str(tmp_path / "out"),
+              *argv])
+    assert not (tmp_path / "out").exists()
+    assert main(["demo", "--tasks", "reach", "--episodes", "1", "--no-video", *argv]) == 0
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--tasks", "push", "reach,push"], "argument --tasks: names push more than once"),
+    (["--out", ""], "argument --out: must be a folder, got ''"),  # Was the working folder.
+])
+def test_demo_refuses_a_task_twice_and_an_empty_out(argv, message, capsys):
+    with pytest.raises(SystemExit):
+        main(["demo", "--episodes", "1", *argv])
+    assert message in capsys.readouterr().err

@@ -45,12 +45,12 @@ def test_a_backend_the_user_chose_is_kept():
     assert probe == {"mujoco_gl": "disable", "frame_std": None}
 
 
-_GLFW_WITHOUT_A_DISPLAY = """
-import dm_control.composer  # Before franka_composer, as shimmy does, with MUJOCO_GL unset.
+#: A render, then a pixel env's reset, each printing the HeadlessGLError it raises.
+_RENDER_TWICE = """
 import gymnasium as gym
 import franka_composer
 from franka_composer.headless_gl import HeadlessGLError
-for options in ({{"render_mode": "rgb_array"}}, {{"observation_mode": "pixels"}}):
+for options in ({"render_mode": "rgb_array"}, {"observation_mode": "pixels"}):
     env = gym.make("FrankaPushSparse-v0", width=64, height=64, **options)
     try:
         env.reset(seed=0)
@@ -59,6 +59,8 @@ for options in ({{"render_mode": "rgb_array"}}, {{"observation_mode": "pixels"}}
         print(error)
     env.close()
 """
+_GLFW_WITHOUT_A_DISPLAY = ("import dm_control.composer  # Before franka_composer, as shimmy "
+                           "does, with MUJOCO_GL unset." + _RENDER_TWICE)
 
 
 @pytest.mark.parametrize("mujoco_gl, why", [
@@ -71,7 +73,7 @@ def test_glfw_without_a_display_is_refused_at_the_first_render_saying_why(mujoco
            if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
     if mujoco_gl:
         env["MUJOCO_GL"] = mujoco_gl
-    result = subprocess.run([sys.executable, "-c", _GLFW_WITHOUT_A_DISPLAY.format()], env=env,
+    result = subprocess.run([sys.executable, "-c", _GLFW_WITHOUT_A_DISPLAY], env=env,
                             capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
     message = (f"this process cannot render: {why}, and it has none (no DISPLAY or "
@@ -79,3 +81,20 @@ def test_glfw_without_a_display_is_refused_at_the_first_render_saying_why(mujoco
                "MUJOCO_GL=egl (or osmesa) before Python starts")
     assert result.stdout.splitlines() == [message, message]  # A render; a pixel reset.
 
+
+
+def test_rendering_with_mujoco_gl_disable_is_refused_saying_so():
+    """dm_control's "No OpenGL rendering backend is available" came from deep inside, and
+    demo printed it as a traceback after making its folder."""
+    env = {**os.environ, "MUJOCO_GL": "disable"}
+    result = subprocess.run([sys.executable, "-c", _RENDER_TWICE], env=env,
+                            capture_output=True, text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    message = ("this process cannot render: MUJOCO_GL=disable turns rendering off. Unset it "
+               "(or set egl or osmesa) before Python starts, or do not render: "
+               "render_mode=None, observation_mode='state', demo --no-video")
+    assert result.stdout.splitlines() == [message, message]
+    demo = subprocess.run([sys.executable, "-m", "franka_composer", "demo", "--tasks", "reach",
+                           "--episodes", "1", "--out", "never-made"], env=env,
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert (demo.returncode, demo.stderr) == (1, f"franka-composer: error: {message}\n")

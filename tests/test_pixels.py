@@ -57,8 +57,8 @@ def test_cameras_and_image_size_are_options_and_dm_env_names_the_observables():
     # Pixels only: the state vector's observables are off; the goals are the task's own.
     assert set(timestep.observation) == {"wrist_pixels", "workspace_pixels", "achieved_goal",
                                          "goal"}
-    assert franka_composer.load("push", cameras="wrist").task.config.observations.cameras == (
-        "wrist",)
+    assert franka_composer.load("push", observation_mode="pixels", cameras="wrist").task \
+        .config.observations.cameras == ("wrist",)
 
 
 def test_the_same_seed_gives_the_same_pixels():
@@ -149,7 +149,15 @@ def test_the_panda_is_drawn_from_its_hulls_or_its_visual_meshes():
     (dict(pixel_width=84.0), "pixel_width must be a whole number"),
     (dict(pixel_width=2048), "pixel_width must be >= 1 and <= 1024, got 2048"),
     (dict(goal_marker_visible="yes"), "goal_marker_visible must be True or False"),
-    (dict(camera_meshes="full"), "unknown camera_meshes 'full'; valid camera_meshess"),
+    (dict(camera_meshes="full"), "unknown camera_meshes 'full'; valid camera_meshes: hulls, "
+                                 "visual$"),
+    # Options of the images alone, in a mode without images: they did nothing.
+    (dict(cameras="wrist"), "cameras set the camera observations, and observation_mode="
+                            "'state' has none: give observation_mode='pixels' or "
+                            "'state\\+pixels', or leave it out"),
+    (dict(pixel_height=10, camera_meshes="visual"), "pixel_height, camera_meshes set the "
+                                                    "camera observations, and observation_mode"
+                                                    "='state' has none: .* leave them out"),
 ])
 def test_bad_observation_options_are_refused_clearly(options, message):
     with pytest.raises(ValueError, match=message):

@@ -16,6 +16,7 @@ import warnings
 
 from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
+from franka_composer.headless_gl import HeadlessGLError
 
 #: Subcommand modules, in the order `--help` lists them.
 SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "keep", "evaluate", "plot",
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
 def console(argv: list[str] | None = None) -> int:
     """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
     status 2, as argparse reports its own errors, not a traceback, and so are a Panda that
-    cannot be found and a file that cannot be written or read after all (OSError: a full
+    cannot be found, a process that cannot render (`HeadlessGLError`) and a file that cannot be written or read after all (OSError: a full
     disk, a folder removed meanwhile; status 1); a reader that has gone (`franka-composer
     evaluate ... | head`) ends the command quietly, with the status a shell gives a command
     SIGPIPE ends."""
@@ -60,7 +61,7 @@ def console(argv: list[str] | None = None) -> int:
             return main(argv)
         finally:
             sys.stdout.flush()  # What is still buffered meets a gone reader here.
-    except (ValueError, MenagerieUnavailableError) as error:
+    except (ValueError, MenagerieUnavailableError, HeadlessGLError) as error:
         print(f"franka-composer: error: {error}", file=sys.stderr)
         return 2 if isinstance(error, ValueError) else 1
     except BrokenPipeError:

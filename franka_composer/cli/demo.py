@@ -2,7 +2,10 @@
 with `--policy`, a trained run's policy on its task instead.
 
 Steps per second count only the time inside `env.reset` and `env.step` (no rendering, no
-policy), so the figure is the simulator's speed whether or not videos are written.
+policy). An env that writes videos carries the Panda's visual meshes, whose poses every
+step computes, so the figure is lower with videos than with --no-video (about 0.7x on push
+on this project's 2-vCPU machine): --no-video gives the simulator's speed as training sees
+it.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import pathlib
 import gymnasium as gym
 
 import franka_composer
+from franka_composer import headless_gl
 from franka_composer.adapters.registration import env_id
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
                                          frame_size, given_timing, output_folder,
@@ -78,6 +82,12 @@ def run(args: argparse.Namespace) -> int:
                          f"{args.episodes}: each task's video shows its first episodes")
     if not args.no_video:
         check_writable(args.out, folder=True)  # Also the default, which the parser passes.
+        odd = [f"--{name} {getattr(args, name)}" for name in ("width", "height")
+               if getattr(args, name) % 2]
+        if odd:  # ffmpeg writes an empty file, and the demo said it wrote the videos.
+            raise ValueError(f"{' and '.join(odd)}: the videos are H.264 (yuv420p), whose "
+                             "frames have even sizes; give an even size, or --no-video")
+        headless_gl.check_can_render()  # MUJOCO_GL=disable: before the first episode.
     trained = None if args.policy is None else _adopt_the_runs_task(args)
     for task in args.tasks:  # A bad timing is refused before the first episode.
         task_config(task, **given_timing(args))

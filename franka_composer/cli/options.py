@@ -79,6 +79,8 @@ def output_folder(text: str) -> pathlib.Path:
 def folder_path(text: str) -> pathlib.Path:
     """A folder that may be read or written, as the command decides (`sweep --out`: read by
     --status and --sync, written by a run, which checks it then): not a file."""
+    if not text:  # pathlib reads it as ".": the working folder, unasked.
+        raise argparse.ArgumentTypeError("must be a folder, got ''")
     path = pathlib.Path(text)
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
@@ -187,7 +189,11 @@ class _JoinTasks(argparse.Action):
     """Joins the `--tasks` words, each a tuple of names, into one tuple, in order."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        setattr(namespace, self.dest, tuple(name for word in values for name in word))
+        names = tuple(name for word in values for name in word)
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:  # The task would run twice, its second files over its first.
+            parser.error(f"argument --tasks: names {', '.join(twice)} more than once")
+        setattr(namespace, self.dest, names)
 
 
 def add_tasks_argument(parser: argparse.ArgumentParser, default, help_text: str) -> None:

@@ -294,6 +294,12 @@ class TaskConfig:
         for name, value in options.items():
             option = OPTIONS[name]
             config = option.set(config, option.check(name, value, config))
+        images = [name for name in IMAGE_OPTIONS if name in options]
+        if images and not config.observations.pixels:
+            raise ValueError(f"{', '.join(images)} set the camera observations, and "
+                             f"observation_mode={config.observations.mode!r} has none: give "
+                             "observation_mode='pixels' or 'state+pixels', or leave "
+                             f"{'it' if len(images) == 1 else 'them'} out")
         config.check()
         return config
 
@@ -471,6 +477,10 @@ def _physics(name, value):
 
 
 #: The options users pass, by name: where each goes and what it accepts.
+#: The options that shape the camera observations alone (goal_marker_visible also hides the
+#: goal in render()'s frames): given in a mode without images, they would do nothing.
+IMAGE_OPTIONS = ("cameras", "pixel_height", "pixel_width", "camera_meshes")
+
 OPTIONS: dict[str, Option] = {
     "object_mass": Option(("objects", "mass"), _positive),
     "object_friction": Option(("objects", "friction"), _non_negative),
