@@ -51,10 +51,10 @@ def main(argv: list[str] | None = None) -> int:
 def console(argv: list[str] | None = None) -> int:
     """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
     status 2, as argparse reports its own errors, not a traceback, and so are a Panda that
-    cannot be found, a process that cannot render (`HeadlessGLError`) and a file that cannot be written or read after all (OSError: a full
-    disk, a folder removed meanwhile; status 1); a reader that has gone (`franka-composer
-    evaluate ... | head`) ends the command quietly, with the status a shell gives a command
-    SIGPIPE ends."""
+    cannot be found, a process that cannot render (`HeadlessGLError`) and a file that
+    cannot be written or read after all (OSError: a full disk, a folder removed meanwhile;
+    status 1); a reader that has gone (`franka-composer evaluate ... | head`) ends the
+    command quietly, with the status a shell gives a command SIGPIPE ends."""
     warnings.formatwarning = _format_warning
     try:
         try:

@@ -281,8 +281,8 @@ def run_config(args: argparse.Namespace):
 def check_new_run(args: argparse.Namespace):
     """The run these `train` arguments start, once everything that would refuse it has been
     found out, before its directory exists: more --threads than CPUs, a missing sbx,
-    --device cuda without CUDA, a replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
-    each cell's options with it before Ray starts."""
+    --device cuda without CUDA, a replay buffer smaller than an episode, --demos that do
+    not load or fit. `sweep` checks each cell's options with it before Ray starts."""
     from franka_composer.tasks import TASK_CONFIGS
     from franka_composer.training.models import algorithm_class, resolve_device
 
