@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--memory-envs", type=positive_int, default=10,
                         help="envs made after the first, in a fresh process, to measure the "
                         "resident memory each adds, without and with rendering (default 10)")
-    parser.add_argument("--out", type=output_file, default=pathlib.Path("results.json"),
+    parser.add_argument("--out", type=output_file, default="results.json",
                         help="JSON file for every figure, checked before anything is "
                              "measured (default: results.json)")
     return parser

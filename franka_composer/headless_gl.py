@@ -28,19 +28,27 @@ def choose_headless_backend() -> None:
     os.environ["MUJOCO_GL"] = "egl"
 
 
+#: The MUJOCO_GL values with which dm_control renders nothing
+#: (`dm_control._render.constants.NO_RENDERER`, read here without importing dm_control's
+#: renderer, which would open its display).
+NO_RENDERER = ("off", "disable", "disabled", "false", "0")
+
+
 class HeadlessGLError(RuntimeError):
     """dm_control renders through GLFW in a process without a display."""
 
 
 def check_can_render() -> None:
-    """A `HeadlessGLError` where rendering is off (`MUJOCO_GL=disable`: dm_control's "No
+    """A `HeadlessGLError` where rendering is off (`MUJOCO_GL=disable` or another of
+    `NO_RENDERER`: dm_control's "No
     OpenGL rendering backend is available" from deep inside), or dm_control renders through
     GLFW and there is no display (its GL calls would fail inside: MjrContext has no _ptr)."""
-    if os.environ.get("MUJOCO_GL") == "disable":
+    chosen = os.environ.get("MUJOCO_GL", "")
+    if chosen.lower() in NO_RENDERER:
         raise HeadlessGLError(
-            "this process cannot render: MUJOCO_GL=disable turns rendering off. Unset it (or "
-            "set egl or osmesa) before Python starts, or do not render: render_mode=None, "
-            "observation_mode='state', demo --no-video")
+            f"this process cannot render: MUJOCO_GL={chosen} turns rendering off. Unset it "
+            "(or set egl or osmesa) before Python starts, or do not render: "
+            "render_mode=None, observation_mode='state', demo --no-video")
     render = sys.modules.get("dm_control._render")
     if getattr(render, "BACKEND", None) != "glfw" or has_display():
         return

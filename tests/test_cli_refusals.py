@@ -364,6 +364,12 @@ def test_keep_refuses_to_keep_a_run_into_another(tmp_path):
                                              "outside the runs$"):
             cli.main(["keep", str(run.root), "--into", str(into)])
     assert sorted(os.listdir(other.root)) == ["config.json", "eval.csv", "outcome.json"]
+    # A project's own config.json above --into is no run.
+    project = tmp_path / "project"
+    project.mkdir()
+    (project / "config.json").write_text('{"learning_rate": 0.001}')
+    assert cli.main(["keep", str(run.root), "--into", str(project / "kept")]) == 0
+    assert (project / "kept" / "a" / "config.json").is_file()
 
 
 def test_sweep_refuses_status_with_sync_and_too_many_threads_before_ray(tmp_path,
@@ -380,6 +386,11 @@ def test_sweep_refuses_status_with_sync_and_too_many_threads_before_ray(tmp_path
                                          "this process may use$"):
         cli.main(_sweep(out, "--", "--threads", str(cpus + 1)))
     assert not out.exists() and not (tmp_path / "kept").exists()
+    # On a cluster (--address) the threads are the cells' machines' to count: Ray is asked.
+    monkeypatch.setattr(ray, "init", lambda *args, **kwargs: (_ for _ in ()).throw(
+        ConnectionError("no cluster here")))
+    with pytest.raises(ConnectionError, match="no cluster here"):
+        cli.main(_sweep(out, "--address", "auto", "--", "--threads", str(cpus + 1)))
 
 
 def test_a_sweep_whose_ray_does_not_start_leaves_no_folder(tmp_path, monkeypatch):

@@ -83,14 +83,15 @@ def test_glfw_without_a_display_is_refused_at_the_first_render_saying_why(mujoco
 
 
 
-def test_rendering_with_mujoco_gl_disable_is_refused_saying_so():
+@pytest.mark.parametrize("off", ["disable", "off"])  # Two of dm_control's spellings.
+def test_rendering_with_rendering_turned_off_is_refused_saying_so(off):
     """dm_control's "No OpenGL rendering backend is available" came from deep inside, and
     demo printed it as a traceback after making its folder."""
-    env = {**os.environ, "MUJOCO_GL": "disable"}
+    env = {**os.environ, "MUJOCO_GL": off}
     result = subprocess.run([sys.executable, "-c", _RENDER_TWICE], env=env,
                             capture_output=True, text=True, timeout=120, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
-    message = ("this process cannot render: MUJOCO_GL=disable turns rendering off. Unset it "
+    message = (f"this process cannot render: MUJOCO_GL={off} turns rendering off. Unset it "
                "(or set egl or osmesa) before Python starts, or do not render: "
                "render_mode=None, observation_mode='state', demo --no-video")
     assert result.stdout.splitlines() == [message, message]

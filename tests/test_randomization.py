@@ -256,14 +256,17 @@ def test_composers_noise_wrappers_act_on_the_reading_as_its_corruptors_do():
             seed=0)[0]["observation"]
         np.testing.assert_allclose(obs[:3], expected * plain[:3], rtol=1e-6, atol=1e-8)
     moves = []
+    # Arithmetic on a distribution is a distribution of what is added, not a wrapper.
     for randomization in (None, {"action_noise": noises.Additive(
-            distributions.Normal(0.0, 1e-12))}):
+            distributions.Normal(0.0, 1e-12))},
+                          {"action_noise": 1e-12 * distributions.Normal(0.0, 1.0)}):
         env = franka_composer.load("push", seed=0, randomization=randomization)
         env.reset()
         start = env.physics.bind(env.task.panda.tcp_site).xpos.copy()
         env.step(np.array([0.3, 0.0, 0.0]))
         moves.append(env.physics.bind(env.task.panda.tcp_site).xpos - start)
     np.testing.assert_allclose(moves[1], moves[0], atol=1e-9)
+    np.testing.assert_allclose(moves[2], moves[0], atol=1e-9)
 
 
 def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():

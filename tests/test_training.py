@@ -667,6 +667,35 @@ def test_a_new_run_stopped_before_its_first_checkpoint_leaves_nothing_and_says_s
     assert _train(out, "sac", 200, "--expert-demos", "2") == 0  # Starts again.
 
 
+@pytest.mark.parametrize("where", ["checks", "threads"])
+def test_a_new_run_stopped_in_its_checks_or_while_its_threads_are_limited_leaves_nothing(
+        tmp_path, monkeypatch, capsys, where):
+    """SIGTERM while the checks load --demos printed a KeyboardInterrupt traceback; while
+    the threads were limited (sbx starts JAX there) it left config.json behind."""
+    import contextlib
+    import signal
+
+    from franka_composer.cli import train
+
+    if where == "checks":
+        def stopped(args):
+            os.kill(os.getpid(), signal.SIGTERM)
+        monkeypatch.setattr(train, "check_new_run", stopped)
+        said = "interrupted before training: nothing was written\n"
+    else:
+        @contextlib.contextmanager
+        def stopped(threads, backend):
+            os.kill(os.getpid(), signal.SIGTERM)
+            yield
+        monkeypatch.setattr(train, "_limit_threads", stopped)
+        said = ("interrupted before its first checkpoint: nothing of the run is kept; the "
+                "same command starts it again\n")
+    out = tmp_path / "run"
+    assert _train(out, "sac", 200) == 130
+    assert not out.exists()
+    assert capsys.readouterr().out == said
+
+
 def test_a_resume_of_a_run_training_before_its_first_checkpoint_says_it_is_training(
         tmp_path):
     """It said the run had stopped before its first checkpoint: delete it."""

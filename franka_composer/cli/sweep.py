@@ -159,17 +159,20 @@ def cell_config(cell, out, train_args: tuple[str, ...]):
     return run_config(cell_arguments(cell, out, train_args))
 
 
-def check_cells(cells, out, train_args: tuple[str, ...]) -> None:
+def check_cells(cells, out, train_args: tuple[str, ...], *, local: bool = True) -> None:
     """What `train` would refuse of any cell (`train.check_new_run`: its options, sbx, the
-    device, the buffer, --demos), and a cell trained before as another run, found out
-    before Ray starts. Cells that differ only in seed and directory are checked once (a
-    --demos dataset is loaded once per task and algorithm, not once per seed)."""
-    from franka_composer.cli.train import check_new_run, run_config
+    device, the buffer, --demos; on a `local` sweep, more --threads than this machine has
+    CPUs: a cluster's machines may have more), and a cell trained before as another run,
+    found out before Ray starts. Cells that differ only in seed and directory are checked
+    once (a --demos dataset is loaded once per task and algorithm, not once per seed)."""
+    from franka_composer.cli.train import check_new_run, check_threads, run_config
     from franka_composer.training.runs import RunDir
 
     checked = set()
     for cell in cells:
         args = cell_arguments(cell, out, train_args)
+        if local:
+            check_threads(args.threads)
         alike = repr(sorted((name, value) for name, value in vars(args).items()
                             if name not in ("seed", "out", "func")))
         config = run_config(args) if alike in checked else check_new_run(args)
@@ -206,7 +209,7 @@ def run(args: argparse.Namespace) -> int:
     except ImportError as error:
         raise ValueError("franka-composer sweep runs its cells on Ray: pip install "
                          "'franka_composer[sweep]' (or pip install ray)") from error
-    check_cells(cells, args.out, train_args)
+    check_cells(cells, args.out, train_args, local=args.address is None)
     try:
         statuses = run_sweep(cells, args.out, train_args, address=args.address,
                              num_cpus=args.num_cpus, refresh_s=args.refresh,

@@ -280,14 +280,13 @@ def run_config(args: argparse.Namespace):
 
 def check_new_run(args: argparse.Namespace):
     """The run these `train` arguments start, once everything that would refuse it has been
-    found out, before its directory exists: more --threads than CPUs, a missing sbx,
-    --device cuda without CUDA, a replay buffer smaller than an episode, --demos that do
-    not load or fit. `sweep` checks each cell's options with it before Ray starts."""
+    found out, before its directory exists: a missing sbx, --device cuda without CUDA, a
+    replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
+    each cell's options with it before Ray starts."""
     from franka_composer.tasks import TASK_CONFIGS
     from franka_composer.training.models import algorithm_class, resolve_device
 
     settings = with_defaults(args)
-    _check_threads(args.threads)
     algorithm_class(settings.algo, settings.backend)
     resolve_device(args.device)
     config = run_config(args)
@@ -334,8 +333,8 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
             + ": only --total-steps, --device, --threads and --checkpoint-every may change")
 
 
-def _check_threads(threads: int | None) -> None:
-    """More threads than CPUs only queue for them (thousands stall a gradient step, and with
+def check_threads(threads: int | None) -> None:
+    """More threads than this machine's CPUs only queue for them (thousands stall a gradient step, and with
     it the stop at the episode's end that SIGTERM waits for)."""
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     if threads is not None and cpus and threads > cpus:
@@ -377,7 +376,7 @@ def run(args: argparse.Namespace) -> int:
     settings = with_defaults(args)
     out = args.out or pathlib.Path("runs") / (
         f"{settings.task}-{settings.algo}-seed{settings.seed}")
-    _check_threads(args.threads)
+    check_threads(args.threads)
     # SIGTERM before training begins (a scheduler, timeout) stops the run as Ctrl-C does, so
     # a new run leaves nothing; once it trains, the loop checkpoints on it.
     with interrupt_on(signal.SIGTERM):
@@ -388,33 +387,44 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     from franka_composer.training import loop
     from franka_composer.training.runs import RunDir
 
-    made_folder = False
-    if args.resume:
-        run_dir = RunDir(out)
-        _check_resumed_as_given(args, run_dir)
-        run_dir.recover_checkpoint()
-        _check_budget(args, run_dir)
-    else:
-        made_folder = not out.exists()
-        run_dir = loop.start(out, check_new_run(args))
+    made_folder = not out.exists()
+    try:  # The checks (seconds where they load --demos): stopped here, nothing is written.
+        if args.resume:
+            run_dir = RunDir(out)
+            _check_resumed_as_given(args, run_dir)
+            run_dir.recover_checkpoint()
+            _check_budget(args, run_dir)
+        else:
+            config = check_new_run(args)
+    except KeyboardInterrupt:
+        print("interrupted before training: " + ("the run is as its checkpoint left it"
+                                                 if args.resume else "nothing was written"))
+        return 130
+    if not args.resume:
+        run_dir = loop.start(out, config)
     threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
     try:
-        with _limit_threads(threads, run_dir.read_config().backend), \
-                loop.removed_if_it_fails_before_a_checkpoint(
-                    run_dir, new=not args.resume, made_folder=made_folder):
+        # The removal outermost: a stop while the threads are limited (sbx starts JAX's
+        # runtime there, seconds) leaves nothing of a new run either.
+        with loop.removed_if_it_fails_before_a_checkpoint(
+                run_dir, new=not args.resume, made_folder=made_folder), \
+                _limit_threads(threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
                                device=args.device, checkpoint_every=args.checkpoint_every,
                                threads=threads, progress=args.progress)
     except KeyboardInterrupt:
-        steps = run_dir.read_state().get("steps") if run_dir.root.is_dir() else None
-        if steps is None:
-            print("interrupted before its first checkpoint: nothing of the run is kept; the "
-                  "same command starts it again")
-        else:
+        steps = run_dir.read_state().get("steps") if run_dir.config_path.exists() else None
+        if steps is not None:
             print(f"interrupted: its checkpoint at step {steps:,} is kept; continue with "
                   f"franka-composer train --resume --out {run_dir.root}")
+        elif not run_dir.config_path.exists():
+            print("interrupted before its first checkpoint: nothing of the run is kept; the "
+                  "same command starts it again")
+        else:  # Not expected: the removal above takes a new run's files with it.
+            print(f"interrupted before its first checkpoint: {run_dir.root} holds none; "
+                  "delete it to start again")
         return 130
     early = " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
         "stopped_early") else ""

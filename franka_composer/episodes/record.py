@@ -63,8 +63,10 @@ def _check_values(path, index: int, episode: dict) -> None:
         if key in FLAG_KEYS:
             if values.dtype != bool and not np.isin(values, (0, 1)).all():
                 step = int(np.flatnonzero(~np.isin(values, (0, 1)))[0])
+                value = values[step]
                 raise ValueError(f"{path}: episode {index} has {key} values other than true "
-                                 f"and false ({values[step].item()!r} at step {step})")
+                                 f"and false ({getattr(value, 'item', lambda: value)()!r} at "
+                                 f"step {step})")
         elif values.dtype.kind == "f" and not np.isfinite(values).all():
             row = int(np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(
                 axis=1))[0])

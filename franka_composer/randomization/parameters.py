@@ -5,10 +5,10 @@ A randomisation is data: a mapping from these names to `composer.variation` dist
 by calling its distribution with `initial_value` set to the parameter's nominal value in its
 own terms (`Parameter.nominal`: 1 for a factor, the object's colour for `object_rgb`, zeros
 for an offset), so `Uniform(0.8, 1.2)` and `noises.Multiplicative(Uniform(0.8, 1.2))` both
-work. A noise parameter's distribution (or constant) draws what is added to each reading
-(or action), one number per component, afresh every control step; a `composer.variation`
-that is not a plain distribution (`noises.Additive`, `noises.Multiplicative`) is applied to
-the reading as a Composer corruptor is (`noisy`).
+work. A noise parameter's distribution (or constant, or arithmetic on distributions)
+draws what is added to each reading (or action), one number per component, afresh every
+control step; Composer's noise wrappers (`noises.Additive`, `noises.Multiplicative`) are
+applied to the reading as its corruptors are (`noisy`).
 
 Samples are checked before anything reaches MuJoCo: a factor must be finite and > 0, a
 colour within [0, 1], a delay a whole number of control steps >= 0.
@@ -19,8 +19,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from dm_control.composer import variation
-from dm_control.composer.variation import distributions, variation_values
+from dm_control.composer.variation import noises, variation_values
 
 #: The groups, in the order their streams are split off (`randomizer.py`): each group
 #: draws from its own stream, so randomising one never changes what another draws.
@@ -95,11 +94,11 @@ def noisy(distribution, value: np.ndarray, random_state) -> np.ndarray:
 
 
 def noise(distribution, value: np.ndarray, random_state) -> np.ndarray:
-    """What the noise `distribution` adds to `value`: a plain distribution or a constant
-    draws it (one number per component: Composer sizes a draw to `initial_value`); another
-    variation, a noise wrapper, is applied to the value itself (`noises.Additive(d)` gives
-    value + d's draw, `noises.Multiplicative(d)` value times it), as Composer's corruptors
-    apply them, and adds the difference."""
+    """What the noise `distribution` adds to `value`: a distribution, arithmetic on them or
+    a constant draws it (one number per component: Composer sizes a draw to
+    `initial_value`); a noise wrapper is applied to the value itself (`noises.Additive(d)`
+    gives value + d's draw, `noises.Multiplicative(d)` value times it), as Composer's
+    corruptors apply them, and adds the difference."""
     drawn = variation_values.evaluate(distribution, value, value, random_state)
     if relative(distribution):
         return np.asarray(drawn, dtype=np.float64) - value
@@ -107,10 +106,10 @@ def noise(distribution, value: np.ndarray, random_state) -> np.ndarray:
 
 
 def relative(distribution) -> bool:
-    """Whether `distribution` draws from the value it is called with (a noise wrapper: any
-    composer.variation but a plain distribution), not independently of it."""
-    return isinstance(distribution, variation.Variation) and not isinstance(
-        distribution, distributions.Distribution)
+    """Whether `distribution` is one of Composer's noise wrappers, which vary the value
+    they are called with (`noises.Additive`, `noises.Multiplicative`), rather than draw
+    independently of it (a distribution, arithmetic on distributions, a constant)."""
+    return isinstance(distribution, (noises.Additive, noises.Multiplicative))
 
 
 def _real(value) -> bool:

@@ -476,11 +476,11 @@ def _physics(name, value):
     return value
 
 
-#: The options users pass, by name: where each goes and what it accepts.
 #: The options that shape the camera observations alone (goal_marker_visible also hides the
 #: goal in render()'s frames): given in a mode without images, they would do nothing.
 IMAGE_OPTIONS = ("cameras", "pixel_height", "pixel_width", "camera_meshes")
 
+#: The options users pass, by name: where each goes and what it accepts.
 OPTIONS: dict[str, Option] = {
     "object_mass": Option(("objects", "mass"), _positive),
     "object_friction": Option(("objects", "friction"), _non_negative),

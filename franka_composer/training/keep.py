@@ -122,6 +122,18 @@ def check_kept_apart(roots, kept: pathlib.Path, option: str) -> None:
             raise ValueError(f"{option} {kept} is inside the run {root}: give a folder "
                              "outside the runs")
     for folder in (inside, *inside.parents):
-        if RunDir(folder).config_path.is_file():  # Another run, kept or training.
+        if _is_run(folder):  # Another run, kept or training.
             raise ValueError(f"{option} {kept} is {'' if folder == inside else 'inside '}"
                              f"the run {folder}: give a folder outside the runs")
+
+
+def _is_run(folder: pathlib.Path) -> bool:
+    """Whether `folder` holds a run: a config.json that reads as a run's (a project's own
+    config.json does not)."""
+    if not RunDir(folder).config_path.is_file():
+        return False
+    try:
+        RunDir(folder).read_config()
+    except ValueError:
+        return False
+    return True
