@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import unittest
 
 import dm_env
@@ -238,6 +239,32 @@ def test_terminate_on_success_ends_the_episode_with_zero_discount():
     env.reset()
     timestep = env.step(np.zeros(3, np.float32))
     assert timestep.mid() and timestep.discount == 1.0
+
+
+@pytest.mark.parametrize("control", ["mocap", "osc", "joints"])
+def test_the_action_specs_bounds_are_actions_an_agent_can_take(task_name, control):
+    """Scalar bounds (dm_env-legal) were no action: env.step(spec.minimum) was refused, and
+    np.random.uniform(spec.minimum, spec.maximum) drew one number. dm_control's suites give
+    bounds of the action's shape."""
+    env = franka_composer.load(task_name, seed=0, control=control, terminate_on_success=False)
+    spec = env.action_spec()
+    assert spec.minimum.shape == spec.maximum.shape == spec.shape
+    assert spec.minimum.dtype == spec.maximum.dtype == np.float32
+    env.reset()
+    for action in (spec.minimum, spec.maximum, spec.generate_value(),
+                   np.random.default_rng(0).uniform(spec.minimum, spec.maximum)):
+        assert env.step(action).step_type == dm_env.StepType.MID
+
+
+def test_rollout_refuses_a_dm_env_saying_what_it_runs():
+    """It said the dm_env's episodes end only on success, which they do not."""
+    from franka_composer.policies import make_expert, rollout
+
+    env = franka_composer.load("push", seed=0)
+    with pytest.raises(ValueError, match=re.escape(
+            "rollout runs a Gymnasium env (gym.make(id), or Shimmy's DmControlCompatibilityV0 "
+            "around a dm_env)")):
+        rollout(env, make_expert(env), 1, seed=0)
 
 
 def test_time_limit_none_removes_the_time_limit():

@@ -100,9 +100,12 @@ class Controller:
                              f"arm_actuation={self.ARM_ACTUATION!r}, got "
                              f"{panda.arm_actuation!r}")
         self._panda, self._settings = panda, settings
+        # Bounds of the action's own shape, as dm_control's suites give them: an agent may
+        # take spec.minimum as an action (scalar bounds are dm_env-legal but are no action).
+        shape = (settings.action_size,)
         self._action_spec = specs.BoundedArray(
-            shape=(settings.action_size,), dtype=np.float32, minimum=-1.0, maximum=1.0,
-            name=settings.action_name)
+            shape=shape, dtype=np.float32, minimum=np.full(shape, -1.0, np.float32),
+            maximum=np.full(shape, 1.0, np.float32), name=settings.action_name)
         self._law = self._law_physics = None
 
     @property

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from typing import Callable
 
+import dm_env
 import numpy as np
 
 from franka_composer.episodes import STEP_KEYS, Trajectories
@@ -26,7 +27,7 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
             on_step: Callable[[object, int], None] | None = None,
             on_episode_end: Callable[[int], None] | None = None) -> Trajectories:
     """Runs `policy` (obs -> action; its `reset()` is called at each episode start if it has
-    one) for `episodes` episodes of `env`, each until terminated or truncated.
+    one) for `episodes` episodes of the Gymnasium `env`, each until terminated or truncated.
 
     Episode i is reset with `seed + i` when `seed` is given. `on_step(env, i)` is called after
     every reset and step of episode i (e.g. to render a frame) and `on_episode_end(i)` when it
@@ -34,6 +35,10 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
     """
     if episodes < 1:
         raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if isinstance(env, dm_env.Environment):
+        raise ValueError("rollout runs a Gymnasium env (gym.make(id), or Shimmy's "
+                         "DmControlCompatibilityV0 around a dm_env); a dm_env steps with "
+                         "timesteps, not (obs, reward, terminated, truncated, info)")
     check_episodes_end(env)
     collected, env_seconds = [], 0.0
     for index in range(episodes):
