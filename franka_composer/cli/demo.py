@@ -74,6 +74,10 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    twice = sorted({task for task in args.tasks if args.tasks.count(task) > 1})
+    if twice:  # Its second run would write its files over the first's.
+        raise ValueError(f"--tasks names {', '.join(twice)} more than once: each task runs "
+                         "once, into its own <task>.mp4 and .png")
     if args.video_episodes is not None and args.no_video:
         raise ValueError("--video-episodes sets what the videos show, and --no-video writes "
                          "none: give one of them")

@@ -189,11 +189,7 @@ class _JoinTasks(argparse.Action):
     """Joins the `--tasks` words, each a tuple of names, into one tuple, in order."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        names = tuple(name for word in values for name in word)
-        twice = sorted({name for name in names if names.count(name) > 1})
-        if twice:  # The task would run twice, its second files over its first.
-            parser.error(f"argument --tasks: names {', '.join(twice)} more than once")
-        setattr(namespace, self.dest, names)
+        setattr(namespace, self.dest, tuple(name for word in values for name in word))
 
 
 def add_tasks_argument(parser: argparse.ArgumentParser, default, help_text: str) -> None:
