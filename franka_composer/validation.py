@@ -30,6 +30,12 @@ def check_names(kind: str, names: Iterable[str], valid: Iterable[str]) -> None:
                          f"valid {kind}s: {', '.join(valid)}")
 
 
+def repeated(values) -> list[str]:
+    """The values that stand more than once in `values`, as sorted text."""
+    values = list(values)
+    return sorted({str(v) for v in values if values.count(v) > 1})
+
+
 def check_bool(name: str, value) -> bool:
     """`value` if it is a bool (not a string such as "no", nor a number)."""
     if isinstance(value, bool):

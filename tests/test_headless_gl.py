@@ -63,6 +63,14 @@ _GLFW_WITHOUT_A_DISPLAY = ("import dm_control.composer  # Before franka_composer
                            "does, with MUJOCO_GL unset." + _RENDER_TWICE)
 
 
+def _printed_errors(script: str, env: dict) -> list[str]:
+    """The lines `script` printed, run in a fresh Python with `env`, which must succeed."""
+    result = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                            text=True, timeout=120, check=False)
+    assert result.returncode == 0, result.stderr[-2000:]
+    return result.stdout.splitlines()
+
+
 @pytest.mark.parametrize("mujoco_gl, why", [
     (None, "dm_control was imported before franka_composer (shimmy imports it, for one) "
            "with MUJOCO_GL unset, so it took GLFW, which needs a display"),
@@ -73,14 +81,11 @@ def test_glfw_without_a_display_is_refused_at_the_first_render_saying_why(mujoco
            if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
     if mujoco_gl:
         env["MUJOCO_GL"] = mujoco_gl
-    result = subprocess.run([sys.executable, "-c", _GLFW_WITHOUT_A_DISPLAY], env=env,
-                            capture_output=True, text=True, timeout=120, check=False)
-    assert result.returncode == 0, result.stderr[-2000:]
     message = (f"this process cannot render: {why}, and it has none (no DISPLAY or "
                "WAYLAND_DISPLAY). Import franka_composer before dm_control and shimmy, or set "
                "MUJOCO_GL=egl (or osmesa) before Python starts")
-    assert result.stdout.splitlines() == [message, message]  # A render; a pixel reset.
-
+    # A render; a pixel reset.
+    assert _printed_errors(_GLFW_WITHOUT_A_DISPLAY, env) == [message, message]
 
 
 @pytest.mark.parametrize("off", ["disable", "off"])  # Two of dm_control's spellings.
@@ -88,13 +93,10 @@ def test_rendering_with_rendering_turned_off_is_refused_saying_so(off):
     """dm_control's "No OpenGL rendering backend is available" came from deep inside, and
     demo printed it as a traceback after making its folder."""
     env = {**os.environ, "MUJOCO_GL": off}
-    result = subprocess.run([sys.executable, "-c", _RENDER_TWICE], env=env,
-                            capture_output=True, text=True, timeout=120, check=False)
-    assert result.returncode == 0, result.stderr[-2000:]
     message = (f"this process cannot render: MUJOCO_GL={off} turns rendering off. Unset it "
                "(or set egl or osmesa) before Python starts, or do not render: "
                "render_mode=None, observation_mode='state', demo --no-video")
-    assert result.stdout.splitlines() == [message, message]
+    assert _printed_errors(_RENDER_TWICE, env) == [message, message]
     demo = subprocess.run([sys.executable, "-m", "franka_composer", "demo", "--tasks", "reach",
                            "--episodes", "1", "--out", "never-made"], env=env,
                           capture_output=True, text=True, timeout=120, check=False)

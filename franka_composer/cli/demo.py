@@ -23,7 +23,7 @@ from franka_composer.cli.options import (add_tasks_argument, add_timing, episode
                                          positive_int)
 from franka_composer.policies import make_expert, rollout
 from franka_composer.tasks import task_config
-from franka_composer.validation import check_writable
+from franka_composer.validation import check_writable, repeated
 
 DEFAULT_OUT = "demo_output"
 #: Episodes each task's video shows where --video-episodes is not given (or every episode,
@@ -74,7 +74,7 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    twice = sorted({task for task in args.tasks if args.tasks.count(task) > 1})
+    twice = repeated(args.tasks)
     if twice:  # Its second run would write its files over the first's.
         raise ValueError(f"--tasks names {', '.join(twice)} more than once: each task runs "
                          "once, into its own <task>.mp4 and .png")

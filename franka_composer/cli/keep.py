@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 
 from franka_composer.cli.options import add_run_dirs, output_folder
+from franka_composer.validation import repeated
 
 
 def add_parser(subparsers) -> None:
@@ -33,9 +34,9 @@ def run(args: argparse.Namespace) -> int:
 
     runs = [root.resolve() for root in run_directories(args.runs)]  # `.` has no name.
     names = [root.name for root in runs]
-    repeated = sorted({name for name in names if names.count(name) > 1})
-    if repeated:
-        raise ValueError(f"two runs named {', '.join(repeated)}: each is kept as --into "
+    twice = repeated(names)
+    if twice:
+        raise ValueError(f"two runs named {', '.join(twice)}: each is kept as --into "
                          "DIR/<its name>, so one would overwrite the other")
     check_kept_apart(runs, args.into, "--into")
     copies = [RunDir(args.into / root.name) for root in runs]

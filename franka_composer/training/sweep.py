@@ -27,6 +27,7 @@ from franka_composer.training.report import with_variant
 from franka_composer.training.keep import check_kept_apart, files_to_keep, keep_run
 from franka_composer.training.runs import RunDir, read_eval_rows, run_finished
 from franka_composer.training.signals import interrupt_on
+from franka_composer.validation import repeated
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,19 +50,13 @@ def grid(tasks, algos, seeds, steps, options: tuple[str, ...] = ()) -> list[Cell
     """Every (task, algorithm, seed); `steps` is one budget or {task: budget}. A value given
     twice is refused: its cells would train at once into one directory."""
     for kind, values in (("task", tasks), ("algorithm", algos), ("seed", seeds)):
-        repeated = _repeated(values)
-        if repeated:
-            raise ValueError(f"{kind}(s) {', '.join(repeated)} given more than once: each "
+        twice = repeated(values)
+        if twice:
+            raise ValueError(f"{kind}(s) {', '.join(twice)} given more than once: each "
                              "cell is one run directory")
     budget = steps if isinstance(steps, dict) else dict.fromkeys(tasks, steps)
     return [Cell(task, algo, int(seed), int(budget[task]), options)
             for task in tasks for algo in algos for seed in seeds]
-
-
-def _repeated(values) -> list[str]:
-    """The values that stand more than once in `values`, as sorted text."""
-    values = list(values)
-    return sorted({str(v) for v in values if values.count(v) > 1})
 
 
 #: The campaign's budgets for the paper's Table II (Table I settings otherwise). Slide uses
@@ -304,9 +299,9 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     in the background) stops it as Ctrl-C does: each running cell checkpoints first."""
     import ray
 
-    repeated = _repeated([cell.name for cell in cells])
-    if repeated:
-        raise ValueError(f"a sweep's cells must differ: {', '.join(repeated)} repeat")
+    twice = repeated([cell.name for cell in cells])
+    if twice:
+        raise ValueError(f"a sweep's cells must differ: {', '.join(twice)} repeat")
     if address is not None:
         check_ray_address(address)
     todo = [cell for cell in cells if not cell_finished(RunDir(root / cell.name), cell)]
