@@ -130,10 +130,8 @@ def check_kept_apart(roots, kept: pathlib.Path, option: str) -> None:
 def _is_run(folder: pathlib.Path) -> bool:
     """Whether `folder` holds a run: a config.json that reads as a run's (a project's own
     config.json does not)."""
-    if not RunDir(folder).config_path.is_file():
-        return False
     try:
-        RunDir(folder).read_config()
+        RunDir(folder).read_config()  # No config.json at all is a ValueError too.
     except ValueError:
         return False
     return True
