@@ -342,8 +342,8 @@ def test_runs_of_different_variants_are_not_seeds_of_one_cell(tmp_path):
         "| Slide: the paper's | 71.7 ± 0.5 | 85.0 ± 0.4 | 85.1 ± 0.4 |",
         "| Reach | – | 100.0 ± 0.0 | – |"]
     assert report.seeds_note(results).splitlines() == [
-        "- push / sac: seeds 0, 1; trained steps 10, 10",
-        "- push (bf16) / sac: seeds 0; trained steps 10",
-        "- push (osc control, bf16) / sac: seeds 0; trained steps 10",
-        "- push (sbx) / tqc: seeds 0; trained steps 10",
-        "- slide / tqc: seeds 0; trained steps 10"]
+        "- push / sac: seeds 0, 1; trained steps 10, 10; success 50.0, 100.0 %",
+        "- push (bf16) / sac: seeds 0; trained steps 10; success 0.0 %",
+        "- push (osc control, bf16) / sac: seeds 0; trained steps 10; success 40.0 %",
+        "- push (sbx) / tqc: seeds 0; trained steps 10; success 20.0 %",
+        "- slide / tqc: seeds 0; trained steps 10; success 100.0 %"]

@@ -74,6 +74,18 @@ def test_a_refused_seed_raises_and_leaves_the_episode_stream_as_it_was(bad):
                                   expected.reset()[0]["desired_goal"])
 
 
+@pytest.mark.parametrize("numpy_seed", [np.int64(7), np.uint32(7)])
+def test_a_numpy_integer_seed_gives_the_python_ints_episode_in_both_interfaces(numpy_seed):
+    """Seeds often come from np.arange or a SeedSequence; Gymnasium's own reset refuses
+    them, `load` takes them: both take them here, as the int they are."""
+    expected = gym.make("FrankaSlideSparse-v0").reset(seed=7)[0]
+    obs = gym.make("FrankaSlideSparse-v0").reset(seed=numpy_seed)[0]
+    assert _same_observations(obs, expected)
+    loaded = gym.make("FrankaSlideSparse-v0").unwrapped.goal_observation(
+        franka_composer.load("slide", seed=numpy_seed).reset().observation)
+    assert _same_observations(loaded, expected)
+
+
 def test_load_refuses_a_negative_seed_naming_it():
     with pytest.raises(ValueError, match=r"seed must be a non-negative int, got -4"):
         franka_composer.load("push", seed=-4)

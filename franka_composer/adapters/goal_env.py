@@ -132,7 +132,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         `options` is accepted only empty: this env has no reset options."""
         self._check_open()
         if seed is not None:
-            seeding.check_seed(seed)  # Before anything is reseeded.
+            seed = seeding.check_seed(seed)  # Before anything is reseeded; numpy ints as int.
         if options:
             raise ValueError(f"unknown reset option(s) {', '.join(map(repr, sorted(options)))}; "
                              "this environment takes none (task options go to gym.make)")

@@ -102,11 +102,13 @@ def _row(label: str, cells: list[str]) -> str:
 
 
 def seeds_note(results: list[RunResult]) -> str:
-    """One line per non-empty cell: how many seeds and steps it averages."""
+    """One line per non-empty cell: the seeds, steps and success rates it averages, so a
+    written table keeps each model's figure and not only the mean ± std."""
     notes = []
     for (task, variant, algo), runs in sorted(group_by_cell(results).items()):
         seeds = ", ".join(str(r.seed) for r in runs)
         steps = ", ".join(str(r.steps) for r in runs)
+        success = ", ".join(f"{100 * r.success_rate:.1f}" for r in runs)
         notes.append(f"- {with_variant(task, variant)} / {algo}: seeds {seeds}; trained "
-                     f"steps {steps}")
+                     f"steps {steps}; success {success} %")
     return "\n".join(notes) + "\n"
