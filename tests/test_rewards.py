@@ -17,6 +17,14 @@ def test_dense_reward_is_minus_distance():
     assert rewards.compute_reward([0, 0.3, 0.4], np.zeros(3), "dense", 0.05) == pytest.approx(-0.5)
 
 
+@pytest.mark.parametrize("reward_type", ["sparse", "dense"])
+def test_one_goal_pair_gives_a_0d_float64_array_for_either_reward_type(reward_type):
+    """One type for one pair, whichever the reward: code that indexes or writes into the
+    result (`reward[...] = ...`) works for both."""
+    reward = rewards.compute_reward([0, 0.3, 0.4], np.zeros(3), reward_type, 0.05)
+    assert type(reward) is np.ndarray and reward.shape == () and reward.dtype == np.float64
+
+
 def test_batched_reward_matches_per_pair_values_for_any_leading_shape():
     rng = np.random.default_rng(0)
     achieved, desired = rng.uniform(-0.1, 0.1, (2, 5, 4, 3))

@@ -76,7 +76,7 @@ def reward_from_distance(distance, reward_type: str, distance_threshold: float) 
     success). Dense: -distance. Float64."""
     if check_reward_type(reward_type) == "sparse":
         return np.where(success_from_distance(distance, distance_threshold), 0.0, -1.0)
-    return -np.asarray(distance, dtype=np.float64)
+    return np.negative(distance, dtype=np.float64, out=np.empty(np.shape(distance)))
 
 
 def success_from_distance(distance, distance_threshold: float) -> np.ndarray:
