@@ -3,6 +3,7 @@ pickling, rendering, vector envs, Shimmy, bad input, and a short SAC + HER run."
 
 from __future__ import annotations
 
+import copy
 import pickle
 
 import gymnasium as gym
@@ -157,6 +158,20 @@ def test_pickled_env_rebuilds_into_an_equivalent_env(env_name):
     np.testing.assert_array_equal(env.step(action)[0]["observation"],
                                   clone.step(action)[0]["observation"])
     assert clone.unwrapped.task.terminate_on_success is False
+
+
+def test_a_copy_keeps_its_spec_so_gym_make_rebuilds_it():
+    """Gymnasium's pickling rebuilds from the constructor's arguments, which leaves the
+    registry's spec (id, options, time limit) behind; a copy keeps it."""
+    env = gym.make("FrankaSlideDense-v0", terminate_on_success=False, max_episode_steps=7)
+    for clone in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
+        assert clone.spec == env.spec and clone.spec.id == "FrankaSlideDense-v0"
+        remade = gym.make(clone.spec)
+        remade.reset(seed=0)
+        steps = 1
+        while not remade.step(np.zeros(remade.action_space.shape))[3]:
+            steps += 1
+        assert steps == 7 and remade.unwrapped.task.terminate_on_success is False
 
 
 @pytest.mark.parametrize("control", ["mocap", "osc", "joints"])

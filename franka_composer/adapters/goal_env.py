@@ -59,6 +59,16 @@ class FrankaGoalEnv(gym.Env, EzPickle):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
+    def __getstate__(self):
+        # EzPickle rebuilds from the constructor's arguments; `gym.make`'s spec goes along.
+        return {**EzPickle.__getstate__(self), "spec": self.spec}
+
+    def __setstate__(self, state):
+        state = dict(state)
+        spec = state.pop("spec", None)
+        EzPickle.__setstate__(self, state)
+        self.spec = spec
+
     def __init__(self, task: str = "push", reward_type: str = "sparse",
                  render_mode: str | None = None, width: int = 480, height: int = 480,
                  camera: str = "workspace", **task_kwargs: Any) -> None:

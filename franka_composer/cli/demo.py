@@ -3,9 +3,10 @@ with `--policy`, a trained run's policy on its task instead.
 
 Steps per second count only the time inside `env.reset` and `env.step` (no rendering, no
 policy). An env that writes videos carries the Panda's visual meshes, whose poses every
-step computes, so the figure is lower with videos than with --no-video (about 0.7x on push
-on this project's 2-vCPU machine): --no-video gives the simulator's speed as training sees
-it.
+step computes, so the figure is lower with videos than with --no-video (0.71-0.76x on push
+on this project's 2-vCPU machine: `demo --tasks push --episodes 6` against the same with
+--no-video, three pairs in turn, 2026-11-29): --no-video gives the simulator's speed as
+training sees it.
 """
 
 from __future__ import annotations
