@@ -197,6 +197,46 @@ def test_osmesa_workers_forked_after_the_parent_rendered_refuse_clearly():
     assert result == {"shape": [48, 48, 3], "images": True, "equal": True}
 
 
+# Renders, then (with "fork") forks a child that renders too, refused under OSMesa after the
+# parent rendered; the child exits as a process does (its garbage collected, no atexit).
+EXIT_SCRIPT = r"""
+import gc, os, sys
+import franka_composer
+
+env = franka_composer.load("reach")
+env.reset()
+env.physics.render(32, 32)
+if sys.argv[1:] == ["fork"]:
+    pid = os.fork()
+    if pid == 0:
+        child = franka_composer.load("reach")
+        child.reset()
+        try:
+            child.physics.render(32, 32)
+        except franka_composer.gl_fork.ForkedGLError:
+            print("refused", flush=True)
+        del child
+        gc.collect()
+        sys.stderr.flush()
+        os._exit(0)
+    os.waitpid(pid, 0)
+print("rendered")
+"""
+
+
+@pytest.mark.parametrize("gl", ["egl", pytest.param("osmesa", marks=osmesa)])
+@pytest.mark.parametrize("fork", [(), ("fork",)])
+def test_a_process_that_rendered_exits_without_a_traceback(gl, fork):
+    """dm_control frees its GL contexts in an atexit callback, after Python has stopped the
+    thread pools OSMesa's calls run on: every script that rendered under OSMesa ended with
+    three tracebacks, and a child refused a context one more (its __del__ found no
+    executor)."""
+    done = run_python(EXIT_SCRIPT, *fork, MUJOCO_GL=gl)
+    assert done.returncode == 0 and done.stdout.split() == (
+        ["refused", "rendered"] if fork and gl == "osmesa" else ["rendered"])
+    assert done.stderr == ""
+
+
 # ----- Threads ------------------------------------------------------------------------------
 
 
