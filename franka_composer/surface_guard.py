@@ -16,7 +16,8 @@ than the press depth below where the hand would touch it.
 The press depth is what the controller's spring, held still by the surface, needs to push
 with the force the arm itself could push down with in its present configuration: the
 largest F for which the joint torques J_z^T F stay within the joints' limits, min_i
-tau_max_i / |J_z,i| (114-136 N over the object square, where joint 2's 87 N m is the limit),
+tau_max_i / |J_z,i| (114-136 N over the object square: joint 6's 12 N m, 136 N, over most of
+it, joint 2's 87 N m, 114-116 N, at its far edge, x = 0.75 m),
 over the spring's vertical stiffness, which the controller supplies (`guard(tcp, target,
 stiffness)`: about 1.3 mm for the weld, 8 mm for the operational-space law).
 """

@@ -20,7 +20,8 @@ from franka_composer.validation import check_choice, check_names
 #: Each preset: parameter -> (distribution class, its arguments, why this range).
 PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
     "object_mass": (distributions.Uniform, (0.5, 1.5),
-                    "the objects' real mass is rarely known: +-50 % of the paper's 1 kg"),
+                    "the objects' real mass is rarely known: +-50 % of each task's (1 kg "
+                    "on push and slide, 0.1 kg on the others)"),
     "object_friction": (distributions.Uniform, (0.7, 1.3),
                         "friction coefficients are known to +-30 % at best (tables for common "
                         "material pairs spread that much)"),
