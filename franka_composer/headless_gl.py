@@ -8,8 +8,9 @@ user nor a display has chosen: frames render headless out of the box. A `MUJOCO_
 `libosmesa6` where EGL is missing). dm_control's EGL backend opens its display at import,
 ~55 MB in every process (docs/guide/benchmarks.md); a process that never renders can avoid
 it with `MUJOCO_GL=disable`. Where dm_control was imported first (shimmy imports it), or
-the user chose GLFW, without a display, the first render raises `HeadlessGLError` saying so
-(`check_can_render`), rather than failing inside dm_control's GL calls.
+the user chose GLFW, without a display or with one GLFW cannot open, the first render
+raises `HeadlessGLError` saying so (`check_can_render`), rather than failing inside
+dm_control's GL calls.
 """
 
 from __future__ import annotations
@@ -50,8 +51,17 @@ def check_can_render() -> None:
             "(or set egl or osmesa) before Python starts, or do not render: "
             "render_mode=None, observation_mode='state', demo --no-video")
     render = sys.modules.get("dm_control._render")
-    if getattr(render, "BACKEND", None) != "glfw" or has_display():
+    if getattr(render, "BACKEND", None) != "glfw":
         return
+    if has_display():
+        if _glfw_opens_the_display():
+            return
+        named = " and ".join(f"{name}={os.environ[name]}" for name in DISPLAY_VARIABLES
+                             if os.environ.get(name))
+        raise HeadlessGLError(
+            f"this process cannot render: dm_control renders through GLFW here, and GLFW "
+            f"cannot open the display {named} (none there, or not this user's). Unset it, "
+            "or set MUJOCO_GL=egl (or osmesa) before Python starts for headless frames")
     if os.environ.get("MUJOCO_GL") == "glfw":
         why = "MUJOCO_GL=glfw, which needs a display"
     else:
@@ -63,6 +73,26 @@ def check_can_render() -> None:
         "MUJOCO_GL=egl (or osmesa) before Python starts")
 
 
+#: Where X and Wayland clients find their display.
+DISPLAY_VARIABLES = ("DISPLAY", "WAYLAND_DISPLAY")
+
+
 def has_display() -> bool:
     """Whether an X or Wayland display is set for this process."""
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return any(os.environ.get(name) for name in DISPLAY_VARIABLES)
+
+
+def _glfw_opens_the_display() -> bool:
+    """Whether GLFW is initialised: dm_control initialises it on import, and where the
+    display cannot be opened that failed with only a warning, and every GL call after it
+    fails inside MuJoCo ("an OpenGL platform library has not been loaded")."""
+    import warnings
+
+    import glfw
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # The failure's warning, printed once already.
+        try:
+            return bool(glfw.init())  # At once where initialised; else tries again.
+        except glfw.GLFWError:  # Where the user set glfw.ERROR_REPORTING to raise.
+            return False

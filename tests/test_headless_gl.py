@@ -88,6 +88,21 @@ def test_glfw_without_a_display_is_refused_at_the_first_render_saying_why(mujoco
     assert _printed_errors(_GLFW_WITHOUT_A_DISPLAY, env) == [message, message]
 
 
+@pytest.mark.parametrize("mujoco_gl", [None, "glfw"])
+def test_a_display_glfw_cannot_open_is_refused_at_the_first_render_naming_it(mujoco_gl):
+    """A DISPLAY left over (ssh, a container) with no X server behind it: dm_control's GLFW
+    failed to initialise with a warning, and the render with MuJoCo's FatalError."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    env["DISPLAY"] = ":987"  # No X server's socket there.
+    if mujoco_gl:
+        env["MUJOCO_GL"] = mujoco_gl
+    message = ("this process cannot render: dm_control renders through GLFW here, and GLFW "
+               "cannot open the display DISPLAY=:987 (none there, or not this user's). Unset "
+               "it, or set MUJOCO_GL=egl (or osmesa) before Python starts for headless frames")
+    assert _printed_errors(_RENDER_TWICE, env) == [message, message]
+
+
 @pytest.mark.parametrize("off", ["disable", "off"])  # Two of dm_control's spellings.
 def test_rendering_with_rendering_turned_off_is_refused_saying_so(off):
     """dm_control's "No OpenGL rendering backend is available" came from deep inside, and
