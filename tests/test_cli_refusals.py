@@ -346,7 +346,8 @@ def test_report_and_evaluate_refuse_to_write_over_a_runs_own_files(tmp_path):
     run = _run(tmp_path / "run")
     before = {path.name: path.read_bytes() for path in run.root.iterdir()}
     for command, own in (("report", run.eval_csv), ("evaluate", run.config_path),
-                         ("report", run.checkpoint / "state.json")):
+                         ("report", run.checkpoint / "state.json"),
+                         ("evaluate", run.evaluations_npz)):
         with pytest.raises(ValueError, match=f"^--out {re.escape(str(own))} is one of the run "
                                              f"{re.escape(str(run.root))}'s own files: give "
                                              "another file$"):

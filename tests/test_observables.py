@@ -60,3 +60,17 @@ def test_reward_discount_and_success_come_from_one_distance_per_step():
         assert timestep.reward == -distance
         assert env.task.success == (distance < 0.05)
         assert timestep.discount == 1.0
+
+
+def test_the_arms_joint_observables_read_its_angles_and_velocities_when_enabled():
+    """Off by default (not in the paper's layout), on for a Composer user who asks."""
+    env = franka_composer.load("push", seed=0, terminate_on_success=False)
+    observables = env.task.panda.observables
+    assert not observables.joints_pos.enabled and not observables.joints_vel.enabled
+    observables.joints_pos.enabled = observables.joints_vel.enabled = True
+    env.reset()
+    timestep = env.step(np.full(3, 0.5, np.float32))
+    joints = env.physics.bind(env.task.panda.joints)
+    np.testing.assert_array_equal(timestep.observation["panda/joints_pos"], joints.qpos)
+    np.testing.assert_array_equal(timestep.observation["panda/joints_vel"], joints.qvel)
+    assert np.abs(joints.qvel).max() > 0.1  # The arm is moving: not a reading of zeros.

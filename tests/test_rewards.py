@@ -42,6 +42,12 @@ def test_success_is_distance_below_threshold():
     assert not rewards.is_success([0.03, 0, 0], np.zeros(3), 0.03)
 
 
+def test_an_unknown_metric_is_refused_naming_the_metrics():
+    with pytest.raises(ValueError, match="unknown metric 'manhattan'; valid metrics: "
+                                         "euclidean, rotation_angle"):
+        rewards.compute_reward(np.zeros(3), np.ones(3), "sparse", 0.05, metric="manhattan")
+
+
 def test_unknown_reward_type_and_bad_goal_shape_raise_clear_errors():
     with pytest.raises(ValueError, match="unknown reward_type 'shaped'.*sparse, dense"):
         rewards.compute_reward(np.zeros(3), np.zeros(3), "shaped", 0.05)

@@ -759,8 +759,8 @@ def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):
                                             "--no-terminate-on-success's False")):
         with pytest.raises(ValueError, match=f"--resume goes on with the run's own settings, "
                                              f"and .* {message}: only --total-steps, "
-                                             "--device, --threads and --checkpoint-every may "
-                                             "change"):
+                                             "--device, --checkpoint-every, --threads and "
+                                             "--no-progress may change"):
             cli.main(["train", "--resume", "--out", str(run.root), *extra])
     assert run.eval_csv.read_text() == before
 

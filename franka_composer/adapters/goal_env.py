@@ -83,8 +83,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             _check_display()
         _check_render_size(width, height)
         check_choice("camera", camera, CAMERAS)
-        # An env that never renders leaves the Panda's visual meshes out (~40 MB per env),
-        # unless its observations are images.
+        # An env that never renders leaves the Panda's visual meshes out (~50 MB per env),
+        # unless its images draw them (camera_meshes="visual").
         self._env = suite.load(task, reward_type=reward_type,
                                renderable=True if render_mode is not None else None,
                                **task_kwargs)

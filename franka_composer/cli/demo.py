@@ -19,6 +19,7 @@ import gymnasium as gym
 import franka_composer
 from franka_composer import headless_gl
 from franka_composer.adapters.registration import env_id
+from franka_composer.controllers.settings import TCP_CONTROLS
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
                                          frame_size, given_timing, output_folder,
                                          positive_int)
@@ -47,7 +48,7 @@ def add_parser(subparsers) -> None:
                        f"tasks to run (default: all of {','.join(franka_composer.ALL_TASKS)})")
     parser.add_argument("--episodes", type=positive_int, default=10,
                         help="episodes per task (default: 10)")
-    parser.add_argument("--control", choices=("mocap", "osc"), default=None,
+    parser.add_argument("--control", choices=TCP_CONTROLS, default=None,
                         help="controller the experts act through (they act on dx, dy, dz, "
                              "so not joints; default: mocap, or the --policy run's)")
     add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "

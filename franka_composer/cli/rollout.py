@@ -18,6 +18,7 @@ import franka_composer
 from franka_composer.cli.options import (add_object_damping, add_timing, episode_seed,
                                          given_timing, positive_int, standard_deviation)
 from franka_composer.controllers import CONTROLS
+from franka_composer.tasks.rewards import REWARD_TYPES
 
 
 def add_parser(subparsers) -> None:
@@ -47,7 +48,7 @@ def add_parser(subparsers) -> None:
                              "the scripted expert")
     parser.add_argument("--action-noise", type=standard_deviation, default=0.0, metavar="STD",
                         help="Gaussian noise added to each action component (default: 0)")
-    parser.add_argument("--reward-type", choices=("sparse", "dense"), default="sparse",
+    parser.add_argument("--reward-type", choices=REWARD_TYPES, default="sparse",
                         help="reward stored with each step (default: sparse)")
     parser.add_argument("--dataset-id", default=None,
                         help="Minari dataset id (default: franka_composer/<task>[-<control>]/"

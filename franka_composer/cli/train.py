@@ -32,12 +32,17 @@ RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progr
 _OPTION_OF_SETTING = {"stop_success_rate": "stop_at_success",
                       "stop_after_evaluations": "stop_after",
                       "velocity_timestep": "timing", "weld_time_constant": "timing"}
-_FLAGS = {"terminate_on_success": "--no-terminate-on-success"}
+_FLAGS = {"terminate_on_success": "--no-terminate-on-success", "progress": "--no-progress"}
 
 
 def _flag(option: str) -> str:
     """The command-line flag of option `option` (an argparse dest)."""
     return _FLAGS.get(option, "--" + option.replace("_", "-"))
+
+
+#: RESUME_OPTIONS as a user types them.
+RESUME_FLAGS = (", ".join(map(_flag, RESUME_OPTIONS[:-1]))
+                + f" and {_flag(RESUME_OPTIONS[-1])}")
 
 
 def _net_arch(text: str) -> tuple[int, ...]:
@@ -133,9 +138,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --out from its latest checkpoint: same "
                              "step counter, replay buffer and eval.csv; its saved settings "
-                             "are used: only --total-steps, --device, --threads and "
-                             "--checkpoint-every may change, and an option that says "
-                             "otherwise is refused")
+                             f"are used: only {RESUME_FLAGS} may change, and an option "
+                             "that says otherwise is refused")
     parser.add_argument("--total-steps", type=positive_int, default=None,
                         help="environment steps to train (Table I: 5e5, slide 1e6)")
     parser.add_argument("--device", choices=DEVICES, default="auto",
@@ -165,8 +169,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--buffer-size", type=positive_int, default=None,
                         help="replay buffer transitions (Table I: 1e6)")
     parser.add_argument("--learning-starts", type=non_negative_int, default=None,
-                        help="random-action steps before learning (SB3's default 100, which "
-                             "Table I keeps; the paper's curves imply 100000: the training "
+                        help="random-action steps before learning (SB3's default 100; "
+                             "Table I does not set it; the paper's curves imply 100000: the training "
                              "guide; with an update every step at least an episode's steps "
                              "less one)")
     parser.add_argument("--eval-every", type=positive_int, default=None,
@@ -330,7 +334,7 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
             f"--resume goes on with the run's own settings, and {run_dir.root} has "
             + "; ".join(f"{name} {theirs}, not {_flag(option)}'s {ours}"
                         for option, name, ours, theirs in conflicts)
-            + ": only --total-steps, --device, --threads and --checkpoint-every may change")
+            + f": only {RESUME_FLAGS} may change")
 
 
 def check_threads(threads: int | None) -> None:

@@ -168,10 +168,6 @@ class OscLaw(TcpTargetLaw):
             self._update_torques()
         self._phase += 1
 
-    def target(self) -> np.ndarray:
-        """The tool centre point's present target (m, world frame)."""
-        return self._target.copy()
-
     def vertical_stiffness(self) -> float:
         """Newtons per metre the law pushes down with per metre its target lies below the
         hand, the hand held still: STIFFNESS times the hand's operational-space inertia

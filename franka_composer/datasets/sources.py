@@ -14,7 +14,7 @@ from franka_composer.validation import check_number
 
 class NoisyPolicy:
     """`policy`'s action plus N(0, `scale`) noise per component, clipped to [-1, 1]; the
-    noise stream restarts from `seed` + the episode index at each `reset`, so a recorded
+    noise stream restarts from (`seed`, the episode's index) at each `reset`, so a recorded
     episode is a function of its seed."""
 
     def __init__(self, policy, scale: float, seed: int) -> None:

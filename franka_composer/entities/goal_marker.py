@@ -50,15 +50,6 @@ class GoalMarker(composer.Entity):
         for site in self._mjcf_root.find_all("site"):
             site.group = HIDDEN_GROUP
 
-    @property
-    def site(self):
-        """The (first) marker site."""
-        return self._sites[0]
-
-    @property
-    def sites(self) -> list:
-        return list(self._sites)
-
     def set_position(self, physics, position: np.ndarray) -> None:
         """Moves the marker to `position` (m, world frame; the marker sits at the origin of
         its attachment frame, so the site offset is the world position)."""

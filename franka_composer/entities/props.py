@@ -1,4 +1,4 @@
-"""The objects the robot moves: a block (push, pick_and_place) and a puck (slide).
+"""The objects the robot moves: blocks (push, pick_and_place, stack, flip) and a puck (slide).
 
 Both are dm_control `Primitive` props, which bring frame sensors and the free-prop
 observables (position, orientation quaternion, linear and angular velocity, world frame),
@@ -49,7 +49,8 @@ class Block(Prop):
 
 
 class Puck(Prop):
-    """A flat cylinder that slides on a low-friction surface."""
+    """A cylinder (6 cm across and as tall, by default) that slides on a low-friction
+    surface."""
 
     def _build(self, radius: float = 0.03, half_height: float = 0.03, mass: float = 1.0,
                friction: float = 0.04, name: str = "puck",

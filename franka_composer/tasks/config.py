@@ -117,7 +117,7 @@ class BlockSpec:
 
 @dataclasses.dataclass(frozen=True)
 class PuckSpec:
-    """A flat cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction`;
+    """A cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction`;
     `joint_damping` as a block's."""
 
     radius: float = 0.03

@@ -46,11 +46,6 @@ def euclidean_distance(achieved_goal, desired_goal, size: int | None = 3) -> np.
     return np.sqrt(np.add.reduce(difference * difference, axis=-1))
 
 
-def goal_distance(achieved_goal, desired_goal) -> np.ndarray:
-    """The Euclidean distance (m) between two positions (x, y, z)."""
-    return euclidean_distance(achieved_goal, desired_goal, 3)
-
-
 def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
     """The angle (rad, in [0, pi]) of the rotation between two orientations given as unit
     quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation."""
@@ -63,6 +58,7 @@ def distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
     """The goal distance by `metric` (one of `METRICS`) for goals of `size` numbers."""
     if metric == "rotation_angle":
         return rotation_angle(achieved_goal, desired_goal)
+    check_choice("metric", metric, METRICS)  # Not silently Euclidean.
     return euclidean_distance(achieved_goal, desired_goal, size)
 
 

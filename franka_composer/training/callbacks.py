@@ -114,6 +114,7 @@ class Evaluation(EvalCallback):
         self.record = RecordEvaluation(run, clock, every=every,
                                        stop_success_rate=stop_success_rate,
                                        stop_after=stop_after)
+        # log_path: SB3 writes its evaluations.npz there (`RunDir.evaluations_npz`).
         super().__init__(eval_env, callback_after_eval=self.record, n_eval_episodes=episodes,
                          eval_freq=every, log_path=str(run.root),
                          deterministic=True, warn=False, verbose=0)

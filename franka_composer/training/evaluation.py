@@ -1,8 +1,9 @@
 """Success rate of a policy over seeded episodes: the paper's final test (`evaluate`).
 
 An episode succeeds when the last step reports `is_success`: with the paper's
-terminate-on-success ids that is "the object reached the goal within 50 steps"; without
-termination it is the Fetch convention (the object is at the goal when time runs out).
+terminate-on-success ids that is "the object reached the goal within the episode's steps"
+(50, or 100 for stack and flip); without termination it is the Fetch convention (the
+object is at the goal when time runs out).
 """
 
 from __future__ import annotations

@@ -69,8 +69,8 @@ class Hyperparameters:
       total_steps: environment steps to train for.
       eval_every: environment steps between evaluations; eval_episodes: deterministic
         episodes per evaluation.
-      learning_starts: steps of random actions before learning (not in Table I: SB3's
-        default, which the paper's code keeps).
+      learning_starts: steps of random actions before learning (not in Table I, which
+        leaves SB3's default, 100; the paper's curves imply 1e5: docs/guide/training.md).
       update_schedule: one of `UPDATE_SCHEDULES` (not in Table I; "step" is the paper's).
       train_every: with the "step" schedule, environment steps per gradient step (not in
         Table I; 1 is the paper's). 4 does a quarter of the updates: about 4x the steps/s

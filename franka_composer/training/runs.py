@@ -5,10 +5,12 @@
     RUN_DIR/eval.csv             one row per evaluation (appended across resumes)
     RUN_DIR/expert-demos.npz     the demonstrations its expert recorded at its start, if asked
     RUN_DIR/model.zip            the final model (written when training completes)
+    RUN_DIR/policy.pt            its actor alone, what `keep` copies and a repository commits
     RUN_DIR/outcome.json         how it ended: steps, and whether it stopped early (none
                                  while a resume with a raised budget trains)
     RUN_DIR/evaluations.npz      SB3's per-episode log of this session's evaluations
     RUN_DIR/training.lock        held (flock) by the process training the run
+    RUN_DIR/tensorboard/         TensorBoard's logs, where the tensorboard package is installed
     RUN_DIR/checkpoint           the latest complete checkpoint: a link to
                                  checkpoint-STEPS-*/ (model.zip, replay_buffer.pkl,
                                  generators.pkl, state.json), switched to a new one in one
@@ -58,6 +60,11 @@ class RunDir:
     @property
     def outcome_path(self) -> pathlib.Path:
         return self.root / "outcome.json"
+
+    @property
+    def evaluations_npz(self) -> pathlib.Path:
+        """SB3's `EvalCallback` log, written where the run's evaluations go (`log_path`)."""
+        return self.root / "evaluations.npz"
 
     def read_outcome(self) -> dict:
         """{"steps", "stopped_early", "wall_time_s", "cpu_time_s", "fresh_streams",
@@ -144,8 +151,9 @@ class RunDir:
             return False
         top = path.relative_to(root).parts[0]
         own = {p.name for p in (self.config_path, self.eval_csv, self.outcome_path,
-                                self.expert_demos, self.final_model, self.policy_file,
-                                self.lock_path, self.checkpoint, self.tensorboard)}
+                                self.evaluations_npz, self.expert_demos, self.final_model,
+                                self.policy_file, self.lock_path, self.checkpoint,
+                                self.tensorboard)}
         return top in own or top.startswith(f"{self.checkpoint.name}-")
 
     def trainer(self) -> str | None:
