@@ -21,8 +21,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tasks_argument(parser, ALL_TASKS, "tasks to time (default: all)")
-    parser.add_argument("--steps", type=positive_int, default=2000)
-    parser.add_argument("--rounds", type=positive_int, default=3)
+    parser.add_argument("--steps", type=positive_int, default=2000,
+                        help="env steps per round, task and controller (default: 2000)")
+    parser.add_argument("--rounds", type=positive_int, default=3,
+                        help="rounds, the best of which is reported (default: 3)")
     args = parser.parse_args(argv)
     best = best_of_rounds(args.tasks, {c: {"control": c} for c in CONTROLS}, args.steps,
                           args.rounds)

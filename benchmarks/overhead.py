@@ -1,6 +1,6 @@
 """Where an env step's time goes beyond MuJoCo: each layer timed on its own, in one process.
 
-    python benchmarks/overhead.py [TASK ...]
+    python benchmarks/overhead.py [--tasks TASK[,TASK]]
 
 Every part is timed with `timeit` (best of 5) at a fixed state with zero actions, so the
 parts are comparable with each other and with `mj_step` in the same run; they do not add
@@ -9,7 +9,7 @@ up to a step exactly (cache effects between layers are not in any part).
 
 from __future__ import annotations
 
-import sys
+import argparse
 import timeit
 
 import gymnasium as gym
@@ -18,6 +18,7 @@ import numpy as np
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
+from franka_composer.cli.options import add_tasks_argument
 
 
 def best_us(function, number: int) -> float:
@@ -56,7 +57,8 @@ def breakdown(task: str) -> dict[str, float]:
         "controller.apply (before_step)": best_us(apply_action, 5000),
     }
     parts.update({
-        "observables (8 reads)": best_us(composer_env._read_observation, 5000),
+        f"observables ({len(observation)} reads)": best_us(composer_env._read_observation,
+                                                           5000),
         "distance + reward + discount + termination": best_us(
             lambda: (task_object.after_step(physics, None),
                      composer_env._make_timestep(False, observation)), 5000),
@@ -70,8 +72,11 @@ def breakdown(task: str) -> dict[str, float]:
     return parts
 
 
-def main(tasks: list[str]) -> int:
-    for task in tasks or franka_composer.ALL_TASKS:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_tasks_argument(parser, franka_composer.ALL_TASKS, "tasks to time (default: all)")
+    for task in parser.parse_args(argv).tasks:
         parts = breakdown(task)
         floor = parts["mj_step(model, data, 25)"]
         print(f"\n{task}")
@@ -81,4 +86,4 @@ def main(tasks: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    raise SystemExit(main())

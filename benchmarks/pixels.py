@@ -31,8 +31,10 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tasks_argument(parser, ("push", "pick_and_place"),
                        "tasks to time (default: push, pick_and_place)")
-    parser.add_argument("--steps", type=positive_int, default=1000)
-    parser.add_argument("--rounds", type=positive_int, default=2)
+    parser.add_argument("--steps", type=positive_int, default=1000,
+                        help="env steps per round and setting (default: 1000)")
+    parser.add_argument("--rounds", type=positive_int, default=2,
+                        help="rounds, the best of which is reported (default: 2)")
     args = parser.parse_args(argv)
     best = best_of_rounds(args.tasks, SETTINGS, args.steps, args.rounds)
     print(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')}; 84 x 84 images")

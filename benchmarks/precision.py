@@ -21,8 +21,7 @@ import time
 from franka_composer.cli.options import positive_int
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training import ALGOS, PRECISIONS, hyperparameters
-from franka_composer.training.models import (DEVICES, build_model, make_env, quiet_logger,
-                                            resolve_device)
+from franka_composer.training.models import DEVICES, build_model, make_env, quiet_logger
 from franka_composer.training.precision import autocast
 
 FILL_STEPS = 1000
@@ -68,14 +67,19 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--task", default="push", choices=ALL_TASKS)
     parser.add_argument("--algos", nargs="+", default=["sac", "tqc", "ddpg"], choices=ALGOS)
-    parser.add_argument("--steps", type=positive_int, default=100)
-    parser.add_argument("--rounds", type=positive_int, default=3)
+    parser.add_argument("--steps", type=positive_int, default=100,
+                        help="gradient steps per round and precision (default: 100)")
+    parser.add_argument("--rounds", type=positive_int, default=3,
+                        help="rounds, the best of which is reported (default: 3)")
     parser.add_argument("--threads", type=positive_int, default=1)
     parser.add_argument("--device", default="cpu", choices=DEVICES[1:])
     args = parser.parse_args(argv)
     import torch
 
-    device = resolve_device(args.device)
+    if args.device == "cuda" and not torch.cuda.is_available():  # Before any work.
+        parser.error("--device cuda, but torch sees no CUDA GPU (torch.cuda.is_available() is "
+                     "False); use --device cpu")
+    device = args.device
     torch.set_num_threads(args.threads)
     where = torch.cuda.get_device_name() if device == "cuda" else "CPU"
     print(f"{where}; CPU bf16 units: {'yes' if cpu_has_bf16() else 'no'}; torch "

@@ -46,8 +46,10 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tasks_argument(parser, ("push", "pick_and_place"),
                        "tasks to time (default: push, pick_and_place)")
-    parser.add_argument("--steps", type=positive_int, default=1000)
-    parser.add_argument("--rounds", type=positive_int, default=3)
+    parser.add_argument("--steps", type=positive_int, default=1000,
+                        help="env steps per round and setting (default: 1000)")
+    parser.add_argument("--rounds", type=positive_int, default=3,
+                        help="rounds, the best of which is reported (default: 3)")
     args = parser.parse_args(argv)
     best = best_of_rounds(args.tasks, SETTINGS, args.steps, args.rounds)
     print("| task | setting | env steps/s | / none | reset ms | / none |")

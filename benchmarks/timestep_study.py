@@ -32,7 +32,7 @@ import time
 import mujoco
 import numpy as np
 
-from franka_composer.cli.options import add_tasks_argument
+from franka_composer.cli.options import add_tasks_argument, output_folder
 
 #: Physics steps compared (s); the last is the reference the others are measured against.
 TIMESTEPS = (0.002, 0.001, 0.0005)
@@ -176,8 +176,9 @@ def main(argv=None) -> int:
     parser.add_argument("--episodes", type=int, default=20,
                         help="seeded episodes per task, policy and step (default: 20)")
     add_tasks_argument(parser, franka_composer.ALL_TASKS, "tasks to study (default: all)")
-    parser.add_argument("--out", type=pathlib.Path,
-                        default=pathlib.Path("results/timestep-study"))
+    parser.add_argument("--out", type=output_folder, default="results/timestep-study",
+                        help="folder for timestep-study.csv and .md, checked before the "
+                             "study runs (default: results/timestep-study)")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")

@@ -139,3 +139,40 @@ def test_the_timestep_study_refuses_an_unknown_task(capsys):
     with pytest.raises(SystemExit):
         study.main(["--tasks", "push,fly"])
     assert "unknown task(s) fly; valid tasks: push, slide" in capsys.readouterr().err
+
+
+def test_the_timestep_study_refuses_an_out_it_cannot_write_before_measuring(tmp_path, capsys,
+                                                                            monkeypatch):
+    """It ran the whole study (minutes), then failed with a traceback writing it."""
+    study = load_script(BENCHMARKS / "timestep_study.py")
+    monkeypatch.setattr(study, "run_cell", lambda *args: pytest.fail("measured first"))
+    (tmp_path / "file").write_text("")
+    with pytest.raises(SystemExit):
+        study.main(["--tasks", "reach", "--episodes", "1", "--out", str(tmp_path / "file")])
+    assert "argument --out: must be a folder, got the file" in capsys.readouterr().err
+
+
+def test_the_overhead_breakdown_takes_the_shared_tasks_option_and_counts_each_tasks_reads(
+        capsys, monkeypatch):
+    """It took positional names, unchecked until their turn (`--help` was a task), and
+    labelled every task's observation read "8 reads"."""
+    overhead = load_script(BENCHMARKS / "overhead.py")
+    with pytest.raises(SystemExit):
+        overhead.main(["--tasks", "push,fly"])
+    assert "unknown task(s) fly; valid tasks: push, slide" in capsys.readouterr().err
+    monkeypatch.setattr(overhead, "best_us", lambda function, number: 1.0)  # No timing.
+    assert "observables (4 reads)" in overhead.breakdown("reach")
+    assert "observables (13 reads)" in overhead.breakdown("stack")
+
+
+def test_the_precision_benchmark_refuses_cuda_without_a_gpu_in_one_line(capsys):
+    import torch
+
+    if torch.cuda.is_available():
+        pytest.skip("a GPU is here")
+    precision = load_script(BENCHMARKS / "precision.py")
+    with pytest.raises(SystemExit):
+        precision.main(["--device", "cuda", "--algos", "sac"])
+    assert capsys.readouterr().err.endswith(
+        "error: --device cuda, but torch sees no CUDA GPU (torch.cuda.is_available() is "
+        "False); use --device cpu\n")
