@@ -20,10 +20,12 @@ In every case a forked child never frees what it inherited (dm_control would, in
 collection and at exit, and wait for the parent's threads): an at-fork hook disowns the
 inherited contexts, without a GL call.
 
-At exit a process frees its own contexts before Python stops its thread pools: dm_control
-frees them in an `atexit` callback, which runs after that, so with OSMesa (whose calls go to
-a thread of such a pool) every script that rendered printed three tracebacks as it ended
-("cannot schedule new futures after shutdown").
+With OSMesa, whose calls go to a thread of a `concurrent.futures` pool, a process frees its
+own contexts at exit before Python stops its thread pools: dm_control frees them in an
+`atexit` callback, which runs after that, and every script that rendered printed three
+tracebacks as it ended ("cannot schedule new futures after shutdown"). (A thread still
+rendering under OSMesa as the main thread ends could not render on either way: its calls
+go to the pool Python stops.) EGL calls on the calling thread, and is left as it was.
 
 `install()` puts these contexts in the place of dm_control's (`dm_control._render.Renderer`,
 which `Physics` makes its contexts from) and registers the hook; other backends (GLFW with
@@ -63,22 +65,25 @@ def install() -> None:
         _render.Renderer = _process_egl_context(_render.Renderer)
     elif _render.BACKEND == "osmesa":
         _render.Renderer = _process_osmesa_context(_render.Renderer)
+        # Threading's exit hooks run in the reverse order of registration, atexit's after
+        # them: the thread pools' hook (registered on the pools' module's first import,
+        # which dm_control leaves to its first context) goes first, to run after this one.
+        import concurrent.futures.thread  # pylint: disable=unused-import,import-outside-toplevel
+
+        threading._register_atexit(_free_contexts_at_exit)  # pylint: disable=protected-access
     else:
         return
     os.register_at_fork(after_in_child=_forget_inherited_gl)
-    # Threading's exit hooks run in the reverse order of registration, atexit's after them:
-    # the thread pools' hook (registered on the pools' module's first import, which
-    # dm_control leaves to its first context) is registered first, to run after this one.
-    import concurrent.futures.thread  # pylint: disable=unused-import,import-outside-toplevel
-
-    threading._register_atexit(_free_contexts_at_exit)  # pylint: disable=protected-access
 
 
 def _free_contexts_at_exit() -> None:
-    """What dm_control's atexit callback does for each context, while the threads its
-    calls run on still take work."""
+    """What dm_control's atexit callback does for each context, while the pool thread its
+    calls run on still takes work."""
     for context in list(_CONTEXTS):
-        context._free_unconditionally()  # pylint: disable=protected-access
+        try:
+            context._free_unconditionally()  # pylint: disable=protected-access
+        except Exception:  # pylint: disable=broad-except
+            pass  # Left to dm_control's own atexit, as before; the others are still freed.
 
 
 # The process-aware contexts alive in this process (a forked child's are its parent's).
@@ -145,7 +150,9 @@ def _process_egl_context(egl_context):
             _display_for_this_process()
             super()._platform_init(max_width, max_height)
 
-        _free_unconditionally = _free_if_made
+        def _free_unconditionally(self):
+            if _was_made(self):
+                super()._free_unconditionally()
 
     return ProcessEGLContext
 
@@ -173,16 +180,17 @@ def _process_osmesa_context(osmesa_context):
             super().__init__(*args, **kwargs)
             _CONTEXTS.add(self)
 
-        _free_unconditionally = _free_if_made
+        def _free_unconditionally(self):
+            if _was_made(self):
+                super()._free_unconditionally()
 
     return ProcessOSMesaContext
 
 
-def _free_if_made(context) -> None:
-    """dm_control's `_free_unconditionally`, for a context whose making was not refused:
-    one refused (`ForkedGLError`) holds nothing, and its `__del__` found no executor."""
-    if "_render_executor" in vars(context):
-        super(type(context), context)._free_unconditionally()  # pylint: disable=protected-access
+def _was_made(context) -> bool:
+    """Whether dm_control made `context`: one refused (`ForkedGLError`) holds nothing to
+    free, and its `__del__` found no executor."""
+    return "_render_executor" in vars(context)
 
 
 def _egl():

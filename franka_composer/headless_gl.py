@@ -41,9 +41,10 @@ class HeadlessGLError(RuntimeError):
 
 def check_can_render() -> None:
     """A `HeadlessGLError` where rendering is off (`MUJOCO_GL=disable` or another of
-    `NO_RENDERER`: dm_control's "No
-    OpenGL rendering backend is available" from deep inside), or dm_control renders through
-    GLFW and there is no display (its GL calls would fail inside: MjrContext has no _ptr)."""
+    `NO_RENDERER`: dm_control's "No OpenGL rendering backend is available" from deep
+    inside), or dm_control renders through GLFW and there is no display, or one GLFW could
+    not open (its GL calls would fail inside: MjrContext has no _ptr, or MuJoCo's "an
+    OpenGL platform library has not been loaded")."""
     chosen = os.environ.get("MUJOCO_GL", "")
     if chosen.lower() in NO_RENDERER:
         raise HeadlessGLError(
@@ -58,10 +59,14 @@ def check_can_render() -> None:
             return
         named = " and ".join(f"{name}={os.environ[name]}" for name in DISPLAY_VARIABLES
                              if os.environ.get(name))
+        wayland_only = not os.environ.get("DISPLAY")
         raise HeadlessGLError(
             f"this process cannot render: dm_control renders through GLFW here, and GLFW "
-            f"cannot open the display {named} (none there, or not this user's). Unset it, "
-            "or set MUJOCO_GL=egl (or osmesa) before Python starts for headless frames")
+            f"cannot open the display {named} (none there, or not this user's"
+            + ("; pyglfw speaks Wayland only with PYGLFW_LIBRARY_VARIANT=wayland or "
+               "XDG_SESSION_TYPE=wayland" if wayland_only else "")
+            + "). Unset it, or set MUJOCO_GL=egl (or osmesa) before Python starts for "
+            "headless frames")
     if os.environ.get("MUJOCO_GL") == "glfw":
         why = "MUJOCO_GL=glfw, which needs a display"
     else:

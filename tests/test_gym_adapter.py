@@ -174,6 +174,22 @@ def test_a_copy_keeps_its_spec_so_gym_make_rebuilds_it():
         assert steps == 7 and remade.unwrapped.task.terminate_on_success is False
 
 
+def test_an_env_registered_with_a_lambda_still_pickles_without_its_spec():
+    """Its spec's entry point does not pickle; the env, rebuilt from its arguments, does."""
+    from franka_composer.adapters.goal_env import FrankaGoalEnv
+
+    gym.register("TestLambdaReach-v0", max_episode_steps=5,
+                 entry_point=lambda **kwargs: FrankaGoalEnv(task="reach", **kwargs))
+    try:
+        env = gym.make("TestLambdaReach-v0")
+        clone = pickle.loads(pickle.dumps(env))
+        assert clone.unwrapped.spec is None and clone.unwrapped.task_name == "reach"
+        np.testing.assert_array_equal(clone.reset(seed=3)[0]["desired_goal"],
+                                      env.reset(seed=3)[0]["desired_goal"])
+    finally:
+        gym.registry.pop("TestLambdaReach-v0")
+
+
 @pytest.mark.parametrize("control", ["mocap", "osc", "joints"])
 def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name, control):
     id_ = env_id(task_name, "sparse", control)

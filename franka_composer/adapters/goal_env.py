@@ -10,6 +10,7 @@ relabel, runs) and `is_success` is the task's.
 
 from __future__ import annotations
 
+import pickle
 import sys
 from typing import Any
 
@@ -60,8 +61,14 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
     def __getstate__(self):
-        # EzPickle rebuilds from the constructor's arguments; `gym.make`'s spec goes along.
-        return {**EzPickle.__getstate__(self), "spec": self.spec}
+        # EzPickle rebuilds from the constructor's arguments; `gym.make`'s spec goes along
+        # where it pickles (an id registered with a lambda as its entry point does not).
+        state = EzPickle.__getstate__(self)
+        try:
+            pickle.dumps(self.spec)
+        except (pickle.PicklingError, AttributeError, TypeError):
+            return state
+        return {**state, "spec": self.spec}
 
     def __setstate__(self, state):
         state = dict(state)

@@ -170,9 +170,9 @@ def add_parser(subparsers) -> None:
                         help="replay buffer transitions (Table I: 1e6)")
     parser.add_argument("--learning-starts", type=non_negative_int, default=None,
                         help="random-action steps before learning (SB3's default 100; "
-                             "Table I does not set it; the paper's curves imply 100000: the training "
-                             "guide; with an update every step at least an episode's steps "
-                             "less one)")
+                             "Table I does not set it; the paper's curves imply 100000: "
+                             "the training guide; with an update every step at least an "
+                             "episode's steps less one)")
     parser.add_argument("--eval-every", type=positive_int, default=None,
                         help="steps between evaluations (Table I: 2000)")
     parser.add_argument("--eval-episodes", type=positive_int, default=None,

@@ -18,7 +18,7 @@ ARM_ACTIONS = {
 #: The `control` option's values: the paper's mocap first (the default).
 CONTROLS = tuple(ARM_ACTIONS)
 #: The controllers whose arm action moves the tool centre point (dx, dy, dz).
-TCP_CONTROLS = tuple(kind for kind in CONTROLS if ARM_ACTIONS[kind][1] == "dx, dy, dz")
+TCP_CONTROLS = tuple(kind for kind in CONTROLS if ARM_ACTIONS[kind][2] == "tcp_delta")
 
 # The mocap weld's stiffness (critically damped, time constant in s). MuJoCo's default 0.02 s
 # leaves 30 % of a full command from rest undone after a 0.05 s control step. A stiff 0.006 s

@@ -56,10 +56,11 @@ def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
 
 def distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
     """The goal distance by `metric` (one of `METRICS`) for goals of `size` numbers."""
+    if metric == "euclidean":
+        return euclidean_distance(achieved_goal, desired_goal, size)
     if metric == "rotation_angle":
         return rotation_angle(achieved_goal, desired_goal)
-    check_choice("metric", metric, METRICS)  # Not silently Euclidean.
-    return euclidean_distance(achieved_goal, desired_goal, size)
+    raise ValueError(f"unknown metric {metric!r}; valid metrics: {', '.join(METRICS)}")
 
 
 def check_reward_type(reward_type: str) -> str:
@@ -72,7 +73,7 @@ def reward_from_distance(distance, reward_type: str, distance_threshold: float) 
     success). Dense: -distance. Float64."""
     if check_reward_type(reward_type) == "sparse":
         return np.where(success_from_distance(distance, distance_threshold), 0.0, -1.0)
-    return np.negative(distance, dtype=np.float64, out=np.empty(np.shape(distance)))
+    return np.asarray(-np.asarray(distance, dtype=np.float64))  # 0-d for one pair, as sparse.
 
 
 def success_from_distance(distance, distance_threshold: float) -> np.ndarray:
@@ -84,7 +85,8 @@ def compute_reward(achieved_goal, desired_goal, reward_type: str, distance_thres
                    metric: str = "euclidean", size: int = 3) -> np.ndarray:
     """Sparse: 0 within `distance_threshold` of the goal, else -1. Dense: -distance.
 
-    Returns float64 with the leading batch shape of the goals (a 0-d array for one pair).
+    Returns float64 with the leading batch shape of the goals (a 0-d ndarray for one pair,
+    not a Python float).
     """
     return reward_from_distance(distance(achieved_goal, desired_goal, metric, size),
                                 reward_type, distance_threshold)
