@@ -43,10 +43,12 @@ def _claim(comment: str):
         expression = None
     if isinstance(expression, ast.Compare):
         return "holds", comment
-    try:
-        return "value", ast.literal_eval(comment.split(":")[0].strip())
-    except (ValueError, SyntaxError):
-        return None
+    for literal in (comment, comment.split(":")[0].strip()):  # `{'a': 1}`, `1.0: prose`
+        try:
+            return "value", ast.literal_eval(literal)
+        except (ValueError, SyntaxError):
+            continue
+    return None
 
 
 def checked_script(source: str) -> str:
@@ -76,11 +78,12 @@ def checked_script(source: str) -> str:
 
 def test_the_pages_comments_are_read_as_claims_where_they_can_be():
     source = ('x = (50, 2.5)\nx  # (50, 2.5)\nx[0]  # 1.0: prose after the value\n'
-              'y = [1, 2]  # len(y) == 3\nx  # prose\n')
+              'y = [1, 2]  # len(y) == 3\nx  # prose\n{"a": 1}  # {"a": 1}\n')
     script = checked_script(source)
     assert "assert _same(_got, 1.0)" in script
     assert "assert len(y) == 3" in script
-    assert script.count("assert ") == 3  # The prose after the last x asserts nothing.
+    assert "assert _same(_got, {'a': 1})" in script
+    assert script.count("assert ") == 4  # The prose after the last x asserts nothing.
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert "AssertionError: ('x[0]', 'gives', 50, 'not', 1.0)" in run.stderr
 
