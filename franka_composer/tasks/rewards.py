@@ -56,11 +56,11 @@ def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
 
 def distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
     """The goal distance by `metric` (one of `METRICS`) for goals of `size` numbers."""
-    if metric == "euclidean":
-        return euclidean_distance(achieved_goal, desired_goal, size)
     if metric == "rotation_angle":
         return rotation_angle(achieved_goal, desired_goal)
-    raise ValueError(f"unknown metric {metric!r}; valid metrics: {', '.join(METRICS)}")
+    if metric != "euclidean":  # Checked only off the hot path: check_choice raises here.
+        check_choice("metric", metric, METRICS)
+    return euclidean_distance(achieved_goal, desired_goal, size)
 
 
 def check_reward_type(reward_type: str) -> str:
