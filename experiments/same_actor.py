@@ -3,13 +3,20 @@
     python experiments/same_actor.py RUN_A/policy.pt RUN_B/policy.pt
 """
 
+from __future__ import annotations
+
+import argparse
 import sys
 
 import torch
 
 
-def main(first: str, second: str) -> int:
-    a, b = (torch.load(path)["actor"] for path in (first, second))
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("first", metavar="RUN_A/policy.pt")
+    parser.add_argument("second", metavar="RUN_B/policy.pt")
+    args = parser.parse_args(argv)
+    a, b = (torch.load(path)["actor"] for path in (args.first, args.second))
     assert a.keys() == b.keys(), "the two actors have different tensors"
     differ = {name: float((a[name] - b[name]).abs().max()) for name in a
               if not torch.equal(a[name], b[name])}
@@ -19,4 +26,4 @@ def main(first: str, second: str) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(*sys.argv[1:]))
+    sys.exit(main())

@@ -12,7 +12,7 @@ Needs SciPy (installed with the test extra).
 
 from __future__ import annotations
 
-import sys
+import argparse
 
 import mujoco
 import numpy as np
@@ -52,8 +52,11 @@ def reach(task: str = "push") -> dict[str, tuple[float, float]]:
     return result
 
 
-def main() -> None:
-    task = sys.argv[1] if len(sys.argv) > 1 else "push"
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("task", nargs="?", default="push", choices=franka_composer.ALL_TASKS,
+                        metavar="TASK", help="the task whose starting pose is measured (default: push)")
+    task = parser.parse_args(argv).task
     print(f"{task}, osc, starting pose: largest hand acceleration within the torque limits")
     print("| direction | m/s^2 | cm in one 0.05 s step from rest |")
     print("|---|---|---|")
