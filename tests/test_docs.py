@@ -91,3 +91,50 @@ def test_the_docs_link_only_to_files_that_exist():
             if not linked.exists() and not (on_site and linked in generated):
                 missing.append(f"{page.relative_to(REPO)}: {target}")
     assert missing == []
+
+
+#: Commands the docs give for an older tree, with options today's commands no longer take:
+#: (page, command, option).
+OLDER_TREES = {
+    ("docs/experiments/speed-levers.md", "bench", "--out"),  # Commit 0e9d700's bench.
+    ("docs/guide/benchmarks.md", "bench", "--memory-envs"),  # Tree e2d0bf6's, on PYTHONPATH.
+}
+
+
+def test_the_docs_give_franka_composer_only_options_it_takes():
+    """Every `franka-composer COMMAND ...` the README, RESULTS.md, the docs pages and the
+    results' notes give to run (in code, lines joined at a trailing backslash) names a
+    command that exists and only options that command takes (after a bare `--`, `sweep`
+    passes `train`'s): a renamed option would leave a reader's copied command refused."""
+    from franka_composer.cli import SUBCOMMANDS, command_parser
+
+    options = {name: set(command_parser(name)._option_string_actions) for name in SUBCOMMANDS}
+    pages = [REPO / "README.md", REPO / "RESULTS.md", *sorted((REPO / "docs").rglob("*.md")),
+             *sorted((REPO / "results").rglob("*.md"))]
+    # Where a command starts: a line or code span, after a prompt, `&&`, `nice` or a
+    # variable set for it.
+    start = r"(?:^|`|\$ |&& |nice -n \d+ |[A-Z_]+=\S+ )"
+    wrong, seen = [], 0
+    for page in pages:
+        name = page.relative_to(REPO).as_posix()
+        text = re.sub(r"\\\n\s*", " ", page.read_text())
+        for command in re.findall(start + r"(?:franka-composer|python -m franka_composer) "
+                                  r"([^`\n|;&#]*)", text, re.MULTILINE):
+            words = command.split()
+            if not words or words[0].startswith("-"):
+                continue
+            if words[0] not in options:
+                wrong.append(f"{name}: no command {words[0]!r}")
+                continue
+            seen += 1
+            takes = options[words[0]]
+            for word in words[1:]:
+                if word == "--" and words[0] == "sweep":
+                    takes = options["train"]
+                    continue
+                option = word.strip("[]").split("=", 1)[0]
+                if (option.startswith("--") and option not in takes
+                        and (name, words[0], option) not in OLDER_TREES):
+                    wrong.append(f"{name}: {words[0]} has no {option}")
+    assert seen > 150  # The commands were found.
+    assert wrong == [], "\n".join(wrong)
