@@ -7,8 +7,11 @@ from __future__ import annotations
 
 import json
 import pathlib
+import re
 import subprocess
 import sys
+
+import pytest
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCRIPTS = sorted(path for folder in ("benchmarks", "experiments", "tools")
@@ -16,7 +19,7 @@ SCRIPTS = sorted(path for folder in ("benchmarks", "experiments", "tools")
                  if 'if __name__ == "__main__":' in path.read_text())
 
 # Runs each script as `python SCRIPT --help` would, in one interpreter (the heavy imports
-# once), and reports each one's exit status and the first line it printed.
+# once), and reports each one's exit status and what it printed.
 _DRIVER = """
 import contextlib, io, json, os, runpy, sys
 answers = {}
@@ -32,17 +35,58 @@ for script in sys.argv[1:]:
         status = exit.code or 0
     except Exception as error:
         status = f"{type(error).__name__}: {error}"
-    answers[script] = [status, out.getvalue().lstrip()[:200]]
+    answers[script] = [status, out.getvalue().lstrip()]
 print(json.dumps(answers))
 """
 
 
-def test_every_script_answers_help_with_its_usage():
-    assert len(SCRIPTS) > 30  # The folders were found.
+@pytest.fixture(scope="module")
+def answers() -> dict:
+    """Each script's (exit status, what it printed) for `--help`, by its repository path."""
     done = subprocess.run([sys.executable, "-c", _DRIVER, *map(str, SCRIPTS)], cwd=ROOT,
                           capture_output=True, text=True, timeout=600, check=True)
-    answers = json.loads(done.stdout.splitlines()[-1])
-    wrong = {pathlib.Path(script).relative_to(ROOT).as_posix(): answer
-             for script, answer in answers.items()
+    return {pathlib.Path(script).relative_to(ROOT).as_posix(): answer
+            for script, answer in json.loads(done.stdout.splitlines()[-1]).items()}
+
+
+def test_every_script_answers_help_with_its_usage(answers):
+    assert len(answers) > 30  # The folders were found.
+    wrong = {script: [answer[0], answer[1][:200]] for script, answer in answers.items()
              if answer[0] != 0 or not answer[1].startswith("usage:")}
     assert not wrong, f"scripts that do not answer --help with their usage: {wrong}"
+
+
+def test_the_docs_give_each_script_only_options_it_takes(answers):
+    """Every `python benchmarks/…`, `experiments/…` or `tools/…` command the README,
+    RESULTS.md, the docs pages and the results' notes give (lines joined at a trailing
+    backslash) names a script that exists, or one the page says was removed, and only
+    options its `--help` lists (or, for the scripts that pass `train` and `evaluate` on,
+    that franka-composer's command takes)."""
+    from franka_composer.cli import command_parser
+
+    passed_on = {name: set(command_parser(name)._option_string_actions)
+                 for name in ("train", "evaluate")}
+    pages = [ROOT / "README.md", ROOT / "RESULTS.md", *sorted((ROOT / "docs").rglob("*.md")),
+             *sorted((ROOT / "results").rglob("*.md"))]
+    wrong, seen = [], 0
+    for page in pages:
+        name = page.relative_to(ROOT).as_posix()
+        text = re.sub(r"\\\n\s*", " ", page.read_text())
+        for script, arguments in re.findall(
+                r"python ((?:benchmarks|experiments|tools)/\w+\.py)([^`\n|;&#]*)", text):
+            if script not in answers:
+                if not (ROOT / script).exists() and "removed" not in text:
+                    wrong.append(f"{name}: no script {script}")
+                continue
+            seen += 1
+            takes = set(re.findall(r"(?<![\w-])--?[a-zA-Z][\w-]*", answers[script][1]))
+            words = arguments.split()
+            for command in passed_on:
+                if command in words and "franka-composer's options" in answers[script][1]:
+                    takes |= passed_on[command]
+            for word in words:
+                option = word.strip("[]").split("=", 1)[0]
+                if re.fullmatch(r"--[a-z][\w-]*", option) and option not in takes:
+                    wrong.append(f"{name}: {script} has no {option}")
+    assert seen > 100  # The commands were found.
+    assert wrong == [], "\n".join(wrong)
