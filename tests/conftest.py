@@ -71,6 +71,53 @@ def spec_distance(task: str, achieved, desired) -> np.ndarray:
     return np.linalg.norm(achieved - desired, axis=-1)
 
 
+def check_reward_contract(env_name: str, **options) -> None:
+    """Over random play of the Gymnasium id `env_name` (made with `options`): each step's
+    reward is `compute_reward`'s, success is the distance within the success radius, a
+    sparse reward is 0 exactly on success, and only the time limit ends an episode. First
+    at the id's own radius, where random play rarely succeeds (flip's episodes start
+    solved), then, on the same play (the radius changes no dynamics), at a radius halfway
+    between the nearest and the farthest distance it met, so that both outcomes occur."""
+    distances = [distance for distance, _ in _step_rewards(env_name, None, options)]
+    halfway = (min(distances) + max(distances)) / 2
+    successes = [success for _, success in _step_rewards(env_name, halfway, options)]
+    assert any(successes) and not all(successes)
+
+
+def _step_rewards(env_name: str, radius: float | None, options: dict) -> list:
+    """`check_reward_contract`'s checks at one radius (None: the id's); each step's
+    (distance, success)."""
+    import gymnasium as gym
+
+    task = franka_composer.ENV_IDS[env_name].task
+    if radius is not None:
+        options = {**options, "distance_threshold": radius}
+    env = gym.make(env_name, terminate_on_success=False, **options)
+    radius = SPEC[task]["threshold"] if radius is None else radius
+    env.reset(seed=1)
+    env.action_space.seed(1)
+    steps, ends = [], []
+    for _ in range(SPEC[task]["steps"] + 10):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        expected = env.unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
+        assert reward == expected and type(reward) is type(expected[()])
+        distance = spec_distance(task, obs["achieved_goal"], obs["desired_goal"])
+        assert info["is_success"] == (distance < radius)
+        if "Sparse" in env_name:
+            assert reward in (0.0, -1.0) and (reward == 0.0) == info["is_success"]
+        else:
+            assert reward == pytest.approx(-distance, abs=1e-12)
+        assert not terminated
+        steps.append((distance, info["is_success"]))
+        ends.append(truncated)
+        if truncated:
+            env.reset()
+    env.close()
+    limit = SPEC[task]["steps"]
+    assert ends[:limit] == [False] * (limit - 1) + [True]  # TimeLimit truncates on time.
+    return steps
+
+
 def near_goal_pairs(task: str, rng, count: int):
     """(achieved, desired) goal pairs, some within the task's threshold and some not."""
     size = SPEC[task]["goal"]

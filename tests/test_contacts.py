@@ -115,6 +115,10 @@ def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_i
     for _ in range(5):
         timestep = env.step(np.array([0, 0, -1, *_gripper(env, -1.0)], np.float32))
         forces.append(sum(f for _, f in _robot_contacts(env)))
+    prop = set(env.physics.bind(env.task.prop.mjcf_model.find_all("geom")).element_id)
+    assert any({c.geom1, c.geom2} & prop for c, _ in _robot_contacts(env)), \
+        "the hand has not landed on the object"
+    assert forces[-1] > 0.5  # N: pressing on it (measured 1.35-4.25).
     assert max(forces) < 150.0  # N: the arm's limit here is ~135 N; measured < 10.
     assert timestep.observation[key][2] > start[2] - 0.002
     assert np.linalg.norm(timestep.observation[key][:2] - start[:2]) < 0.005

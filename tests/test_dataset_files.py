@@ -209,14 +209,19 @@ def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env
             main(["train", "--task", "push", "--demos", str(path), "--out",
                   str(tmp_path / "run")])
         assert not (tmp_path / "run").exists()
-    # Cut to 90 %, an index file split an episode (a 5-step stub read as one) or joined two:
-    # refused, where the stub went into the buffer as an episode ending at a time-out.
-    for index_file in ("step_offsets.riegeli", "episode_index.riegeli"):
+    # Cut to 90 %, the episode index split an episode (a 5-step stub read as one) or joined
+    # two: refused, where the stub went into the buffer as an episode ending at a time-out;
+    # the step offsets cut so are unreadable to envlogger.
+    for index_file, message in (
+            ("step_offsets.riegeli", " is not a readable RLDS dataset (damaged?): envlogger "
+                                     "says TypeError"),
+            ("episode_index.riegeli", ": episode 0 is not whole (a FIRST step, then steps, "
+                                      "then a LAST one")):
         path = tmp_path / index_file
         shutil.copytree(recorded / "rlds", path)
         for damaged in path.glob(f"*/{index_file}"):
             damaged.write_bytes(damaged.read_bytes()[:len(damaged.read_bytes()) * 9 // 10])
-        with pytest.raises(ValueError, match=f"^{re.escape(str(path))}"):
+        with pytest.raises(ValueError, match=f"^{re.escape(str(path) + message)}"):
             demos.load_episodes(path, push_env)
     garbage = tmp_path / "garbage"
     shutil.copytree(recorded / "rlds", garbage)
@@ -261,7 +266,9 @@ def test_an_rlds_episode_cut_at_the_time_limit_is_a_truncation_not_a_termination
                                               if format == "minari" else {}))
         if format == "minari":
             out = out / "franka_composer" / "push" / "cut-v0"
-        for episode in demos.load_episodes(out, push_env):
+        episodes = demos.load_episodes(out, push_env)
+        assert len(episodes) == 2, format
+        for episode in episodes:
             assert not episode["terminated"].any(), format
             assert episode["truncated"].tolist() == [False] * 49 + [True], format
 

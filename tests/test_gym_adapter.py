@@ -12,8 +12,8 @@ import pytest
 
 import franka_composer
 from franka_composer.adapters.registration import env_id
-from conftest import (SPEC, UNBOUNDED_OBSERVATIONS, env_checker_findings, her_samples,
-                      near_goal_pairs, spec_distance)
+from conftest import (SPEC, UNBOUNDED_OBSERVATIONS, check_reward_contract,
+                      env_checker_findings, her_samples, near_goal_pairs, spec_distance)
 
 ALL_IDS = tuple(franka_composer.ENV_IDS)
 
@@ -78,22 +78,7 @@ def test_gymnasium_and_sb3_env_checkers_pass(env_name):
 
 
 def test_step_reward_equals_compute_reward_and_success_matches_distance(env_name):
-    task = franka_composer.ENV_IDS[env_name].task
-    env = gym.make(env_name, terminate_on_success=False)
-    unwrapped = env.unwrapped
-    _, records = _random_rollout(env, seed=1, steps=SPEC[task]["steps"] + 10)
-    for obs, reward, terminated, truncated, info in records:
-        expected = unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
-        assert reward == expected and type(reward) is type(expected[()])
-        distance = spec_distance(task, obs["achieved_goal"], obs["desired_goal"])
-        assert info["is_success"] == (distance < SPEC[task]["threshold"])
-        if "Sparse" in env_name:
-            assert reward in (0.0, -1.0) and (reward == 0.0) == info["is_success"]
-        else:
-            assert reward == pytest.approx(-distance, abs=1e-12)
-        assert not terminated
-    last = SPEC[task]["steps"] - 1
-    assert records[last][3] and not records[last - 1][3]  # TimeLimit truncates on time.
+    check_reward_contract(env_name)
 
 
 def test_batched_compute_reward_equals_per_pair_values(env_name):

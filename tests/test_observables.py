@@ -50,16 +50,24 @@ def test_observables_read_through_views_equal_fresh_binding_reads(task_name):
 
 
 def test_reward_discount_and_success_come_from_one_distance_per_step():
+    """Ten random steps, then the scripted expert's push to the goal: both outcomes."""
+    from franka_composer.policies import make_expert
+
     env = franka_composer.load("push", seed=3, reward_type="dense", terminate_on_success=False)
     timestep = env.reset()
     rng = np.random.default_rng(2)
-    for _ in range(10):
-        timestep = env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+    expert = make_expert(env)
+    successes = []
+    for step in range(50):
+        action = (rng.uniform(-1, 1, 3) if step < 10 else expert(timestep.observation))
+        timestep = env.step(np.asarray(action, np.float32))
         difference = timestep.observation["block/position"] - env.task.goal
         distance = np.sqrt(np.sum(difference * difference))
         assert timestep.reward == -distance
         assert env.task.success == (distance < 0.05)
         assert timestep.discount == 1.0
+        successes.append(env.task.success)
+    assert any(successes) and not all(successes)
 
 
 def test_the_arms_joint_observables_read_its_angles_and_velocities_when_enabled():

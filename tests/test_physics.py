@@ -67,7 +67,8 @@ def test_opening_the_gripper_releases_the_block():
     env = franka_composer.load("pick_and_place", seed=1, terminate_on_success=False)
     grasp_block(env)
     for _ in range(5):
-        env.step(np.array([0, 0, 0.6, -1], np.float32))
+        lifted = env.step(np.array([0, 0, 0.6, -1], np.float32))
+    assert lifted.observation["block/position"][2] > 0.12  # Held up (measured 0.162 m).
     for _ in range(10):
         timestep = env.step(np.array([0, 0, 0, 1], np.float32))
     assert timestep.observation["panda/finger_width"][0] > 0.07
@@ -111,10 +112,17 @@ def test_push_gripper_cannot_open():
     assert max(widths) < 0.002
 
 
-def test_pushed_block_slides_along_the_floor_without_tipping_over():
-    upright = 0
+@pytest.mark.parametrize("damping, slides_upright", [(None, [0, 1, 4, 5]),
+                                                    (0.01, [0, 1, 2, 3, 4, 5])])
+def test_a_pushed_block_slides_upright_unless_it_tips_undamped(damping, slides_upright):
+    """Pushed at 0.4 of full speed for 4 steps, the block slides along the floor upright in
+    seeds 0, 1, 4 and 5 and tips onto another face in 2 and 3; with its free joint damped
+    as the reference code's (`object_damping=0.01`) it slides upright in all six
+    (docs/experiments/push-tip.md). A stiffer finger tumbled 3 of 6 (contacts.py)."""
+    options = {} if damping is None else {"object_damping": damping}
+    upright = []
     for seed in range(6):
-        env = franka_composer.load("push", seed=seed, terminate_on_success=False)
+        env = franka_composer.load("push", seed=seed, terminate_on_success=False, **options)
         timestep = env.reset()
         block = timestep.observation["block/position"].copy()
         timestep = move_tcp_to(env, timestep, block + [-0.06, 0, 0.08])
@@ -128,8 +136,8 @@ def test_pushed_block_slides_along_the_floor_without_tipping_over():
         roll, pitch = timestep.observation["block/orientation_euler"][:2]
         height = timestep.observation["block/position"][2]
         if abs(roll) < 0.2 and abs(pitch) < 0.2 and height < 0.025:
-            upright += 1
-    assert upright >= 4
+            upright.append(seed)
+    assert upright == slides_upright
 
 
 def _full_speed_push(seed: int, **options) -> tuple[float, float]:

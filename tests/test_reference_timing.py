@@ -17,7 +17,7 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.policies import make_expert
 from franka_composer.tasks import task_config
 from franka_composer.tasks.layout import layout_for
-from conftest import SPEC, batches_substeps, spec_distance
+from conftest import SPEC, batches_substeps, check_reward_contract
 
 CONTROLS = ("mocap", "osc", "joints")
 
@@ -132,17 +132,7 @@ def test_a_pushed_block_rests_at_each_step_end_only_at_the_reference_timing(timi
 
 @pytest.mark.parametrize("control", CONTROLS)
 def test_reward_success_and_time_limit_hold_at_the_reference_timing(task_name, control):
-    env = gym.make(env_id(task_name, "sparse", control), timing="reference",
-                   terminate_on_success=False)
-    unwrapped = env.unwrapped
-    records = _rollout(env, seed=1, steps=SPEC[task_name]["steps"])[1:]
-    for obs, reward, terminated, truncated, info in records:
-        expected = unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info)
-        assert reward == expected
-        distance = spec_distance(task_name, obs["achieved_goal"], obs["desired_goal"])
-        assert info["is_success"] == (distance < SPEC[task_name]["threshold"])
-        assert (reward == 0.0) == info["is_success"] and not terminated
-    assert [r[3] for r in records] == [False] * (SPEC[task_name]["steps"] - 1) + [True]
+    check_reward_contract(env_id(task_name, "sparse", control), timing="reference")
 
 
 @pytest.mark.parametrize("control", CONTROLS)
