@@ -622,6 +622,11 @@ def _results_window_tables() -> list[tuple[list[list[str]], str]]:
     return tables
 
 
+def test_results_has_its_three_window_tables():
+    """The tables the next test checks are found (a reworded heading would leave it none)."""
+    assert len(_results_window_tables()) == 3
+
+
 @pytest.mark.parametrize("rows, command", _results_window_tables())
 def test_results_window_tables_are_the_output_of_the_command_beside_them(rows, command):
     """Every cell of RESULTS.md's per-5e4-step tables, from the committed runs' eval.csv

@@ -86,6 +86,7 @@ def test_drawn_parameters_stay_in_their_ranges_and_differ_across_episodes():
 
 
 def test_parameters_are_written_into_the_compiled_model_without_recompiling():
+    """Every drawn parameter, against the same env's model unrandomised."""
     env = franka_composer.load("push", seed=0, randomization="default",
                                observation_mode="state+pixels")
     env.reset()
@@ -93,6 +94,13 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
     model = physics.model.ptr
     nominal_mass = task.config.objects[0].mass
     first_model = model
+    plain = franka_composer.load("push", seed=0, observation_mode="state+pixels")
+    plain.reset()
+    nominal = plain.physics.model.ptr
+    block = int(physics.bind(task.prop.geom).element_id)
+    floor_material = int(model.geom_matid[physics.bind(task.root_entity.floor).element_id])
+    panda = np.asarray(physics.bind(task.panda.mjcf_model.find_all("geom")).element_id)
+    lights = np.asarray(physics.bind(task.root_entity.mjcf_model.find_all("light")).element_id)
     for _ in range(3):
         env.reset()
         drawn = task.randomization
@@ -111,6 +119,27 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
         assert weld[0] == pytest.approx(0.01 / np.sqrt(drawn["controller_gain"]), rel=1e-12)
         gripper = physics.bind(task.panda.gripper_actuator)
         assert -gripper.biasprm[1] == pytest.approx(1000.0 * drawn["gripper_gain"], rel=1e-12)
+        assert model.geom_friction[block, 0] == pytest.approx(
+            nominal.geom_friction[block, 0] * drawn["object_friction"][0], rel=1e-12)
+        np.testing.assert_allclose(model.mat_rgba[floor_material, :3],
+                                   nominal.mat_rgba[floor_material, :3] * drawn["floor_tint"],
+                                   rtol=1e-6)
+        np.testing.assert_allclose(model.geom_rgba[panda, :3],
+                                   nominal.geom_rgba[panda, :3] * drawn["robot_tint"], rtol=1e-6)
+        direction = nominal.light_dir[lights] + drawn["light_direction"]
+        np.testing.assert_allclose(
+            model.light_dir[lights],
+            direction / np.linalg.norm(direction, axis=1, keepdims=True), rtol=1e-12)
+        np.testing.assert_allclose(model.light_diffuse[lights], nominal.light_diffuse[lights]
+                                   * drawn["light_intensity"], rtol=1e-6)
+        cameras = np.flatnonzero(np.any(model.cam_pos != nominal.cam_pos, axis=1))
+        assert cameras.size >= 1  # The observation's camera, moved and turned.
+        for camera in cameras:
+            np.testing.assert_allclose(model.cam_pos[camera], nominal.cam_pos[camera]
+                                       + drawn["camera_position"], atol=1e-12)
+            cosine = min(1.0, abs(model.cam_quat[camera] @ nominal.cam_quat[camera]))
+            assert 2 * np.arccos(cosine) == pytest.approx(abs(drawn["camera_rotation"]),
+                                                          abs=1e-7)
 
 
 def test_a_drawn_light_renders_the_same_with_or_without_mass_randomisation():

@@ -187,16 +187,18 @@ def test_the_uniform_orientation_goal_option_gives_panda_gyms_goals():
 
 
 def test_objects_rest_and_nothing_jerks_on_the_first_zero_action(object_task_name):
+    """Measured over every object task, seeds 0-9: the hand moves at most 5e-13 m, an
+    object 6e-7 m, at most 7e-6 m/s."""
     env = franka_composer.load(object_task_name, seed=3, terminate_on_success=False)
     first = env.reset()
     after = env.step(np.zeros(env.action_spec().shape, np.float32))
     assert np.linalg.norm(after.observation["panda/tcp_position"]
-                          - first.observation["panda/tcp_position"]) < 1e-3
+                          - first.observation["panda/tcp_position"]) < 1e-9
     for prop in env.task.props:
         name = prop.mjcf_model.model
         assert np.linalg.norm(after.observation[f"{name}/position"]
-                              - first.observation[f"{name}/position"]) < 1e-3
-        assert np.linalg.norm(after.observation[f"{name}/linear_velocity"]) < 0.02
+                              - first.observation[f"{name}/position"]) < 1e-5
+        assert np.linalg.norm(after.observation[f"{name}/linear_velocity"]) < 1e-4
 
 
 def test_pick_and_place_goals_are_in_the_air_about_seventy_percent_of_the_time():
