@@ -172,6 +172,14 @@ def composer_path(request, monkeypatch) -> str:
     assert not steps or any(steps), "the fast path fell back to stock stepping"
 
 
+def hand_tilt_degrees(env) -> float:
+    """Angle (degrees) between the hand's approach axis and straight down; `env` a dm_env
+    of this suite or a Gymnasium env of it."""
+    env = getattr(getattr(env, "unwrapped", env), "composer_env", env)
+    axis = env.physics.bind(env.task.panda.tcp_site).xmat.reshape(3, 3)[:, 2]
+    return float(np.degrees(np.arccos(np.clip(-axis[2], -1, 1))))
+
+
 def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):
     """Drives the tool centre point to `target` with proportional actions; returns the last
     timestep. Used by physical tests that need the hand somewhere first."""

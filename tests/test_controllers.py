@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import franka_composer
-from conftest import grasp_block, move_tcp_to
+from conftest import grasp_block, hand_tilt_degrees, move_tcp_to
 from franka_composer.controllers import JointController, MocapController, OscController
 from franka_composer.policies import make_expert, rollout
 
@@ -19,11 +19,6 @@ from franka_composer.policies import make_expert, rollout
 #: flat out for the whole step (experiments/torque_reach.py): up, gravity takes 41 of joint
 #: 2's 87 N m.
 OSC_FIRST_STEP = {(1, 0, 0): 0.75, (0, -1, 0): 0.6, (0, 0, -1): 0.6, (0, 0, 1): 0.25}
-
-
-def _tilt_degrees(env) -> float:
-    axis = env.physics.bind(env.task.panda.tcp_site).xmat.reshape(3, 3)[:, 2]
-    return float(np.degrees(np.arccos(np.clip(-axis[2], -1, 1))))
 
 
 def _arm_torque_ratio(env) -> float:
@@ -92,7 +87,7 @@ def test_osc_tracks_a_full_command_as_fast_as_the_torque_limits_allow(direction)
         moved = timestep.observation["panda/tcp_position"] - start
         moves.append(moved @ axis)
         sideways.append(np.linalg.norm(moved - (moved @ axis) * axis))
-        tilts.append(_tilt_degrees(env))
+        tilts.append(hand_tilt_degrees(env))
     assert OSC_FIRST_STEP[direction] * 0.05 <= moves[0] <= 1.1 * 0.05
     for moved in moves[1:]:  # Measured 0.77-1.09 of a full step.
         assert 0.75 * 0.05 <= moved <= 1.15 * 0.05
@@ -110,7 +105,7 @@ def test_osc_zero_action_holds_the_hand_still():
     for _ in range(10):
         timestep = env.step(np.zeros(4, np.float32))
     assert np.linalg.norm(timestep.observation["panda/tcp_position"] - start) < 0.002
-    assert _tilt_degrees(env) < 5.0
+    assert hand_tilt_degrees(env) < 5.0
 
 
 def test_osc_torques_never_exceed_the_limits_and_do_reach_them():

@@ -6,17 +6,11 @@ import numpy as np
 import pytest
 
 import franka_composer
-from conftest import grasp_block, move_tcp_to
+from conftest import grasp_block, hand_tilt_degrees, move_tcp_to
 from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
 pytestmark = pytest.mark.usefixtures("composer_path")
-
-
-def _hand_tilt_degrees(env) -> float:
-    """Angle between the hand's approach axis and straight down."""
-    axis = env.physics.bind(env.task.panda.tcp_site).xmat.reshape(3, 3)[:, 2]
-    return float(np.degrees(np.arccos(np.clip(-axis[2], -1, 1))))
 
 
 @pytest.mark.parametrize("direction", [(1, 0, 0), (0, -1, 0), (0, 0, -1)])
@@ -30,7 +24,7 @@ def test_one_full_action_moves_the_tcp_by_most_of_five_centimetres(task_name, di
     assert 0.8 * 0.05 <= moved <= 1.1 * 0.05
     sideways = np.linalg.norm((end - start) - moved * np.asarray(direction, float))
     assert sideways < 0.002
-    assert _hand_tilt_degrees(env) < 5.0
+    assert hand_tilt_degrees(env) < 5.0
 
 
 def test_zero_action_holds_the_tcp_still(task_name):
@@ -41,7 +35,7 @@ def test_zero_action_holds_the_tcp_still(task_name):
     for _ in range(10):
         timestep = env.step(np.zeros(env.action_spec().shape, np.float32))
     assert np.linalg.norm(timestep.observation["panda/tcp_position"] - start) < 0.002
-    assert _hand_tilt_degrees(env) < 5.0
+    assert hand_tilt_degrees(env) < 5.0
 
 
 def test_grasped_block_stays_in_hand_while_lifting_and_carrying():
