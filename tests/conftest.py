@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import pathlib
+import re
 import sys
 import warnings
 
@@ -78,13 +79,13 @@ def check_reward_contract(env_name: str, **options) -> None:
     at the id's own radius, where random play rarely succeeds (flip's episodes start
     solved), then, on the same play (the radius changes no dynamics), at a radius halfway
     between the nearest and the farthest distance it met, so that both outcomes occur."""
-    distances = [distance for distance, _ in _step_rewards(env_name, None, options)]
+    distances = [distance for distance, _ in _play_checking_rewards(env_name, None, options)]
     halfway = (min(distances) + max(distances)) / 2
-    successes = [success for _, success in _step_rewards(env_name, halfway, options)]
+    successes = [success for _, success in _play_checking_rewards(env_name, halfway, options)]
     assert any(successes) and not all(successes)
 
 
-def _step_rewards(env_name: str, radius: float | None, options: dict) -> list:
+def _play_checking_rewards(env_name: str, radius: float | None, options: dict) -> list:
     """`check_reward_contract`'s checks at one radius (None: the id's); each step's
     (distance, success)."""
     import gymnasium as gym
@@ -223,6 +224,48 @@ def her_samples(env, steps: int, count: int = 512):
     return (samples.next_observations["achieved_goal"].numpy(),
             samples.observations["desired_goal"].numpy(),
             samples.rewards.numpy().squeeze(-1))
+
+
+#: The pages whose commands a reader copies: the README, RESULTS.md, the docs site's pages
+#: and the notes beside the committed results.
+COMMAND_PAGES = (_REPO / "README.md", _REPO / "RESULTS.md",
+                 *sorted((_REPO / "docs").rglob("*.md")),
+                 *sorted((_REPO / "results").rglob("*.md")))
+
+
+def documented_commands(program: str) -> list[tuple[str, str, list[str], bool]]:
+    """Each command of `program` (a regular expression: the program and how it is called)
+    that `COMMAND_PAGES` give in code: a fenced block's lines (joined at a trailing
+    backslash), an inline code span (joined where the text wraps it) or an HTML comment.
+    (the page's repository path, the program as written, the words after it up to a
+    comment or a pipe, and whether it starts its line or span: after a prompt, `&&`, `nice`,
+    variables set for it or a folder, not inside prose.)"""
+    command = re.compile(r"(?:^|(?<=[\s/(]))(" + program + r")(?=\s|$)([^\n|;&#`]*)",
+                         re.MULTILINE)
+    begins = re.compile(r"\s*(?:\$ |.*&& |<!-- |nice -n \d+ |(?:[A-Z_]+=(?:<[^>]*>|\S+) )+)?"
+                        r"(?:\S*/)?")
+    found = []
+    for page in COMMAND_PAGES:
+        text = page.read_text()
+        fence = re.compile(r"^```[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
+        prose = fence.sub("", text)
+        pieces = [re.sub(r"\\\n\s*", " ", block) for block in fence.findall(text)]
+        pieces += [span.replace("\n", " ") for span in
+                   re.findall(r"`((?:[^`\n]|\n(?!\n))+)`", prose)]
+        pieces += ["<!-- " + note.strip().replace("\n", " ")
+                   for note in re.findall(r"<!--(.*?)-->", prose, re.DOTALL)]
+        for piece in pieces:
+            for match in command.finditer(piece):
+                line = piece[piece.rfind("\n", 0, match.start()) + 1:match.start()]
+                found.append((page.relative_to(_REPO).as_posix(), match.group(1),
+                              match.group(2).split(), bool(begins.fullmatch(line))))
+    return found
+
+
+def doc_option(word: str) -> str | None:
+    """The long option a command's word gives (`--seed`, `[--seed`, `--seed=3`), or None."""
+    option = word.strip("[]").split("=", 1)[0]
+    return option if re.fullmatch(r"--[a-z][\w-]*", option) else None
 
 
 def load_script(path: pathlib.Path):

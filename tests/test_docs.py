@@ -8,7 +8,7 @@ import pathlib
 import re
 
 import pytest
-from conftest import load_script
+from conftest import doc_option, documented_commands, load_script
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
 GUIDE = REPO / "docs" / "guide"
@@ -102,39 +102,30 @@ OLDER_TREES = {
 
 
 def test_the_docs_give_franka_composer_only_options_it_takes():
-    """Every `franka-composer COMMAND ...` the README, RESULTS.md, the docs pages and the
-    results' notes give to run (in code, lines joined at a trailing backslash) names a
+    """Every `franka-composer COMMAND ...` the pages give (`documented_commands`) names a
     command that exists and only options that command takes (after a bare `--`, `sweep`
     passes `train`'s): a renamed option would leave a reader's copied command refused."""
     from franka_composer.cli import SUBCOMMANDS, command_parser
 
     options = {name: set(command_parser(name)._option_string_actions) for name in SUBCOMMANDS}
-    pages = [REPO / "README.md", REPO / "RESULTS.md", *sorted((REPO / "docs").rglob("*.md")),
-             *sorted((REPO / "results").rglob("*.md"))]
-    # Where a command starts: a line or code span, after a prompt, `&&`, `nice` or a
-    # variable set for it.
-    start = r"(?:^|`|\$ |&& |nice -n \d+ |[A-Z_]+=\S+ )"
-    wrong, seen = [], 0
-    for page in pages:
-        name = page.relative_to(REPO).as_posix()
-        text = re.sub(r"\\\n\s*", " ", page.read_text())
-        for command in re.findall(start + r"(?:franka-composer|python -m franka_composer) "
-                                  r"([^`\n|;&#]*)", text, re.MULTILINE):
-            words = command.split()
-            if not words or words[0].startswith("-"):
-                continue
-            if words[0] not in options:
-                wrong.append(f"{name}: no command {words[0]!r}")
-                continue
-            seen += 1
-            takes = options[words[0]]
-            for word in words[1:]:
-                if word == "--" and words[0] == "sweep":
-                    takes = options["train"]
-                    continue
-                option = word.strip("[]").split("=", 1)[0]
-                if (option.startswith("--") and option not in takes
-                        and (name, words[0], option) not in OLDER_TREES):
-                    wrong.append(f"{name}: {words[0]} has no {option}")
+    wrong, seen, older = [], 0, set()
+    for page, _, words, begins in documented_commands(
+            r"franka-composer|python -m franka_composer"):
+        if not words or words[0] not in options:
+            if begins and words and re.fullmatch(r"[a-z]+", words[0]):
+                wrong.append(f"{page}: no command {words[0]!r}")
+            continue
+        seen += 1
+        takes = options[words[0]]
+        for word in words[1:]:
+            if word == "--" and words[0] == "sweep":
+                takes = options["train"]
+            option = doc_option(word)
+            if option and option not in takes:
+                if (page, words[0], option) in OLDER_TREES:
+                    older.add((page, words[0], option))
+                else:
+                    wrong.append(f"{page}: {words[0]} has no {option}")
     assert seen > 150  # The commands were found.
     assert wrong == [], "\n".join(wrong)
+    assert older == OLDER_TREES  # Each still in the docs.

@@ -12,6 +12,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import doc_option, documented_commands
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 SCRIPTS = sorted(path for folder in ("benchmarks", "experiments", "tools")
@@ -19,11 +20,19 @@ SCRIPTS = sorted(path for folder in ("benchmarks", "experiments", "tools")
                  if 'if __name__ == "__main__":' in path.read_text())
 
 # Runs each script as `python SCRIPT --help` would, in one interpreter (the heavy imports
-# once), and reports each one's exit status and what it printed.
+# once), and reports each one's exit status, what it printed and the options of every
+# argument parser it made.
 _DRIVER = """
-import contextlib, io, json, os, runpy, sys
+import argparse, contextlib, io, json, os, runpy, sys
+made = []
+build = argparse.ArgumentParser.__init__
+def record(parser, *args, **kwargs):
+    build(parser, *args, **kwargs)
+    made.append(parser)
+argparse.ArgumentParser.__init__ = record
 answers = {}
 for script in sys.argv[1:]:
+    made.clear()
     out = io.StringIO()
     sys.argv = [script, "--help"]
     sys.path[0] = os.path.dirname(script)  # Where `python SCRIPT` looks first.
@@ -35,7 +44,8 @@ for script in sys.argv[1:]:
         status = exit.code or 0
     except Exception as error:
         status = f"{type(error).__name__}: {error}"
-    answers[script] = [status, out.getvalue().lstrip()]
+    options = sorted({option for parser in made for option in parser._option_string_actions})
+    answers[script] = [status, out.getvalue().lstrip(), options]
 print(json.dumps(answers))
 """
 
@@ -53,7 +63,8 @@ REMOVED_SCRIPTS = {
 
 @pytest.fixture(scope="module")
 def answers() -> dict:
-    """Each script's (exit status, what it printed) for `--help`, by its repository path."""
+    """Each script's (exit status, what it printed, its parsers' options) for `--help`, by
+    its repository path."""
     done = subprocess.run([sys.executable, "-c", _DRIVER, *map(str, SCRIPTS)], cwd=ROOT,
                           capture_output=True, text=True, timeout=600, check=True)
     return {pathlib.Path(script).relative_to(ROOT).as_posix(): answer
@@ -68,37 +79,33 @@ def test_every_script_answers_help_with_its_usage(answers):
 
 
 def test_the_docs_give_each_script_only_options_it_takes(answers):
-    """Every `python benchmarks/…`, `experiments/…` or `tools/…` command the README,
-    RESULTS.md, the docs pages and the results' notes give (lines joined at a trailing
-    backslash) names a script that exists, or one its page says was removed
-    (`REMOVED_SCRIPTS`), and only
-    options its `--help` lists (or, for the scripts that pass `train` and `evaluate` on,
-    that franka-composer's command takes)."""
+    """Every `python benchmarks/…`, `experiments/…` or `tools/…` command the pages give
+    (`documented_commands`) names a script that exists, or one its page says was removed
+    (`REMOVED_SCRIPTS`), and only options its parsers take (or, for the scripts that pass
+    `train` and `evaluate` on, that franka-composer's command takes)."""
     from franka_composer.cli import command_parser
 
     passed_on = {name: set(command_parser(name)._option_string_actions)
                  for name in ("train", "evaluate")}
-    pages = [ROOT / "README.md", ROOT / "RESULTS.md", *sorted((ROOT / "docs").rglob("*.md")),
-             *sorted((ROOT / "results").rglob("*.md"))]
-    wrong, seen = [], 0
-    for page in pages:
-        name = page.relative_to(ROOT).as_posix()
-        text = re.sub(r"\\\n\s*", " ", page.read_text())
-        for script, arguments in re.findall(
-                r"python ((?:benchmarks|experiments|tools)/\w+\.py)([^`\n|;&#]*)", text):
-            if script not in answers:
-                if not (ROOT / script).exists() and (name, script) not in REMOVED_SCRIPTS:
-                    wrong.append(f"{name}: no script {script}")
-                continue
-            seen += 1
-            takes = set(re.findall(r"(?<![\w-])--?[a-zA-Z][\w-]*", answers[script][1]))
-            words = arguments.split()
-            for command in passed_on:
-                if command in words and "franka-composer's options" in answers[script][1]:
-                    takes |= passed_on[command]
-            for word in words:
-                option = word.strip("[]").split("=", 1)[0]
-                if re.fullmatch(r"--[a-z][\w-]*", option) and option not in takes:
-                    wrong.append(f"{name}: {script} has no {option}")
+    wrong, seen, removed = [], 0, set()
+    for page, program, words, _ in documented_commands(
+            r"python\s+(?:benchmarks|experiments|tools)/\w+\.py"):
+        script = program.split()[-1]
+        if script not in answers:
+            if (page, script) in REMOVED_SCRIPTS and not (ROOT / script).exists():
+                removed.add((page, script))
+            else:
+                wrong.append(f"{page}: no script {script}")
+            continue
+        seen += 1
+        takes = set(answers[script][2])
+        for command in passed_on:
+            if command in words and "franka-composer's options" in answers[script][1]:
+                takes |= passed_on[command]
+        for word in words:
+            option = doc_option(word)
+            if option and option not in takes:
+                wrong.append(f"{page}: {script} has no {option}")
     assert seen > 100  # The commands were found.
     assert wrong == [], "\n".join(wrong)
+    assert removed == REMOVED_SCRIPTS  # Each still named, and still gone.
