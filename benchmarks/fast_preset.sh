@@ -14,6 +14,7 @@
 # worktree beside $RUNS). Read the runs with
 #   franka-composer report results/fast-preset/push-seed* --wall-clock
 set -uo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/fast-preset"

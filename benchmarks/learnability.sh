@@ -12,6 +12,7 @@
 # TASKS (default "stack flip"), SEEDS (default 0); RUNS (default ~/franka_runs/learnability),
 # KEPT (default results/learnability).
 set -uo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 case "${1:-}" in run|stop|status|sync) ;; *) sed -n '2,13p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh

@@ -27,6 +27,7 @@
 # default) pick the cells; RUNS (default ~/franka_runs/TIMING-timing), KEPT (default
 # results/TIMING-timing).
 set -uo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 case "${1:-}" in run|stop|status|sync|report) ;; *) sed -n '2,28p' "$0"; exit 2 ;; esac
 source benchmarks/background_sweep.sh

@@ -31,6 +31,7 @@
 # Runs live in $RUNS (default ~/franka_runs/table2), so an interrupted cell resumes in a
 # later session; what sync keeps, in $KEPT (default results/table2).
 set -uo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 source benchmarks/background_sweep.sh
 sweep_settings "$HOME/franka_runs/table2"

@@ -17,6 +17,7 @@
 # With JAX_LOG_COMPILES=1 in the environment, sbx runs also print the seconds JAX spent
 # tracing, lowering and compiling (summed from its log, which is kept in the run's stderr.log).
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 export OMP_NUM_THREADS=1
 BIN=${BIN:-.venv/bin}

@@ -23,6 +23,7 @@
 # first: options of `train` alone). SEED (default 0) picks the seed; RUNS (default
 # ~/franka_runs) holds the runs and the trees, RESULTS (default results/) what `keep` kept.
 set -uo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 ROOT=$PWD
 case "${1:-}:${2:-}" in

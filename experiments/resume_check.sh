@@ -7,6 +7,7 @@
 #   experiments/resume_check.sh [train options]       (default: push, SAC in bf16, Table I,
 #                                                     1500 steps, evaluated every 200)
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 BIN=${BIN:-.venv/bin}
 STOP_AT=${STOP_AT:-800}

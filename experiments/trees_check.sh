@@ -7,6 +7,7 @@
 #   OLD="TREE ..." experiments/trees_check.sh [train options]      (TREE: a git worktree;
 #                   default options: push, SAC in bf16, Table I, 1500 steps, evaluated every 500)
 set -euo pipefail
+case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
 BIN=$(cd "${BIN:-.venv/bin}" && pwd)
 : "${OLD:?OLD=\"TREE ...\", the older trees (git worktrees)}"

@@ -61,6 +61,26 @@ REMOVED_SCRIPTS = {
 }
 
 
+#: The shell scripts a reader runs (a library they source has no `#!` line).
+SHELL_SCRIPTS = sorted(path for folder in ("benchmarks", "experiments", "tools")
+                       for path in (ROOT / folder).glob("*.sh")
+                       if path.read_text().startswith("#!"))
+_SHELL_HELP = """case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \\{0,1\\}//p' "$0"; exit 0 ;; esac"""
+
+
+@pytest.mark.parametrize("script", SHELL_SCRIPTS, ids=lambda path: path.name)
+def test_every_shell_script_answers_help_with_its_header(script):
+    """`SCRIPT --help` prints the comment at its top (its usage) and does nothing else
+    (`train_throughput.sh` took `--help` for a task to time, `resume_check.sh` and
+    `trees_check.sh` passed it to `train` as the runs' options)."""
+    assert _SHELL_HELP in script.read_text().splitlines()  # Before anything is run.
+    done = subprocess.run(["bash", str(script), "--help"], capture_output=True, text=True,
+                          timeout=60, check=False, cwd=ROOT)
+    header = script.read_text().splitlines()[1].removeprefix("# ")
+    assert (done.returncode, done.stderr) == (0, "")
+    assert done.stdout.splitlines()[0] == header
+
+
 @pytest.fixture(scope="module")
 def answers() -> dict:
     """Each script's (exit status, what it printed, its parsers' options) for `--help`, by
