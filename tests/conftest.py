@@ -226,9 +226,9 @@ def her_samples(env, steps: int, count: int = 512):
             samples.rewards.numpy().squeeze(-1))
 
 
-#: The pages whose commands a reader copies: the README, RESULTS.md, the docs site's pages
-#: and the notes beside the committed results.
-COMMAND_PAGES = (_REPO / "README.md", _REPO / "RESULTS.md",
+#: The pages whose commands a reader copies: the README, RESULTS.md, BENCHMARKS.md, the docs
+#: site's pages and the notes beside the committed results.
+COMMAND_PAGES = (_REPO / "README.md", _REPO / "RESULTS.md", _REPO / "BENCHMARKS.md",
                  *sorted((_REPO / "docs").rglob("*.md")),
                  *sorted((_REPO / "results").rglob("*.md")))
 
@@ -244,10 +244,10 @@ def documented_commands(program: str) -> list[tuple[str, str, list[str], bool]]:
                          re.MULTILINE)
     begins = re.compile(r"\s*(?:\$ |.*&& |<!-- |nice -n \d+ |(?:[A-Z_]+=(?:<[^>]*>|\S+) )+)?"
                         r"(?:\S*/)?")
+    fence = re.compile(r"^```[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
     found = []
     for page in COMMAND_PAGES:
         text = page.read_text()
-        fence = re.compile(r"^```[^\n]*\n(.*?)^```", re.DOTALL | re.MULTILINE)
         prose = fence.sub("", text)
         pieces = [re.sub(r"\\\n\s*", " ", block) for block in fence.findall(text)]
         pieces += [span.replace("\n", " ") for span in
