@@ -177,6 +177,39 @@ def test_a_policy_run_with_nothing_trained_is_named_before_anything_is_made(tmp_
     assert made == [] and sorted(path.name for path in tmp_path.iterdir()) == ["training"]
 
 
+def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, monkeypatch):
+    """A damaged policy.pt (demo and rollout), and a timing given that is not the run's
+    (demo), were found only once the env was built and its episode begun."""
+    import shutil
+
+    import gymnasium
+
+    from franka_composer.training import models
+
+    made = []
+    monkeypatch.setattr(gymnasium, "make", lambda *args, **kwargs: made.append(args))
+    monkeypatch.setattr(models, "make_env", lambda *args, **kwargs: made.append(args))
+    kept = pathlib.Path(__file__).parents[1] / "results" / "table2" / "push-ddpg-seed1"
+    damaged, committed = tmp_path / "damaged", tmp_path / "committed"
+    for run in (damaged, committed):
+        run.mkdir()
+        shutil.copy(kept / "config.json", run / "config.json")
+    (damaged / "policy.pt").write_text("junk")
+    shutil.copy(kept / "policy.pt", committed / "policy.pt")
+    not_a_policy = f"^{re.escape(str(damaged / 'policy.pt'))} is not a policy file \\(torch "
+    for argv in (["demo", "--policy", str(damaged), "--no-video"],
+                 ["rollout", "--task", "push", "--episodes", "1", "--policy", str(damaged),
+                  "--out", str(tmp_path / "x.npz")]):
+        with pytest.raises(ValueError, match=not_a_policy):
+            cli.main(argv)
+    with pytest.raises(ValueError, match=re.escape(
+            f"{committed} acts every 0.05 s, not every 0.5 s")):
+        cli.main(["demo", "--policy", str(committed), "--no-video", "--control-timestep",
+                  "0.5"])
+    assert made == []
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["committed", "damaged"]
+
+
 @pytest.mark.parametrize("row, problem", [
     ("2000,2,7.0,-1", "success_rate must be within [0, 1], got 7.0"),
     ("2000,2,-2,-1", "success_rate must be within [0, 1], got -2.0"),
@@ -224,6 +257,19 @@ def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path
     with pytest.raises(ValueError, match=re.escape(f"{bad.root / message}")):
         cli.main(["keep", str(good.root), str(bad.root), "--into", str(kept)])
     assert not kept.exists()
+
+
+def test_keep_refuses_a_file_where_a_run_would_go_before_copying_anything(tmp_path):
+    """It raised FileExistsError (exit status 1) after the runs before it were copied."""
+    good, other = _run(tmp_path / "runs" / "a"), _run(tmp_path / "runs" / "b", seed=1)
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (kept / "b").write_text("x")
+    with pytest.raises(ValueError, match=re.escape(
+            f"{kept / 'b'} is a file, not a folder: move it away to keep {other.root} "
+            "there")):
+        cli.main(["keep", str(good.root), str(other.root), "--into", str(kept)])
+    assert sorted(path.name for path in kept.iterdir()) == ["b"]
 
 
 def test_keep_copies_each_file_whole_or_not_at_all(tmp_path, monkeypatch):

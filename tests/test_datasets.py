@@ -263,6 +263,17 @@ def test_an_npz_dataset_path_must_end_in_npz(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("format", ["minari", "rlds"])
+def test_a_folder_dataset_is_not_named_as_an_npz_file(format, tmp_path):
+    """A Minari or RLDS dataset is a folder: one named x.npz was made without a word, a name
+    that says npz file to whoever reads it."""
+    with pytest.raises(ValueError, match=re.escape(
+            f"a {format} dataset is a folder, and {str(tmp_path / 'x.npz')!r} is named as an "
+            "npz file: give a folder's name, or --format npz")):
+        record("push", 1, tmp_path / "x.npz", format=format, seed=0)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_joint_control_needs_a_trained_policy(tmp_path):
     with pytest.raises(ValueError, match="the scripted experts act on dx, dy, dz"):
         record("push", 1, tmp_path / "x", format="minari", control="joints")

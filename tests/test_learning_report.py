@@ -4,6 +4,8 @@ for `evaluate`'s Table II, training/report.py)."""
 
 from __future__ import annotations
 
+import pathlib
+
 import pytest
 
 from franka_composer import cli
@@ -228,6 +230,24 @@ def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
     with pytest.raises(ValueError, match="other.csv, line 3: steps must be a whole number and "
                                          "success a number, got '2k', '0.6'"):
         read_paper_curves(other)
+    # Rows the paper's curves never hold: each was read as a curve, its columns left blank
+    # or its steps to each threshold wrong (a percentage is always over 90 %).
+    for row, problem in (("push,tqc,2000,50", r"success must be a fraction, within \[0, 1\] "
+                                              r"\(to 0.01, read off a figure\), got 50"),
+                         ("reech,tqc,2000,0.5", "unknown task 'reech'"),
+                         ("push,sacc,2000,0.5", "unknown algorithm 'sacc'"),
+                         ("push,tqc,-2000,0.5", "steps must be >= 0, got -2000")):
+        other.write_text(f"task,algo,steps,success\npush,tqc,0,0.5\n{row}\n")
+        with pytest.raises(ValueError, match=f"other.csv, line 3: {problem}$"):
+            read_paper_curves(other)
+    other.write_bytes(b"\x00\xff\xfe")
+    with pytest.raises(ValueError, match="other.csv is not a CSV of curves: it is not UTF-8 "
+                                         "text"):
+        cli.main(["report", str(runs), "--paper-curves", str(other)])
+    # The committed curves, read off the paper's figures, top out just above 1.
+    assert max(max(curve.values()) for curve in read_paper_curves(
+        pathlib.Path(__file__).parents[1] / "results" / "paper-curves" / "curves.csv").values()) \
+        == 1.002
 
 
 def test_the_thresholds_are_chosen_in_percent(tmp_path, capsys):

@@ -169,7 +169,8 @@ def test_sync_keeps_what_each_cell_has_kept_and_its_policy_once_finished(tmp_pat
     runs, kept = tmp_path / "runs", tmp_path / "kept"
     done = _write_run(runs, "push-sac-seed0", [(0, 1, 0.0), (2000, 2, 0.6)], (2000, False, 2))
     done.policy_file.write_bytes(b"actor")
-    going = _write_run(runs, "push-sac-seed1", [(0, 1, 0.0), (2000, 2, 0.2), (4000, 3, 0.4)])
+    going = _write_run(runs, "push-sac-seed1", [(0, 1, 0.0), (2000, 2, 0.2), (4000, 3, 0.4)],
+                       seed=1)
     going.checkpoint.mkdir()
     going.checkpoint_state.write_text(json.dumps({"steps": 2000}))
     going.policy_file.write_bytes(b"an older budget's")
@@ -429,7 +430,53 @@ def test_bad_train_options_and_budgets_are_refused_by_the_parsers(tmp_path, caps
     with pytest.raises(SystemExit):
         cli.main([*base, "--steps", "shove=10"])
     assert "unknown task 'shove' in --steps" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # The last one was taken.
+        cli.main([*base, "--steps", "push=100,push=200"])
+    assert "push given two budgets in --steps: give each task one" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def test_a_bad_train_value_after_the_options_is_the_sweeps_refusal(tmp_path):
+    """Not train's usage and `franka-composer train: error`: the user ran sweep."""
+    with pytest.raises(ValueError, match=re.escape(
+            "the options after -- go to each cell's train, which refuses them: argument "
+            "--batch-size: must be a positive integer, got '-3'")):
+        cli.main(["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
+                  "--seeds", "0", "--steps", "10", "--", "--batch-size", "-3"])
+    assert not (tmp_path / "s").exists()
+
+
+def test_status_and_sync_check_the_sweep_they_are_given(tmp_path, capsys):
+    """--status and --sync read the cells as the sweep trains them: options after -- it
+    would refuse, a run given as the sweep's folder, a folder not there to sync, and (for
+    --sync) a cell holding another run are refused, where they listed every cell as waiting
+    or copied the cell."""
+    from franka_composer.training import hyperparameters, loop
+    from franka_composer.training.run_config import RunConfig
+
+    grid = ["--tasks", "push", "--algos", "sac", "--seeds", "0", "--steps", "5000"]
+    out = tmp_path / "sweep"
+    run = loop.start(out / "push-sac-seed0", RunConfig("push", "sac", 0,
+                                                       hyperparameters("push", "sac")))
+    run.checkpoint.mkdir()
+    run.checkpoint_state.write_text(json.dumps({"steps": 2000}))
+    for argv, message in (
+            (["--out", str(out), "--status", "--", "--bogus"],
+             "the options after -- go to each cell's train, which does not take --bogus"),
+            (["--out", str(run.root), "--status"],
+             f"--out {run.root} is a training run, not a sweep's folder (a sweep's cells are "
+             "runs in it)"),
+            (["--out", str(tmp_path / "nosuch"), "--sync", str(tmp_path / "kept")],
+             f"--out {tmp_path / 'nosuch'} does not exist: no sweep there to sync"),
+            (["--out", str(out), "--sync", str(tmp_path / "kept"), "--", "--batch-size", "7"],
+             f"{run.root} holds a run other than the one this sweep gives that cell (the "
+             "sweep's setting, not the run's: batch_size: 7, not 512)")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            cli.main(["sweep", *grid, *argv])
+    assert not (tmp_path / "kept").exists()
+    # A grid's cells listed before any sweep is there, as its help says.
+    assert cli.main(["sweep", *grid, "--out", str(tmp_path / "nosuch"), "--status"]) == 0
+    assert "| push-sac-seed0 | waiting |" in capsys.readouterr().out
 
 
 @pytest.mark.slow

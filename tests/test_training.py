@@ -16,6 +16,7 @@ from franka_composer.training import ALGOS, TABLE_I, hyperparameters, machine
 from franka_composer.training.callbacks import LatestCheckpoint
 from franka_composer.training.loop import EVAL_SEED_OFFSET, FRESH_STREAM_SEED_OFFSET
 from franka_composer.training.models import build_model, load_model, make_env
+from franka_composer.training.run_config import RunConfig
 from franka_composer.training.runs import RunDir, read_eval_rows
 
 pytestmark = pytest.mark.slow  # Trains networks (and JAX), a few seconds each.
@@ -223,11 +224,19 @@ def test_a_run_opens_on_its_task_as_it_trained_and_its_env_closes_whatever_happe
         assert run.task == "push" and env is opened[0] and isinstance(policy, ActorPolicy)
         assert env.unwrapped.task.config.terminate_on_success is False  # The run's option.
         assert policy.num_timesteps == 300
-    (committed / "policy.pt").write_bytes(b"")  # Loading fails: the env made for it closes.
-    with pytest.raises(ValueError, match="policy.pt"):
+    # An actor that does not fit the network config.json describes: found loading it into
+    # the env made for it, which then closes.
+    hyperparameters = {**config["hyperparameters"], "net_arch": [8, 8]}
+    (committed / "config.json").write_text(json.dumps({**config, "hyperparameters":
+                                                       hyperparameters}))
+    with pytest.raises(ValueError, match="its actor's parameters do not fit the network"):
         with trained_on_its_task(committed, wrap=lambda env: opened.append(env) or env):
             pass
     assert len(opened) == 2
+    (committed / "policy.pt").write_bytes(b"")  # Not a policy file: refused before an env.
+    with pytest.raises(ValueError, match="policy.pt is not a policy file"):
+        with trained_on_its_task(committed, wrap=lambda env: opened.append(env) or env):
+            pass
     (committed / "policy.pt").unlink()  # Nothing to load: refused before an env is made.
     with pytest.raises(ValueError, match="has no model yet"):
         with trained_on_its_task(committed, wrap=lambda env: opened.append(env) or env):
@@ -763,6 +772,31 @@ def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):
                                              "--no-progress may change"):
             cli.main(["train", "--resume", "--out", str(run.root), *extra])
     assert run.eval_csv.read_text() == before
+
+
+def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_path):
+    """The checkpoint records the settings it was trained with: a hand edit of config.json
+    is refused before anything is built or written, naming what differs (another algo ended
+    in a traceback after the finished run's model, policy and outcome were deleted; another
+    seed or controller trained on as the edited run, its files then disagreeing)."""
+    run = RunDir(runs["sac"])
+    assert RunConfig.from_dict(run.read_state()["config"]) == run.read_config()
+    for edit, differs in (({"algo": "tqc"}, "algo: tqc, not sac"),
+                          ({"seed": 5}, "seed: 5, not 1"),
+                          ({"control": "osc"}, "control: osc, not mocap")):
+        copy = tmp_path / f"edited-{next(iter(edit))}"
+        shutil.copytree(run.root, copy)
+        (copy / "training.lock").unlink()
+        config = json.loads((copy / "config.json").read_text())
+        (copy / "config.json").write_text(json.dumps({**config, **edit}))
+        files = {path.name: path.read_bytes() for path in copy.iterdir() if path.is_file()}
+        with pytest.raises(ValueError, match=re.escape(
+                f"{copy / 'config.json'} says other than the settings the run's checkpoint "
+                f"at step {run.read_state()['steps']:,} was trained with ({differs}): a run "
+                "goes on with its own; put them back, or start a new run with the new ones")):
+            cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
+        assert {path.name: path.read_bytes() for path in copy.iterdir()
+                if path.is_file()} == files
 
 
 def test_no_terminate_on_success_reaches_the_env(tmp_path, monkeypatch):

@@ -111,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
 def _adopt_the_runs_task(args: argparse.Namespace):
     """The --policy run's config, with `args` set to its task and controller; a --tasks or
     --control that names others is an error (before anything is built)."""
+    from franka_composer.datasets.sources import check_acts_in
+    from franka_composer.training.models import env_task_config
     from franka_composer.training.policy_file import check_trained
     from franka_composer.training.runs import RunDir
 
@@ -124,6 +126,10 @@ def _adopt_the_runs_task(args: argparse.Namespace):
         raise ValueError(f"--policy {args.policy} acts through {config.control} control, "
                          f"not --control {args.control}")
     args.tasks, args.control = (config.task,), config.control
+    # A timing given that is not the run's, refused before its env is made.
+    env_config = env_task_config(config.task, **{**config.env_options, **given_timing(args)})
+    if env_config is not None:  # Another suite's env: TrainedPolicy refuses it.
+        check_acts_in(args.policy, config, env_config)
     return config
 
 
@@ -140,7 +146,6 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
         from franka_composer.datasets.sources import TrainedPolicy
         from franka_composer.training.models import make_env
 
-        # A timing given that is not the run's is refused by TrainedPolicy, naming both.
         env = make_env(task, **{**trained.env_options, **timing}, **render)
         policy = TrainedPolicy(args.policy, env)
     frames: list = []

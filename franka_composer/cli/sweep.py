@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 import fnmatch
+import pathlib
+import tempfile
 
 from franka_composer.cli.options import (add_tasks_argument, folder_path, output_folder,
                                          positive_int, positive_seconds, training_seed)
@@ -82,6 +84,9 @@ def _budgets(text: str):
         if task not in ALL_TASKS:
             raise argparse.ArgumentTypeError(f"unknown task {task!r} in --steps; valid "
                                              f"tasks: {', '.join(ALL_TASKS)}")
+        if task in budgets:
+            raise argparse.ArgumentTypeError(f"{task} given two budgets in --steps: give "
+                                             "each task one")
         budgets[task] = positive_int(steps)
     return budgets
 
@@ -135,6 +140,16 @@ def _check_trained_as(run, config) -> None:
                          "--out")
 
 
+def _check_sweep_folder(out, *, synced: bool) -> None:
+    """--out for --status or --sync: a sweep's folder (its cells are runs in it), or, for
+    --status, none yet (the grid's cells listed, all waiting)."""
+    if (out / "config.json").is_file():
+        raise ValueError(f"--out {out} is a training run, not a sweep's folder (a sweep's "
+                         "cells are runs in it)")
+    if synced and not out.is_dir():
+        raise ValueError(f"--out {out} does not exist: no sweep there to sync")
+
+
 def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace:
     """The `train` arguments of `cell` under `out` with `train_args`, read by train's own
     parser; an option it does not take is a ValueError saying it came after --. Options are
@@ -144,7 +159,16 @@ def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace
 
     parser = command_parser("train")
     parser.allow_abbrev = False
-    args, unknown = parser.parse_known_args(train_arguments(cell, out, train_args))
+    parser.exit_on_error = False
+
+    def refuse(message: str):  # Not train's usage and exit: the user ran sweep.
+        raise ValueError(f"the options after -- go to each cell's train, which refuses them: "
+                         f"{message}")
+    parser.error = refuse
+    try:
+        args, unknown = parser.parse_known_args(train_arguments(cell, out, train_args))
+    except argparse.ArgumentError as error:
+        refuse(str(error))
     if unknown:
         raise ValueError(f"the options after -- go to each cell's train, which does not take "
                          f"{' '.join(unknown)} (franka-composer train --help lists its "
@@ -181,6 +205,7 @@ def check_cells(cells, out, train_args: tuple[str, ...], *, local: bool = True) 
 
 
 def run(args: argparse.Namespace) -> int:
+    from franka_composer.training.runs import RunDir
     from franka_composer.training.sweep import (cell_status, run_sweep, status_table,
                                                 sync_cells)
 
@@ -188,6 +213,22 @@ def run(args: argparse.Namespace) -> int:
     if args.status and args.sync:
         raise ValueError("--status shows the cells and --sync copies their results: give "
                          "one of them")
+    for option in args.train_args:
+        if option.split("=", 1)[0] in _SET_BY_THE_SWEEP:
+            raise ValueError(f"{option} is set by the sweep for each cell; valid after --: "
+                             "the other options of `franka-composer train`")
+    train_args = (*rule, *args.train_args)
+    if args.status or args.sync:
+        _check_sweep_folder(args.out, synced=bool(args.sync))
+        # The cells as the sweep would train them: its options after -- checked, and a cell
+        # holding another run not copied under the sweep's name. Read as if written in the
+        # temporary folder: these only read --out (a read-only mount may be looked at), and
+        # a run's settings do not depend on where it is.
+        elsewhere = pathlib.Path(tempfile.gettempdir())
+        for cell in cells:
+            config = cell_config(cell, elsewhere, train_args)
+            if args.sync:
+                _check_trained_as(RunDir(args.out / cell.name), config)
     if args.status:
         print(status_table([cell_status(cell, args.out) for cell in cells]))
         return 0
@@ -199,11 +240,6 @@ def run(args: argparse.Namespace) -> int:
         check_writable(args.out, folder=True)
     except ValueError as error:
         raise ValueError(f"--out: {error}") from None
-    train_args = (*rule, *args.train_args)
-    for option in args.train_args:
-        if option.split("=", 1)[0] in _SET_BY_THE_SWEEP:
-            raise ValueError(f"{option} is set by the sweep for each cell; valid after --: "
-                             "the other options of `franka-composer train`")
     try:
         import ray  # noqa: F401
     except ImportError as error:

@@ -397,6 +397,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
             run_dir = RunDir(out)
             _check_resumed_as_given(args, run_dir)
             run_dir.recover_checkpoint()
+            run_dir.check_config_checkpointed()
             _check_budget(args, run_dir)
         else:
             config = check_new_run(args)

@@ -123,7 +123,7 @@ def _check_json_options(options: dict) -> None:
 def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -> None:
     """Where `record` writes must take a new dataset whole, found out before the episodes
     are recorded: an npz file's name ends in .npz (numpy would add it); Minari and RLDS
-    datasets are folders, and one already there is not added to (envlogger would append
+    datasets are folders (not named .npz), and one already there is not added to (envlogger would append
     the new episodes to an RLDS dataset's, Minari refuses at the end); either can be
     written there (`check_writable`)."""
     if format == "npz":
@@ -135,6 +135,9 @@ def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -
         return
     if out.is_file():
         raise ValueError(f"a {format} dataset is a folder, and {out} is a file")
+    if out.suffix == ".npz":
+        raise ValueError(f"a {format} dataset is a folder, and {str(out)!r} is named as an "
+                         "npz file: give a folder's name, or --format npz")
     if format == "rlds" and out.is_dir() and any(out.iterdir()):
         raise ValueError(f"{out} is not empty: an RLDS dataset takes a folder of its own "
                          "(envlogger would add these episodes to the ones there)")

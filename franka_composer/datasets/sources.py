@@ -43,34 +43,41 @@ class TrainedPolicy:
 
         run = RunDir(pathlib.Path(run_dir))
         config = run.read_config()
-        task = env.unwrapped.task.config.name
-        if config.task != task:
-            raise ValueError(f"{run_dir} trained {config.task}, not {task}")
-        if config.environment is not None:  # Another suite's env (RunConfig.environment).
-            raise ValueError(f"{run_dir} trained in {config.environment}'s {task} "
-                             "environment, not this suite's")
-        control = env.unwrapped.task.config.control.kind
-        if config.control != control:  # Its actions mean what they did in training.
-            raise ValueError(f"{run_dir} acts through {config.control} control, not "
-                             f"{control}")
-        env_config = env.unwrapped.task.config
-        if config.control_timestep != env_config.control_timestep:  # And last as long.
-            raise ValueError(f"{run_dir} acts every {config.control_timestep} s, not every "
-                             f"{env_config.control_timestep} s")
-        if config.velocity_timestep != env_config.velocity_timestep:  # Sees as it learned.
-            raise ValueError(f"{run_dir} observes velocities per "
-                             f"{config.velocity_timestep or config.control_timestep} s, not "
-                             f"per {env_config.velocity_period} s")
-        if (control == "mocap"  # The same hand (the other controllers have no weld).
-                and config.weld_time_constant != env_config.control.weld_time_constant):
-            raise ValueError(f"{run_dir} moved a hand welded with a time constant of "
-                             f"{config.weld_time_constant} s, not "
-                             f"{env_config.control.weld_time_constant} s")
+        check_acts_in(run_dir, config, env.unwrapped.task.config)
         self._model = load_trained(run, env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:
         action, _ = self._model.predict(obs, deterministic=True)
         return np.asarray(action, dtype=np.float32)
+
+
+def check_acts_in(run_dir, config, env_config) -> None:
+    """A ValueError naming `run_dir` unless its run (`config`) acts in an env of
+    `env_config` (a `TaskConfig`) as it learned: the same task, this suite's env, the same
+    controller, timing, velocity scale and weld. Asked before the env is made where it can
+    be (`demo --policy`), and by `TrainedPolicy`."""
+    task = env_config.name
+    if config.task != task:
+        raise ValueError(f"{run_dir} trained {config.task}, not {task}")
+    if config.environment is not None:  # Another suite's env (RunConfig.environment).
+        raise ValueError(f"{run_dir} trained in {config.environment}'s {task} "
+                         "environment, not this suite's")
+    control = env_config.control.kind
+    if config.control != control:  # Its actions mean what they did in training.
+        raise ValueError(f"{run_dir} acts through {config.control} control, not "
+                         f"{control}")
+    if config.control_timestep != env_config.control_timestep:  # And last as long.
+        raise ValueError(f"{run_dir} acts every {config.control_timestep} s, not every "
+                         f"{env_config.control_timestep} s")
+    if config.velocity_timestep != env_config.velocity_timestep:  # Sees as it learned.
+        raise ValueError(f"{run_dir} observes velocities per "
+                         f"{config.velocity_timestep or config.control_timestep} s, not "
+                         f"per {env_config.velocity_period} s")
+    if (control == "mocap"  # The same hand (the other controllers have no weld).
+            and config.weld_time_constant != env_config.control.weld_time_constant):
+        raise ValueError(f"{run_dir} moved a hand welded with a time constant of "
+                         f"{config.weld_time_constant} s, not "
+                         f"{env_config.control.weld_time_constant} s")
 
 
 def make_policy(env, *, policy_dir=None, action_noise: float = 0.0, seed: int = 0):

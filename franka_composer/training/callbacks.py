@@ -20,6 +20,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback,
 
 from franka_composer.training import exact_resume
 from franka_composer.training.exact_resume import EpisodeStream
+from franka_composer.training.run_config import RunConfig
 from franka_composer.training.runs import RunDir, append_eval_row, read_eval_rows
 
 
@@ -161,15 +162,18 @@ class LatestCheckpoint(CheckpointCallback):
     `threads`, the CPU threads the networks are computed with, recorded for a resume;
     `fresh_streams`, the steps at which the run went on with a fresh episode stream, and
     `machines`, those it has trained on (`machine`), carried on (`RunDir.read_state`; None
-    where unknown)."""
+    where unknown); `config`, the run's settings, recorded so that a resume can tell a
+    config.json edited since (`RunDir.check_config_checkpointed`)."""
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
-                 threads: int | None = None, fresh_streams: list[int] | None = None,
+                 config: RunConfig, threads: int | None = None,
+                 fresh_streams: list[int] | None = None,
                  machines: list[dict] | None = None) -> None:
         super().__init__(every, str(run.root), name_prefix="model", save_replay_buffer=True)
         self._writing = run.checkpoint  # The folder a checkpoint is being written into.
         self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
         self._fresh_streams, self._machines = fresh_streams, machines
+        self._config = config.to_dict()
         self.stop_requested = False
         self.episode_ended = False  # Whether the latest step ended an episode.
 
@@ -215,5 +219,6 @@ class LatestCheckpoint(CheckpointCallback):
             {"steps": int(self.model.num_timesteps), "wall_time_s": self._clock(),
              "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
              "exact": exact, "threads": self._threads,
-             "fresh_streams": self._fresh_streams, "machines": self._machines}) + "\n")
+             "fresh_streams": self._fresh_streams, "machines": self._machines,
+             "config": self._config}) + "\n")
         run.publish_checkpoint(self._writing)

@@ -37,11 +37,14 @@ def files_to_keep(run: RunDir, kept: RunDir, budget: int | None = None) -> KeptF
 
 
 def check_extends(files: KeptFiles, kept: RunDir) -> None:
-    """A ValueError unless `files` only extend what `kept` holds: the same run's settings
-    (its budget aside), and every kept evaluation among the run's, with the same success
-    rate and mean reward (its wall time aside: a run begun again from zero retraces them
-    bit for bit on the same machine, at its own pace)."""
+    """A ValueError unless `files` only extend what `kept` holds (a folder, or nothing yet):
+    the same run's settings (its budget aside), and every kept evaluation among the run's,
+    with the same success rate and mean reward (its wall time aside: a run begun again from
+    zero retraces them bit for bit on the same machine, at its own pace)."""
     config = files.run.read_config()  # Copied as it is: checked here.
+    if kept.root.exists() and not kept.root.is_dir():
+        raise ValueError(f"{kept.root} is a file, not a folder: move it away to keep "
+                         f"{files.run.root} there")
     if kept.config_path.is_file():
         differences = config.differences(kept.read_config())
         if differences:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import pathlib
 
 import numpy as np
@@ -120,27 +121,48 @@ def first_reaching(curve: dict[int, float], threshold: float) -> int | None:
 
 #: The columns of the paper's curves as `experiments/paper_curves.py` writes them.
 PAPER_CURVE_COLUMNS = ("task", "algo", "steps", "success")
+#: How far outside [0, 1] a success rate read off a figure's pixels may lie (the paper's
+#: push SAC curve reads 1.002 at its top).
+READ_OFF_TOLERANCE = 0.01
 
 
 def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, float]]:
     """The paper's published curves as `experiments/paper_curves.py` writes them (a CSV of
-    task, algo, steps, success): {(task, algo): {steps: success}}."""
+    task, algo, steps, success): {(task, algo): {steps: success}}. A file or row it does not
+    write (not UTF-8 text, a task or algorithm this suite has not, steps below 0, a success
+    rate outside [0, 1] beyond what reading a figure leaves: a percentage?) is a ValueError
+    naming the file and its line."""
+    from franka_composer.tasks import ALL_TASKS
+    from franka_composer.training.hyperparams import ALGOS
+
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path} is not a CSV of curves: it is not UTF-8 text "
+                         f"({error})") from None
     curves: dict[tuple[str, str], dict[int, float]] = {}
-    with open(path, newline="") as handle:
-        reader = csv.DictReader(handle)
-        missing = [c for c in PAPER_CURVE_COLUMNS if c not in (reader.fieldnames or ())]
-        if missing:
-            raise ValueError(f"{path} is not a CSV of curves: it has no "
-                             f"{', '.join(missing)} column(s) (it needs "
-                             f"{', '.join(PAPER_CURVE_COLUMNS)})")
-        for line, row in enumerate(reader, start=2):
-            try:
-                steps, success = int(row["steps"]), float(row["success"])
-            except (TypeError, ValueError):
-                raise ValueError(f"{path}, line {line}: steps must be a whole number and "
-                                 f"success a number, got {row['steps']!r}, "
-                                 f"{row['success']!r}") from None
-            curves.setdefault((row["task"], row["algo"]), {})[steps] = success
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    missing = [c for c in PAPER_CURVE_COLUMNS if c not in (reader.fieldnames or ())]
+    if missing:
+        raise ValueError(f"{path} is not a CSV of curves: it has no "
+                         f"{', '.join(missing)} column(s) (it needs "
+                         f"{', '.join(PAPER_CURVE_COLUMNS)})")
+    for line, row in enumerate(reader, start=2):
+        try:
+            steps, success = int(row["steps"]), float(row["success"])
+        except (TypeError, ValueError):
+            raise ValueError(f"{path}, line {line}: steps must be a whole number and "
+                             f"success a number, got {row['steps']!r}, "
+                             f"{row['success']!r}") from None
+        problem = (f"unknown task {row['task']!r}" if row["task"] not in ALL_TASKS else
+                   f"unknown algorithm {row['algo']!r}" if row["algo"] not in ALGOS else
+                   f"steps must be >= 0, got {steps}" if steps < 0 else
+                   f"success must be a fraction, within [0, 1] (to {READ_OFF_TOLERANCE:g}, "
+                   f"read off a figure), got {success:g}"
+                   if not -READ_OFF_TOLERANCE <= success <= 1.0 + READ_OFF_TOLERANCE else None)
+        if problem:
+            raise ValueError(f"{path}, line {line}: {problem}")
+        curves.setdefault((row["task"], row["algo"]), {})[steps] = success
     return curves
 
 

@@ -138,6 +138,9 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
 
 def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
            checkpoint_every: int | None, threads: int | None, progress: bool):
+    run.recover_checkpoint()
+    if resume:  # Before its env is built: a config.json edited since is refused.
+        run.check_config_checkpointed()
     config = run.read_config()
     if total_steps is not None:  # Saved once the run goes on with it (below).
         config = dataclasses.replace(
@@ -148,7 +151,6 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     eval_env.seed(config.seed + EVAL_SEED_OFFSET)
     tensorboard = str(run.tensorboard) if importlib.util.find_spec("tensorboard") else None
 
-    run.recover_checkpoint()
     state = run.read_state()
     outcome = run.read_outcome()
     if resume:  # `train` has checked it is resumable.
@@ -218,8 +220,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         checkpoint_every = state.get("checkpoint_every", DEFAULT_CHECKPOINT_EVERY) if resume \
             else DEFAULT_CHECKPOINT_EVERY
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream,
-                                  threads=threads, fresh_streams=fresh_streams,
-                                  machines=machines)
+                                  config=config, threads=threads,
+                                  fresh_streams=fresh_streams, machines=machines)
     precision = GradientStepPrecision(config.precision)
     # The loop's own bar, not learn(progress_bar=True)'s: an interrupt skips SB3's closing
     # of it, and a bar left open is closed at interpreter shutdown, where rich fails.

@@ -69,9 +69,28 @@ class ActorPolicy:
 def load_policy(config: RunConfig, path: pathlib.Path, env: gym.Env,
                 device: str = "auto") -> ActorPolicy:
     """The actor saved at `path` by a run of `config`, on `env`'s spaces."""
+    device = resolve_device(device)
+    state = read_policy_file(config, path, device)
+    if config.backend == "sbx":
+        return ActorPolicy(_sbx_policy(config, state["actor"], env, path), state["steps"])
+    policy_class = algorithm_class(config.algo).policy_aliases["MultiInputPolicy"]
+    policy = policy_class(env.observation_space, env.action_space, lr_schedule=lambda _: 0.0,
+                          **policy_kwargs(config.algo, config.hyperparameters))
+    try:
+        policy.actor.load_state_dict(state["actor"])
+    except RuntimeError:  # Other layers or shapes: another algorithm or network.
+        raise ValueError(f"{path}: its actor's parameters do not fit the network its run's "
+                         f"config.json describes ({config.algo}, net_arch "
+                         f"{list(config.hyperparameters.net_arch)})") from None
+    policy.set_training_mode(False)
+    return ActorPolicy(policy.to(device), state["steps"])
+
+
+def read_policy_file(config: RunConfig, path: pathlib.Path, device: str = "cpu") -> dict:
+    """The contents of the policy file at `path` of a run of `config` ({"actor", "steps",
+    ...}); a ValueError naming it if it is not one franka_composer wrote for such a run."""
     import torch
 
-    device = resolve_device(device)
     try:
         state = torch.load(path, map_location=device, weights_only=True)
     except Exception as error:  # torch raises what its unpickler or zip reader meets.
@@ -88,19 +107,7 @@ def load_policy(config: RunConfig, path: pathlib.Path, env: gym.Env,
     if saved_by != config.backend:
         raise ValueError(f"{path} holds an actor of {saved_by}, and its run's config.json "
                          f"says {config.backend}")
-    if config.backend == "sbx":
-        return ActorPolicy(_sbx_policy(config, state["actor"], env, path), state["steps"])
-    policy_class = algorithm_class(config.algo).policy_aliases["MultiInputPolicy"]
-    policy = policy_class(env.observation_space, env.action_space, lr_schedule=lambda _: 0.0,
-                          **policy_kwargs(config.algo, config.hyperparameters))
-    try:
-        policy.actor.load_state_dict(state["actor"])
-    except RuntimeError:  # Other layers or shapes: another algorithm or network.
-        raise ValueError(f"{path}: its actor's parameters do not fit the network its run's "
-                         f"config.json describes ({config.algo}, net_arch "
-                         f"{list(config.hyperparameters.net_arch)})") from None
-    policy.set_training_mode(False)
-    return ActorPolicy(policy.to(device), state["steps"])
+    return state
 
 
 def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Path):
@@ -128,11 +135,14 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
 
 def check_trained(run: RunDir) -> None:
     """A ValueError naming `run` if it holds nothing trained to load (a run still training
-    and kept without a checkpoint, say): asked before an env is made for it."""
-    if not any(path.is_file() for path in (run.final_model, run.checkpoint_model,
-                                           run.policy_file)):
+    and kept without a checkpoint, say), or only a policy file that is not one
+    (`read_policy_file`): asked before an env is made for it."""
+    if any(path.is_file() for path in (run.final_model, run.checkpoint_model)):
+        return
+    if not run.policy_file.is_file():
         raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
                          "no policy.pt)")
+    read_policy_file(run.read_config(), run.policy_file)
 
 
 def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):

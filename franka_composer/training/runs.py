@@ -285,12 +285,28 @@ class RunDir:
             raise ValueError(f"{self.eval_csv} is missing: the run's evaluations up to its "
                              "checkpoint would be lost; put it back to resume")
 
+    def check_config_checkpointed(self) -> None:
+        """Refuses (ValueError) to resume a run whose config.json says other than the
+        settings its checkpoint was trained with (a hand edit: the checkpoint's networks,
+        buffer and env would not fit them, or the run would go on as another while its files
+        say one), naming what differs; the step budget may differ (--total-steps raises
+        it). A checkpoint written before it recorded the settings is not checked."""
+        recorded = self.read_state().get("config")
+        if recorded is None:
+            return
+        differences = self.read_config().differences(RunConfig.from_dict(recorded))
+        if differences:
+            raise ValueError(f"{self.config_path} says other than the settings the run's "
+                             f"checkpoint at step {self.read_state()['steps']:,} was trained "
+                             f"with ({'; '.join(differences)}): a run goes on with its own; "
+                             "put them back, or start a new run with the new ones")
+
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
-        "exact", "threads", "fresh_streams", "machines"} (no CPU time in checkpoints written
-        before it was recorded, no "exact" or "threads" in those written before resumes
-        could be exact, no "fresh_streams" or "machines" in those written before each was
-        recorded); {} without a checkpoint."""
+        "exact", "threads", "fresh_streams", "machines", "config"} (no CPU time in
+        checkpoints written before it was recorded, no "exact" or "threads" in those written
+        before resumes could be exact, no "fresh_streams", "machines" or "config" in those
+        written before each was recorded); {} without a checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
         state = read_json(self.checkpoint_state, "a checkpoint's state")
