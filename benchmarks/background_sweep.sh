@@ -85,8 +85,8 @@ stop_sweep() {
 
 # background_sweep ACTION KEPT: run, stop, status or sync (into $KEPT if set, else KEPT) the
 # cells of the array `sweep` (`franka-composer sweep --out "$RUNS" ...`'s arguments), each
-# trained with the array `train_options`; run starts on FROZEN's tree if set, at low
-# priority.
+# trained with the array `train_options` (given to status and sync too: they read the cells
+# as the sweep trains them); run starts on FROZEN's tree if set, at low priority.
 background_sweep() {
   case "$1" in
     run)
@@ -98,14 +98,14 @@ background_sweep() {
       ;;
     stop)
       stop_sweep "franka-composer sweep --out $RUNS " "$RUNS" || return 1
-      "$BIN/franka-composer" "${sweep[@]}" --status
+      "$BIN/franka-composer" "${sweep[@]}" --status -- "${train_options[@]}"
       ;;
     status)
-      "$BIN/franka-composer" "${sweep[@]}" --status || return 1
+      "$BIN/franka-composer" "${sweep[@]}" --status -- "${train_options[@]}" || return 1
       machine_log changes "$RUNS"
       kept_ahead "$RUNS" "${KEPT:-$2}"
       ;;
-    sync) "$BIN/franka-composer" "${sweep[@]}" --sync "${KEPT:-$2}" ;;
+    sync) "$BIN/franka-composer" "${sweep[@]}" --sync "${KEPT:-$2}" -- "${train_options[@]}" ;;
     *) return 2 ;;
   esac
 }

@@ -178,8 +178,8 @@ def test_a_policy_run_with_nothing_trained_is_named_before_anything_is_made(tmp_
 
 
 def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, monkeypatch):
-    """A damaged policy.pt (demo and rollout), and a timing given that is not the run's
-    (demo), were found only once the env was built and its episode begun."""
+    """A damaged policy.pt, and a timing given that is not the run's, were found only once
+    the env was built (and, by demo, its episode begun)."""
     import shutil
 
     import gymnasium
@@ -202,10 +202,12 @@ def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, mon
                   "--out", str(tmp_path / "x.npz")]):
         with pytest.raises(ValueError, match=not_a_policy):
             cli.main(argv)
-    with pytest.raises(ValueError, match=re.escape(
-            f"{committed} acts every 0.05 s, not every 0.5 s")):
-        cli.main(["demo", "--policy", str(committed), "--no-video", "--control-timestep",
-                  "0.5"])
+    for argv in (["demo", "--policy", str(committed), "--no-video"],
+                 ["rollout", "--task", "push", "--episodes", "1", "--policy", str(committed),
+                  "--out", str(tmp_path / "x.npz")]):
+        with pytest.raises(ValueError, match=re.escape(
+                f"{committed} acts every 0.05 s, not every 0.5 s")):
+            cli.main([*argv, "--control-timestep", "0.5"])
     assert made == []
     assert sorted(path.name for path in tmp_path.iterdir()) == ["committed", "damaged"]
 

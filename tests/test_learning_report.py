@@ -240,6 +240,8 @@ def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
         other.write_text(f"task,algo,steps,success\npush,tqc,0,0.5\n{row}\n")
         with pytest.raises(ValueError, match=f"other.csv, line 3: {problem}$"):
             read_paper_curves(other)
+    other.write_bytes("\ufefftask,algo,steps,success\npush,tqc,0,0.5\n".encode())  # A BOM.
+    assert read_paper_curves(other) == {("push", "tqc"): {0: 0.5}}
     other.write_bytes(b"\x00\xff\xfe")
     with pytest.raises(ValueError, match="other.csv is not a CSV of curves: it is not UTF-8 "
                                          "text"):

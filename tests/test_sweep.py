@@ -474,6 +474,16 @@ def test_status_and_sync_check_the_sweep_they_are_given(tmp_path, capsys):
         with pytest.raises(ValueError, match=re.escape(message)):
             cli.main(["sweep", *grid, *argv])
     assert not (tmp_path / "kept").exists()
+    # A cell that has not checkpointed yet would be begun again by the sweep, but --sync
+    # would copy it, under the sweep's name: another run there is refused too.
+    other = tmp_path / "other"
+    loop.start(other / "push-sac-seed0", RunConfig(
+        "push", "sac", 0, hyperparameters("push", "sac").replace(batch_size=7)))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{other / 'push-sac-seed0'} holds a run other than the one this sweep gives "
+            "that cell (the sweep's setting, not the run's: batch_size: 512, not 7)")):
+        cli.main(["sweep", *grid, "--out", str(other), "--sync", str(tmp_path / "kept")])
+    assert not (tmp_path / "kept").exists()
     # A grid's cells listed before any sweep is there, as its help says.
     assert cli.main(["sweep", *grid, "--out", str(tmp_path / "nosuch"), "--status"]) == 0
     assert "| push-sac-seed0 | waiting |" in capsys.readouterr().out
@@ -669,14 +679,16 @@ def test_background_campaigns_train_their_cells_with_their_options(
     the campaign's stopping rule and checkpoints; an unknown command prints its usage."""
     ran = _benchmark_sh(tmp_path, script, "run", **env)
     assert ran.returncode == 0, ran.stderr
+    trained_with = (f"-- {options + ' ' if options else ''}--stop-at-success 0.95 "
+                    "--stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu\n")
     assert ran.stdout == (
         f"franka-composer sweep --out {tmp_path}/runs {cells} --steps 500000 --num-cpus 1 "
-        f"--refresh 600 -- {options + ' ' if options else ''}--stop-at-success 0.95 "
-        "--stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu\n")
+        f"--refresh 600 {trained_with}")
+    # Sync reads the cells as the sweep trains them: with the same options.
     synced = _benchmark_sh(tmp_path, script, "sync", **env)
-    assert synced.stdout.endswith(f"--sync {tmp_path}/kept\n")  # KEPT, where given.
+    assert synced.stdout.endswith(f"--sync {tmp_path}/kept {trained_with}")  # KEPT, if given.
     synced = _benchmark_sh(tmp_path, script, "sync", **env, KEPT="")
-    assert synced.stdout.endswith(f"--sync results/{kept}\n")
+    assert synced.stdout.endswith(f"--sync results/{kept} {trained_with}")
     # RUNS, where not given: beside the other campaigns' runs, one folder per campaign.
     status = _benchmark_sh(tmp_path, script, "status", **env, RUNS="", HOME=str(tmp_path))
     assert f"--out {tmp_path}/franka_runs/{kept} " in status.stdout
@@ -720,6 +732,12 @@ def test_reference_timing_sh_trains_only_the_cells_sync_has_not_kept_as_finished
     assert "--seeds 0 1 2 --steps 500000" in status.stdout
 
 
+#: What `reference_timing.sh status` shows its table with (a fake franka-composer echoes it):
+#: the cells as its sweep trains them, with its options after --.
+REFERENCE_TIMING_STATUS = ("--status -- --backend sbx --timing reference --stop-at-success 0.95 "
+                           "--stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu\n")
+
+
 def test_a_campaigns_status_names_the_kept_runs_its_runs_have_not_passed(tmp_path):
     """A machine handed back bare lost the unfinished runs: `status` says, below the table,
     which kept evaluations their runs begun again from zero have still to retrace."""
@@ -734,19 +752,20 @@ def test_a_campaigns_status_names_the_kept_runs_its_runs_have_not_passed(tmp_pat
              "them)\n")
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
     assert status.returncode == 0, status.stderr
-    assert status.stdout.endswith("--status\n" + ahead.format("no run here"))
+    table = REFERENCE_TIMING_STATUS
+    assert status.stdout.endswith(table + ahead.format("no run here"))
     _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.1)])
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
     assert status.stdout.endswith(
-        "--status\n" + ahead.format("its run here has retraced them to step 2,000"))
+        table + ahead.format("its run here has retraced them to step 2,000"))
     _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.1), (4000, 17, 0.2)])
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
-    assert status.stdout.endswith("--status\n")
+    assert status.stdout.endswith(table)
     # A run that has left them is named as soon as it has (sync would refuse it).
     _write_run(runs, "pick_and_place-tqc-seed0", [(0, 1, 0.0), (2000, 8, 0.3)])
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
     assert status.stdout.endswith(
-        f"--status\npick_and_place-tqc-seed0: its run here has left the evaluations kept in "
+        f"{table}pick_and_place-tqc-seed0: its run here has left the evaluations kept in "
         f"{kept} at step 2,000 (success rate 0.3, mean reward -1; kept: 0.1, -1): it will not "
         "be kept there\n")
 
@@ -765,7 +784,7 @@ def test_a_campaign_notes_each_machine_it_runs_on_and_says_where_one_changed(tmp
         {k: v for k, v in line.items() if k != "noted"} == machine.fingerprint()
         for line in noted)
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
-    assert status.stdout.endswith("--status\n")  # One machine: nothing to say.
+    assert status.stdout.endswith(REFERENCE_TIMING_STATUS)  # One machine: nothing to say.
     for line in noted:  # As if both starts had been elsewhere.
         line["libraries"]["torch"] = "2.12.0"
     log.write_text("".join(json.dumps(line) + "\n" for line in noted))
@@ -779,7 +798,7 @@ def test_a_campaign_notes_each_machine_it_runs_on_and_says_where_one_changed(tmp
             "have computed\n")
     assert ran.stderr == said
     status = _benchmark_sh(tmp_path, "reference_timing.sh", "status")
-    assert status.stdout.endswith("--status\n" + said)
+    assert status.stdout.endswith(REFERENCE_TIMING_STATUS + said)
 
 
 def test_reference_timing_sh_reports_the_algorithms_whose_every_seed_has_finished(tmp_path):

@@ -779,6 +779,8 @@ def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_pa
     is refused before anything is built or written, naming what differs (another algo ended
     in a traceback after the finished run's model, policy and outcome were deleted; another
     seed or controller trained on as the edited run, its files then disagreeing)."""
+    from franka_composer.training import loop
+
     run = RunDir(runs["sac"])
     assert RunConfig.from_dict(run.read_state()["config"]) == run.read_config()
     for edit, differs in (({"algo": "tqc"}, "algo: tqc, not sac"),
@@ -797,6 +799,21 @@ def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_pa
             cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
         assert {path.name: path.read_bytes() for path in copy.iterdir()
                 if path.is_file()} == files
+    # The loop checks too (a sweep's cells and scripts resume through it).
+    with pytest.raises(ValueError, match="says other than the settings the run's checkpoint"):
+        loop.train(RunDir(copy), resume=True, total_steps=400, device="cpu", progress=False)
+    assert {path.name: path.read_bytes() for path in copy.iterdir() if path.is_file()} == files
+    # A checkpoint written before it recorded the settings is not checked; one whose record
+    # is damaged is named.
+    edited = RunDir(copy)
+    state = json.loads(edited.checkpoint_state.read_text())
+    edited.checkpoint_state.write_text(json.dumps({**state, "config": {"task": "push"}}))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{edited.checkpoint_state}'s config is not a run's config (damaged?)")):
+        edited.check_config_checkpointed()
+    del state["config"]
+    edited.checkpoint_state.write_text(json.dumps(state))
+    edited.check_config_checkpointed()
 
 
 def test_no_terminate_on_success_reaches_the_env(tmp_path, monkeypatch):

@@ -110,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _adopt_the_runs_task(args: argparse.Namespace):
     """The --policy run's config, with `args` set to its task and controller; a --tasks or
-    --control that names others is an error (before anything is built)."""
+    --control that names others, a policy that cannot be read, or a timing or environment
+    it did not learn in is an error (before anything is built)."""
     from franka_composer.datasets.sources import check_acts_in
     from franka_composer.training.models import env_task_config
     from franka_composer.training.policy_file import check_trained
@@ -127,9 +128,9 @@ def _adopt_the_runs_task(args: argparse.Namespace):
                          f"not --control {args.control}")
     args.tasks, args.control = (config.task,), config.control
     # A timing given that is not the run's, refused before its env is made.
-    env_config = env_task_config(config.task, **{**config.env_options, **given_timing(args)})
-    if env_config is not None:  # Another suite's env: TrainedPolicy refuses it.
-        check_acts_in(args.policy, config, env_config)
+    options = {**config.env_options, **given_timing(args)}
+    del options["environment"]  # This suite's env: a run trained in another's is refused.
+    check_acts_in(args.policy, config, env_task_config(config.task, **options))
     return config
 
 

@@ -74,6 +74,12 @@ def run(args: argparse.Namespace) -> int:
         damping = trained.object_damping if damping is None else damping
     task_options = {**given_timing(args, run_timing),
                     **({"object_damping": damping} if damping else {})}
+    if args.policy is not None:  # Acts there as it learned: found before a dataset is begun.
+        from franka_composer.datasets.sources import check_acts_in
+        from franka_composer.tasks import task_config
+
+        check_acts_in(args.policy, trained, task_config(args.task, control=args.control,
+                                                        **task_options))
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,

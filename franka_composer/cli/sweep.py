@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import pathlib
-import tempfile
 
 from franka_composer.cli.options import (add_tasks_argument, folder_path, output_folder,
                                          positive_int, positive_seconds, training_seed)
@@ -126,11 +125,13 @@ def _grid_of(args: argparse.Namespace):
     return grid(args.tasks, args.algos, args.seeds, args.steps), ()
 
 
-def _check_trained_as(run, config) -> None:
+def _check_trained_as(run, config, *, started: bool = True) -> None:
     """A cell resumes from its checkpoint with the settings it was started with: if the
     grid or the options after -- now describe another run, say so rather than go on with
-    the old one under the new one's name. (A cell without a checkpoint starts afresh.)"""
-    if not (run.read_state() or run.read_outcome()):
+    the old one under the new one's name. (A cell without a checkpoint starts afresh; with
+    `started` False, any run there counts: what --sync would copy under the cell's name.)"""
+    if not run.config_path.is_file() or (started and not (run.read_state()
+                                                           or run.read_outcome())):
         return
     differences = config.differences(run.read_config())
     if differences:
@@ -143,22 +144,28 @@ def _check_trained_as(run, config) -> None:
 def _check_sweep_folder(out, *, synced: bool) -> None:
     """--out for --status or --sync: a sweep's folder (its cells are runs in it), or, for
     --status, none yet (the grid's cells listed, all waiting)."""
-    if (out / "config.json").is_file():
+    from franka_composer.training.runs import RunDir
+
+    if RunDir(out).config_path.is_file():
         raise ValueError(f"--out {out} is a training run, not a sweep's folder (a sweep's "
                          "cells are runs in it)")
     if synced and not out.is_dir():
         raise ValueError(f"--out {out} does not exist: no sweep there to sync")
 
 
-def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace:
+def cell_arguments(cell, out, train_args: tuple[str, ...], *,
+                   reading: bool = False) -> argparse.Namespace:
     """The `train` arguments of `cell` under `out` with `train_args`, read by train's own
     parser; an option it does not take is a ValueError saying it came after --. Options are
-    taken as spelled, not abbreviated: `--tas` would otherwise be the --task the sweep sets."""
+    taken as spelled, not abbreviated: `--tas` would otherwise be the --task the sweep sets.
+    `reading`: only to read the cell's settings, --out not checked as a place to write."""
     from franka_composer.cli import command_parser
     from franka_composer.training.sweep import train_arguments
 
     parser = command_parser("train")
     parser.allow_abbrev = False
+    if reading:
+        parser._option_string_actions["--out"].type = pathlib.Path
     parser.exit_on_error = False
 
     def refuse(message: str):  # Not train's usage and exit: the user ran sweep.
@@ -176,11 +183,12 @@ def cell_arguments(cell, out, train_args: tuple[str, ...]) -> argparse.Namespace
     return args
 
 
-def cell_config(cell, out, train_args: tuple[str, ...]):
-    """The run (`RunConfig`) the sweep trains as `cell` under `out` with `train_args`."""
+def cell_config(cell, out, train_args: tuple[str, ...], *, reading: bool = False):
+    """The run (`RunConfig`) the sweep trains as `cell` under `out` with `train_args`
+    (`reading`: as `cell_arguments`)."""
     from franka_composer.cli.train import run_config
 
-    return run_config(cell_arguments(cell, out, train_args))
+    return run_config(cell_arguments(cell, out, train_args, reading=reading))
 
 
 def check_cells(cells, out, train_args: tuple[str, ...], *, local: bool = True) -> None:
@@ -221,14 +229,12 @@ def run(args: argparse.Namespace) -> int:
     if args.status or args.sync:
         _check_sweep_folder(args.out, synced=bool(args.sync))
         # The cells as the sweep would train them: its options after -- checked, and a cell
-        # holding another run not copied under the sweep's name. Read as if written in the
-        # temporary folder: these only read --out (a read-only mount may be looked at), and
-        # a run's settings do not depend on where it is.
-        elsewhere = pathlib.Path(tempfile.gettempdir())
+        # holding another run not copied under the sweep's name (these only read --out: a
+        # read-only mount may be looked at).
         for cell in cells:
-            config = cell_config(cell, elsewhere, train_args)
+            config = cell_config(cell, args.out, train_args, reading=True)
             if args.sync:
-                _check_trained_as(RunDir(args.out / cell.name), config)
+                _check_trained_as(RunDir(args.out / cell.name), config, started=False)
     if args.status:
         print(status_table([cell_status(cell, args.out) for cell in cells]))
         return 0

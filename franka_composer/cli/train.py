@@ -395,9 +395,11 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     try:  # The checks (seconds where they load --demos): stopped here, nothing is written.
         if args.resume:
             run_dir = RunDir(out)
+            # First: an edited config.json would otherwise be taken for the run's settings.
+            # (A checkpoint a stop left unlinked is checked once recovered, in the loop.)
+            run_dir.check_config_checkpointed()
             _check_resumed_as_given(args, run_dir)
             run_dir.recover_checkpoint()
-            run_dir.check_config_checkpointed()
             _check_budget(args, run_dir)
         else:
             config = check_new_run(args)

@@ -123,9 +123,9 @@ def _check_json_options(options: dict) -> None:
 def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -> None:
     """Where `record` writes must take a new dataset whole, found out before the episodes
     are recorded: an npz file's name ends in .npz (numpy would add it); Minari and RLDS
-    datasets are folders (not named .npz), and one already there is not added to (envlogger would append
-    the new episodes to an RLDS dataset's, Minari refuses at the end); either can be
-    written there (`check_writable`)."""
+    datasets are folders (not named .npz), and one already there is not added to (envlogger
+    would append the new episodes to an RLDS dataset's, Minari refuses at the end); either
+    can be written there (`check_writable`)."""
     if format == "npz":
         if out.suffix != ".npz":
             raise ValueError(f"an npz dataset's path must end in .npz, got {str(out)!r}")

@@ -136,7 +136,7 @@ def read_paper_curves(path: pathlib.Path) -> dict[tuple[str, str], dict[int, flo
     from franka_composer.training.hyperparams import ALGOS
 
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # A spreadsheet's byte-order mark too.
     except UnicodeDecodeError as error:
         raise ValueError(f"{path} is not a CSV of curves: it is not UTF-8 text "
                          f"({error})") from None

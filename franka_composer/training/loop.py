@@ -139,7 +139,7 @@ def train(run: RunDir, *, resume: bool = False, total_steps: int | None = None,
 def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
            checkpoint_every: int | None, threads: int | None, progress: bool):
     run.recover_checkpoint()
-    if resume:  # Before its env is built: a config.json edited since is refused.
+    if resume:  # A checkpoint just linked: checked as `check_resumable` checks a linked one.
         run.check_config_checkpointed()
     config = run.read_config()
     if total_steps is not None:  # Saved once the run goes on with it (below).

@@ -74,31 +74,29 @@ def make_env(task: str, *, terminate_on_success: bool = True,
             randomization=randomization, control_timestep=control_timestep,
             velocity_timestep=velocity_timestep, weld_time_constant=weld_time_constant,
             object_damping=object_damping, **render_options)
-    options = _task_options(randomization, control_timestep, velocity_timestep,
-                            weld_time_constant, object_damping)
+    options = _task_options(randomization=randomization, control_timestep=control_timestep,
+                            velocity_timestep=velocity_timestep,
+                            weld_time_constant=weld_time_constant,
+                            object_damping=object_damping)
     return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success,
                     **options, **render_options)
 
 
 def env_task_config(task: str, *, terminate_on_success: bool = True, control: str = "mocap",
-                    randomization: str | None = None, control_timestep: float | None = None,
-                    velocity_timestep: float | None = None,
-                    weld_time_constant: float | None = None, object_damping: float = 0.0,
-                    environment: str | None = None):
+                    **options):
     """The task configuration (`TaskConfig`) of the env `make_env` makes of this suite with
-    these options, without building it: what a policy is checked against first. Another
-    suite's env (`environment`) has none here: None."""
+    these options (`make_env`'s, rendering and other suites' envs aside), without building
+    it: what a policy is checked against first."""
     from franka_composer.tasks import task_config
 
-    if environment is not None:
-        return None
     return task_config(task, terminate_on_success=terminate_on_success, control=control,
-                       **_task_options(randomization, control_timestep, velocity_timestep,
-                                       weld_time_constant, object_damping))
+                       **_task_options(**options))
 
 
-def _task_options(randomization, control_timestep, velocity_timestep, weld_time_constant,
-                  object_damping) -> dict:
+def _task_options(*, randomization: str | None = None, control_timestep: float | None = None,
+                  velocity_timestep: float | None = None,
+                  weld_time_constant: float | None = None,
+                  object_damping: float = 0.0) -> dict:
     """`make_env`'s options as the task takes them: those left to the task omitted."""
     return {name: value for name, value in (("randomization", randomization),
                                             ("control_timestep", control_timestep),

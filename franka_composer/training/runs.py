@@ -271,7 +271,8 @@ class RunDir:
 
     def check_resumable(self) -> None:
         """Refuses (ValueError) to resume a run with no complete checkpoint (counting one a
-        stop left unlinked, which `recover_checkpoint` links) or without its eval.csv."""
+        stop left unlinked, which `recover_checkpoint` links), without its eval.csv, or whose
+        config.json was edited since its checkpoint (`check_config_checkpointed`)."""
         recoverable = not self.checkpoint.exists() and self._complete_checkpoints()
         if not self.checkpoint_state.is_file() and not recoverable:
             trainer = self.trainer()
@@ -284,6 +285,7 @@ class RunDir:
         if not self.eval_csv.is_file():
             raise ValueError(f"{self.eval_csv} is missing: the run's evaluations up to its "
                              "checkpoint would be lost; put it back to resume")
+        self.check_config_checkpointed()
 
     def check_config_checkpointed(self) -> None:
         """Refuses (ValueError) to resume a run whose config.json says other than the
@@ -294,7 +296,12 @@ class RunDir:
         recorded = self.read_state().get("config")
         if recorded is None:
             return
-        differences = self.read_config().differences(RunConfig.from_dict(recorded))
+        try:
+            trained = RunConfig.from_dict(recorded)
+        except (KeyError, TypeError, ValueError) as error:
+            raise ValueError(f"{self.checkpoint_state}'s config is not a run's config "
+                             f"(damaged?): {error!r}") from None
+        differences = self.read_config().differences(trained)
         if differences:
             raise ValueError(f"{self.config_path} says other than the settings the run's "
                              f"checkpoint at step {self.read_state()['steps']:,} was trained "
