@@ -208,8 +208,17 @@ def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, mon
         with pytest.raises(ValueError, match=re.escape(
                 f"{committed} acts every 0.05 s, not every 0.5 s")):
             cli.main([*argv, "--control-timestep", "0.5"])
+    elsewhere = tmp_path / "elsewhere"  # Trained in another suite's env.
+    shutil.copytree(committed, elsewhere)
+    config = json.loads((elsewhere / "config.json").read_text())
+    (elsewhere / "config.json").write_text(json.dumps({**config,
+                                                       "environment": "panda_mujoco_gym"}))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{elsewhere} trained in panda_mujoco_gym's push environment, not this suite's")):
+        cli.main(["demo", "--policy", str(elsewhere), "--no-video"])
     assert made == []
-    assert sorted(path.name for path in tmp_path.iterdir()) == ["committed", "damaged"]
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["committed", "damaged",
+                                                                "elsewhere"]
 
 
 @pytest.mark.parametrize("row, problem", [
