@@ -293,7 +293,8 @@ class RunDir:
         buffer and env would not fit them, or the run would go on as another while its files
         say one), naming what differs; the step budget may differ (--total-steps raises
         it). A checkpoint written before it recorded the settings is not checked."""
-        recorded = self.read_state().get("config")
+        state = self.read_state()
+        recorded = state.get("config")
         if recorded is None:
             return
         try:
@@ -304,7 +305,7 @@ class RunDir:
         differences = self.read_config().differences(trained)
         if differences:
             raise ValueError(f"{self.config_path} says other than the settings the run's "
-                             f"checkpoint at step {self.read_state()['steps']:,} was trained "
+                             f"checkpoint at step {state['steps']:,} was trained "
                              f"with ({'; '.join(differences)}): a run goes on with its own; "
                              "put them back, or start a new run with the new ones")
 
