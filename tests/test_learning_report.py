@@ -4,6 +4,7 @@ for `evaluate`'s Table II, training/report.py)."""
 
 from __future__ import annotations
 
+import json
 import pathlib
 
 import pytest
@@ -274,13 +275,15 @@ def test_the_thresholds_are_chosen_in_percent(tmp_path, capsys):
     assert "| steps to 57.5 % | wall h |" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("given", ["0", "-50", "100.5", "0.8x", "nan"])
-def test_a_threshold_outside_0_to_100_percent_is_refused(tmp_path, capsys, given):
+@pytest.mark.parametrize("given", ["0", "-50", "100.5", "0.8x", "nan", "0.8", "1"])
+def test_a_threshold_outside_1_to_100_percent_is_refused(tmp_path, capsys, given):
+    """Fractions ("0.8", "1", as train's --stop-at-success takes them) included: read as
+    percent they asked for steps to 0.8 % and printed them."""
     with pytest.raises(SystemExit) as exit_info:
         cli.main(["report", str(tmp_path), "--thresholds", "80", given])
     assert exit_info.value.code == 2
-    assert (f"argument --thresholds: must be a success rate in percent, 0 < x <= 100, "
-            f"got {given!r}") in capsys.readouterr().err
+    assert (f"argument --thresholds: must be a success rate in percent, 1 < x <= 100 "
+            f"(80 for 80 %), got {given!r}") in capsys.readouterr().err
 
 
 def test_a_report_written_to_a_new_folder_makes_it(tmp_path, capsys):
@@ -304,10 +307,16 @@ def test_a_damaged_run_file_is_named_with_what_is_wrong(tmp_path, capsys):
         run.eval_csv.write_text(text)
         with pytest.raises(ValueError, match=message):
             read_run(root)
+    recorded = json.loads(run.config_path.read_text())
     for text, message in (("{bad json", "config.json is not a run's config: Expecting "
                                         "property name"),
                           ('{"task": "push"}', "config.json is not a run's config: it has no "
-                                               "'algo'")):
+                                               "'algo'"),
+                          (None, "config.json is not a run's config: it has no "
+                                 "'hyperparameters.total_steps'")):
+        if text is None:  # Read as the default's 500,000 steps, a 2,000-step run unfinished.
+            del recorded["hyperparameters"]["total_steps"]
+            text = json.dumps(recorded)
         run.config_path.write_text(text)
         with pytest.raises(ValueError, match=message):
             run.read_config()

@@ -129,11 +129,13 @@ def positive_number(text: str) -> float:
 
 
 def success_percent(text: str) -> float:
-    """A success rate in percent, 0 < x <= 100, as the fraction the curves hold."""
+    """A success rate in percent, 1 < x <= 100, as the fraction the curves hold. Up to 1 is
+    refused: it reads as a fraction (train's --stop-at-success takes one), and a threshold
+    of 1 % or less is no threshold for evaluations of 20 episodes (5 % apart)."""
     value = number(text)
-    if not 0.0 < value <= 100.0:
+    if not 1.0 < value <= 100.0:
         raise argparse.ArgumentTypeError(
-            f"must be a success rate in percent, 0 < x <= 100, got {text!r}")
+            f"must be a success rate in percent, 1 < x <= 100 (80 for 80 %), got {text!r}")
     return value / 100.0
 
 

@@ -27,7 +27,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--thresholds", type=success_percent, nargs="+", default=None,
                         metavar="PERCENT",
                         help="the success rates whose first crossing is reported, in percent "
-                             "(default: 80 90; e.g. 50 80 90 for a cell that stays below 80)")
+                             "above 1 (default: 80 90; e.g. 50 80 90 for a cell that stays "
+                             "below 80)")
     parser.add_argument("--wall-clock", action="store_true",
                         help="also the minutes at which the median seed's smoothed curve "
                              "first reaches each threshold (each seed's own wall-clock): "

@@ -160,7 +160,18 @@ class Hyperparameters:
 
     @classmethod
     def from_dict(cls, data: dict) -> "Hyperparameters":
+        """A run's recorded hyperparameters; a KeyError names one every run has recorded
+        but `data` lacks (a damaged or hand-edited file: defaulted, a run missing its
+        total_steps read as 500,000 steps). Runs recorded before the stopping rule or
+        clip_q_targets existed lack those, and had neither."""
+        for field in dataclasses.fields(cls):
+            if field.name not in data and field.name not in _ADDED_SINCE_THE_FIRST_RUNS:
+                raise KeyError(f"hyperparameters.{field.name}")
         return cls().replace(**data)
+
+
+#: Hyperparameters that the first runs' config.json files do not record.
+_ADDED_SINCE_THE_FIRST_RUNS = ("stop_success_rate", "stop_after_evaluations", "clip_q_targets")
 
 
 _PER_TASK = {
