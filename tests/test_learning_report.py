@@ -330,6 +330,33 @@ def test_a_run_without_evaluations_is_refused_by_name(tmp_path):
         read_run(root)
 
 
+@pytest.mark.parametrize("command", ["report", "plot"])
+def test_a_sweep_under_way_is_read_without_its_runs_not_evaluated_yet(tmp_path, capsys,
+                                                                       command):
+    """A cell not begun (config.json only) or begun and not evaluated (an empty eval.csv)
+    is named on stderr and left out; both refused the whole sweep. Runs none of which has
+    evaluated are still refused, each named."""
+    runs = tmp_path / "sweep"
+    _write_run(runs, "push", "sac", 0, [0.0] * 4 + [1.0] * 6)
+    _write_run(runs, "push", "sac", 1, [])
+    RunDir(runs / "push-sac-seed2").write_config(
+        RunConfig("push", "sac", 2, hyperparameters("push", "sac")))
+    out = ["--out", str(tmp_path / "curves.png")] if command == "plot" else []
+    assert cli.console([command, str(runs), *out]) == 0
+    printed = capsys.readouterr()
+    assert printed.err.splitlines() == [
+        f"left out: {runs / f'push-sac-seed{seed}'} has no evaluations yet" for seed in (1, 2)]
+    if command == "report":
+        assert printed.out.splitlines()[2].startswith(
+            "| push | SAC | 0 | 18,000 (running) | 0 of 1 | 14,000 | 16,000 |")
+    else:
+        assert printed.out == f"1 curve(s) -> {tmp_path / 'curves.png'}\n"
+    assert cli.console([command, str(runs / "push-sac-seed1"), str(runs / "push-sac-seed2"),
+                        *out]) == 2
+    assert (f"no evaluations yet in {runs / 'push-sac-seed1'}, {runs / 'push-sac-seed2'}"
+            in capsys.readouterr().err)
+
+
 def test_a_variant_names_what_differs_from_the_papers_setup():
     table_i = hyperparameters("slide", "tqc")
     assert RunConfig("slide", "tqc", 0, table_i.replace(

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import pathlib
+import sys
 
 from franka_composer.validation import check_writable
 
@@ -171,6 +172,13 @@ def add_run_dirs(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
                         help="run directories written by `franka-composer train`, or "
                              "sweep directories (every run in them)")
+
+
+def report_waiting(waiting) -> None:
+    """Names on stderr the runs left out for having no evaluations yet (`split_evaluated`):
+    the table or figure has the others' seeds only."""
+    for run in waiting:
+        print(f"left out: {run} has no evaluations yet", file=sys.stderr)
 
 
 def task_names(text: str) -> tuple[str, ...]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from franka_composer.cli.options import add_run_dirs, figure_file
+from franka_composer.cli.options import add_run_dirs, figure_file, report_waiting
 
 
 def add_parser(subparsers) -> None:
@@ -30,8 +30,10 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.curves import plot_curves
-    from franka_composer.training.sweep import run_directories
+    from franka_composer.training.sweep import run_directories, split_evaluated
 
-    drawn = plot_curves(run_directories(args.runs), args.out, wall_clock=args.wall_clock)
+    roots, waiting = split_evaluated(run_directories(args.runs))
+    drawn = plot_curves(roots, args.out, wall_clock=args.wall_clock)
     print(f"{len(drawn)} curve(s) -> {args.out}")
+    report_waiting(waiting)
     return 0

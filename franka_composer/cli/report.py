@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs, output_file, success_percent
+from franka_composer.cli.options import (add_run_dirs, output_file, report_waiting,
+                                         success_percent)
 
 
 def add_parser(subparsers) -> None:
@@ -42,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from franka_composer.training.learning_report import (THRESHOLDS, markdown_table,
                                                           read_paper_curves, read_run)
     from franka_composer.training.runs import check_out_apart
-    from franka_composer.training.sweep import run_directories
+    from franka_composer.training.sweep import run_directories, split_evaluated
 
     if args.paper_curves is not None and not args.paper_curves.is_file():
         raise ValueError(f"--paper-curves: {args.paper_curves} is not a file")
@@ -50,9 +51,11 @@ def run(args: argparse.Namespace) -> int:
     thresholds = tuple(sorted(set(args.thresholds))) if args.thresholds else THRESHOLDS
     roots = run_directories(args.runs)
     check_out_apart(args.out, roots)
+    roots, waiting = split_evaluated(roots)
     table = markdown_table([read_run(root) for root in roots], paper,
                            wall_clock=args.wall_clock, thresholds=thresholds)
     print(table, end="")
+    report_waiting(waiting)
     if args.out:
         from franka_composer.atomic_files import replace_atomically
 

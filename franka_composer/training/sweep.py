@@ -382,3 +382,15 @@ def run_directories(paths) -> list[pathlib.Path]:
                 "give each run once (a cell's seeds are different runs)")
         seen[seed] = run
     return runs
+
+
+def split_evaluated(runs) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
+    """`runs` split into those with evaluations and those with none yet (a sweep under way
+    has cells not begun, or begun and not yet evaluated); none with any is a ValueError
+    naming them. A damaged eval.csv is a ValueError too, not a run waiting."""
+    evaluated, waiting = [], []
+    for run in runs:
+        (evaluated if read_eval_rows(RunDir(run).eval_csv) else waiting).append(run)
+    if not evaluated:
+        raise ValueError(f"no evaluations yet in {', '.join(map(str, waiting))}")
+    return evaluated, waiting
