@@ -339,6 +339,67 @@ def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch
     assert list((tmp_path / "empty").iterdir()) == []
 
 
+def test_rlds_episodes_without_their_seed_are_refused_by_name(recorded, push_env, tmp_path):
+    """Episode metadata cut short or flipped (envlogger reads None), or a dataset logged
+    by envlogger around `load` as acme logs (no episode metadata): a TypeError from deep in
+    the reader, by `read` and by `train --demos`."""
+    import shutil
+
+    import envlogger
+
+    import franka_composer
+    from franka_composer.datasets import rlds_format
+
+    for name, cut in (("cut", lambda raw: raw[:64]),
+                      ("flipped", lambda raw: raw[:len(raw) // 2] + bytes(
+                          [raw[len(raw) // 2] ^ 0xFF]) + raw[len(raw) // 2 + 1:])):
+        path = tmp_path / name
+        shutil.copytree(recorded / "rlds", path)
+        (damaged,) = path.glob("*/episode_metadata.riegeli")
+        damaged.write_bytes(cut(damaged.read_bytes()))
+        _refused(path, push_env, ": episode 0 has no seed in its episode metadata (found "
+                                 "None): a dataset this package's rlds writer did not write")
+    logged = tmp_path / "acme"
+    logged.mkdir()
+    env = franka_composer.load("push", seed=0)
+    with envlogger.EnvLogger(env, data_directory=str(logged)) as logging:
+        timestep = logging.reset()
+        while not timestep.last():
+            timestep = logging.step(np.zeros(env.action_spec().shape))
+    with pytest.raises(ValueError, match=re.escape(f"{logged}: episode 0 has no seed")):
+        rlds_format.read(logged)
+    with pytest.raises(ValueError, match=re.escape(f"{logged}: episode 0 has no seed")):
+        main(["train", "--task", "push", "--demos", str(logged), "--out",
+              str(tmp_path / "run")])
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("format, name", [("npz", "pixels.npz"), ("rlds", "rlds"),
+                                          ("minari", "minari")])
+def test_a_dataset_of_pixels_alone_is_refused_for_holding_no_state(format, name, push_env,
+                                                                    tmp_path):
+    """RLDS raised a KeyError from the observation layout, Minari called itself damaged."""
+    record("push", 1, tmp_path / name, format=format, seed=0, observation_mode="pixels",
+           pixel_height=16, pixel_width=16)
+    dataset = tmp_path / name
+    if format == "minari":
+        dataset = dataset / "franka_composer" / "push" / "expert-v0"
+    _refused(dataset, push_env, "was recorded with observation_mode 'pixels' and holds no "
+                                "state observations")
+
+
+def test_demonstrations_are_loaded_for_an_env_of_state_observations_only(recorded):
+    """For a pixel env the RLDS reader raised a KeyError ('observation')."""
+    for mode in ("pixels", "state+pixels"):
+        env = make_env("push", observation_mode=mode, pixel_height=16, pixel_width=16)
+        try:
+            _refused(recorded / "rlds", env, "demonstrations go into a buffer of state "
+                                             f"observations, and this env observes "
+                                             f"observation_mode {mode!r}")
+        finally:
+            env.close()
+
+
 def test_an_rlds_dataset_of_another_task_is_refused_before_its_observations_are_read(
         recorded, push_env):
     _refused(recorded / "reach-rlds", push_env, "holds demonstrations of reach, not push")

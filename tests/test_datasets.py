@@ -4,6 +4,7 @@ back the stored observations exactly."""
 
 from __future__ import annotations
 
+import pathlib
 import re
 
 import minari
@@ -278,6 +279,27 @@ def test_joint_control_needs_a_trained_policy(tmp_path):
     with pytest.raises(ValueError, match="the scripted experts act on dx, dy, dz"):
         record("push", 1, tmp_path / "x", format="minari", control="joints")
     assert not (tmp_path / "x").exists()
+
+
+def test_a_trained_policy_records_pixels_acting_on_the_state_it_learned_from(tmp_path):
+    """In the pixel modes a committed policy (state observations) acts on the state the task
+    reads, as the experts do: the same actions as in the state mode, images beside them
+    (it built its networks on the image space, and torch refused the 84 x 3 input)."""
+    policy = pathlib.Path(__file__).parents[1] / "results" / "table2" / "push-sac-seed0"
+    recorded = {}
+    for mode in ("state", "pixels", "state+pixels"):
+        pixels = {} if mode == "state" else dict(pixel_height=16, pixel_width=16)
+        record("push", 2, tmp_path / f"{mode}.npz", seed=3, policy_dir=policy,
+               observation_mode=mode, **pixels)
+        recorded[mode] = Trajectories.load(tmp_path / f"{mode}.npz")
+    state = recorded["state"]
+    assert state.success_rate == 1.0 and all(state.lengths < 50)  # It solves them.
+    for mode in ("pixels", "state+pixels"):
+        for ours, theirs in zip(recorded[mode].episodes, state.episodes):
+            np.testing.assert_array_equal(ours["action"], theirs["action"])
+            assert ours["workspace_pixels"].shape == (len(ours["action"]) + 1, 16, 16, 3)
+    np.testing.assert_array_equal(recorded["state+pixels"].episodes[0]["observation"],
+                                  state.episodes[0]["observation"])
 
 
 @pytest.mark.slow

@@ -111,8 +111,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         goal_box = spaces.Box(-np.inf, np.inf, shape=(self._task.goal_size,),
                               dtype=OBSERVATION_DTYPE)
         # The goals are state vectors in every observation mode: HER relabels them exactly.
-        space = {"observation": spaces.Box(-np.inf, np.inf, shape=(self._layout.size,),
-                                           dtype=OBSERVATION_DTYPE)} if self._state else {}
+        space = {"observation": state_box(self._layout)} if self._state else {}
         space.update(achieved_goal=goal_box, desired_goal=goal_box)
         for key in self._pixel_keys:
             space[key] = spaces.Box(0, 255, shape=(settings.height, settings.width, 3),
@@ -261,6 +260,12 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         for key in self._pixel_keys:
             obs[key] = composer_obs[key]
         return obs
+
+
+def state_box(layout) -> spaces.Box:
+    """The space of the state vector of `layout` (an `ObservationLayout`), the goal dict's
+    "observation" in the state modes."""
+    return spaces.Box(-np.inf, np.inf, shape=(layout.size,), dtype=OBSERVATION_DTYPE)
 
 
 def _check_render_size(width: int, height: int) -> None:

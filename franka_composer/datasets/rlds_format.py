@@ -106,13 +106,25 @@ def read(root: pathlib.Path) -> dict:
     for index, (steps, info) in enumerate(read_episodes):
         _check_episode(root, index, [step.timestep for step in steps])
         episodes.append({
-            "seed": int(info["seed"]),
+            "seed": _episode_seed(root, index, info),
             "observations": [step.timestep.observation for step in steps],
             "actions": [step.action for step in steps[1:]],
             "rewards": [step.timestep.reward for step in steps[1:]],
             "terminated": bool(steps[-1].timestep.discount == 0),
         })
     return {"metadata": metadata, "episodes": episodes}
+
+
+def _episode_seed(root: pathlib.Path, index: int, info) -> int:
+    """The seed `write` keeps in each episode's metadata; a ValueError naming `root` where
+    there is none (a dataset logged by envlogger without this package's `write`, or its
+    episode metadata file damaged: envlogger then reads None)."""
+    seed = info.get("seed") if isinstance(info, dict) else None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise ValueError(f"{root}: episode {index} has no seed in its episode metadata "
+                         f"(found {info!r}): a dataset this package's rlds writer did not "
+                         "write, or its episode_metadata file damaged?")
+    return int(seed)
 
 
 def _check_episode(root: pathlib.Path, index: int, timesteps: list) -> None:

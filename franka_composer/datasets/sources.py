@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import pathlib
 
+import gymnasium as gym
 import numpy as np
 
+from franka_composer.adapters.goal_env import state_box
 from franka_composer.policies import make_expert
+from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_number
 
 
@@ -35,7 +38,10 @@ class NoisyPolicy:
 
 
 class TrainedPolicy:
-    """The best model of a training run, acting deterministically on goal observations."""
+    """The best model of a training run, acting deterministically on goal observations. It
+    learned from state observations: in the pixel modes it acts on the state the task reads
+    (`StateView`), never on the images, as the scripted experts do: a privileged teacher
+    for datasets of pixels."""
 
     def __init__(self, run_dir: pathlib.Path, env) -> None:
         from franka_composer.training.policy_file import load_trained
@@ -44,11 +50,38 @@ class TrainedPolicy:
         run = RunDir(pathlib.Path(run_dir))
         config = run.read_config()
         check_acts_in(run_dir, config, env.unwrapped.task.config)
-        self._model = load_trained(run, env, device="cpu")
+        self._view = StateView(env) if env.unwrapped.task.pixel_keys else None
+        self._model = load_trained(run, self._view or env, device="cpu")
 
     def __call__(self, obs) -> np.ndarray:
+        if self._view is not None:
+            obs = self._view.observation(obs)
         action, _ = self._model.predict(obs, deterministic=True)
         return np.asarray(action, dtype=np.float32)
+
+
+class StateView(gym.ObservationWrapper):
+    """A pixel-mode env as a policy trained on state observations sees it: the state mode's
+    goal dict without the images, its state vector as observed (state+pixels) or, where the
+    mode observes none (pixels), read through the task (without the randomised observation
+    noise and delay, which act on observables)."""
+
+    def __init__(self, env) -> None:
+        super().__init__(env)
+        unwrapped = env.unwrapped
+        self._task, self._composer_env = unwrapped.task, unwrapped.composer_env
+        goal = env.observation_space["desired_goal"]
+        self.observation_space = gym.spaces.Dict({
+            "observation": state_box(self._task.observation_layout),
+            "achieved_goal": goal, "desired_goal": goal})
+
+    def observation(self, observation):
+        state = observation.get("observation")
+        if state is None:
+            state = self._task.state_vector(self._composer_env.physics)
+        return {"observation": np.asarray(state, dtype=OBSERVATION_DTYPE),
+                "achieved_goal": observation["achieved_goal"],
+                "desired_goal": observation["desired_goal"]}
 
 
 def check_acts_in(run_dir, config, env_config) -> None:

@@ -30,6 +30,11 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     rewards, and against its observation space: anything else is a ValueError naming the
     file and what is wrong."""
     path = pathlib.Path(path)
+    mode = env.unwrapped.task.config.observations.mode
+    if mode != "state":
+        raise ValueError(f"{path}: demonstrations go into a buffer of state observations, "
+                         f"and this env observes observation_mode {mode!r}: load them for "
+                         "an env of observation_mode 'state'")
     if not path.exists():
         raise ValueError(f"{path} does not exist")
     if path.is_file() and path.suffix == ".npz":
@@ -86,6 +91,12 @@ def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
     if recorded["reward_type"] != "sparse":
         raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
                          f"the sparse {_SPARSE.tolist()} that training uses")
+    mode = _recorded_options(path, recorded).get("observation_mode")
+    if mode == "pixels":
+        raise ValueError(f"{path} was recorded with observation_mode 'pixels' and holds no "
+                         "state observations: demonstrations go into the buffer as state "
+                         "observations (record them with observation_mode 'state' or "
+                         "'state+pixels')")
     recorded_dynamics = _dynamics(_recorded_config(path, recorded))
     if recorded_dynamics != _dynamics(config):
         raise ValueError(f"{path} was recorded at {recorded_dynamics}, and this run trains at "
@@ -105,19 +116,26 @@ _DYNAMICS_OPTIONS = ("timing", "control_timestep", "velocity_timestep", "weld_ti
 
 
 def _recorded_config(path, recorded: dict):
-    """The task's config with the dynamics options the dataset was recorded with (under
-    "options" in npz and RLDS metadata, beside the id in a Minari env spec); none given is
-    the task's own, as every dataset recorded before they existed had."""
-    given = (recorded["options"] if "options" in recorded else recorded) or {}
-    if not isinstance(given, dict):
-        raise ValueError(f"{path} says it was recorded with the options {given!r}, which "
-                         "are not a mapping of option names to values (damaged metadata?)")
+    """The task's config with the dynamics options the dataset was recorded with
+    (`_recorded_options`); none given is the task's own, as every dataset recorded before
+    they existed had."""
+    given = _recorded_options(path, recorded)
     dynamics = {name: given[name] for name in _DYNAMICS_OPTIONS if given.get(name) is not None}
     try:
         return TASK_CONFIGS[recorded["task"]].replace(control=recorded["control"], **dynamics)
     except ValueError as error:
         raise ValueError(f"{path} says it was recorded with options {dynamics}, which are not "
                          f"valid: {error}") from None
+
+
+def _recorded_options(path, recorded: dict) -> dict:
+    """The task options the dataset was recorded with (under "options" in npz and RLDS
+    metadata, beside the id in a Minari env spec)."""
+    given = (recorded["options"] if "options" in recorded else recorded) or {}
+    if not isinstance(given, dict):
+        raise ValueError(f"{path} says it was recorded with the options {given!r}, which "
+                         "are not a mapping of option names to values (damaged metadata?)")
+    return given
 
 
 def _dynamics(config) -> str:
