@@ -339,16 +339,59 @@ def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch
     assert list((tmp_path / "empty").iterdir()) == []
 
 
+def test_the_documented_recipe_writes_demonstrations_training_takes(push_env, tmp_path):
+    """`rollout(env, make_expert(env), episodes).save(path)` (the policies module's
+    docstring) wrote no metadata, and `train --demos` refused the file as one from before
+    datasets said what they were recorded with."""
+    import gymnasium as gym
+
+    from franka_composer.policies import make_expert, rollout
+
+    env = gym.make("FrankaPushSparse-v0")
+    try:
+        rollout(env, make_expert(env), episodes=2, seed=0).save(tmp_path / "push.npz")
+    finally:
+        env.close()
+    assert Trajectories.load(tmp_path / "push.npz").metadata == {
+        "task": "push", "control": "mocap", "reward_type": "sparse", "options": {}}
+    assert len(demos.load_episodes(tmp_path / "push.npz", push_env)) == 2
+    # What differs from the task's own is recorded, and checked against the run's env.
+    env = gym.make("FrankaPushSparse-v0", timing="reference", object_damping=0.01)
+    try:
+        trajectories = rollout(env, make_expert(env), episodes=1, seed=0)
+    finally:
+        env.close()
+    trajectories.save(tmp_path / "reference.npz")
+    assert trajectories.metadata["options"] == {
+        "object_damping": 0.01, "weld_time_constant": 0.02, "control_timestep": 0.5,
+        "velocity_timestep": 0.05}
+    _refused(tmp_path / "reference.npz", push_env, "was recorded at 0.5 s per step")
+    with pytest.raises(ValueError, match=re.escape(
+            f"no episodes to write to {tmp_path / 'none.npz'}")):
+        Trajectories([]).save(tmp_path / "none.npz")  # An IndexError.
+    assert not (tmp_path / "none.npz").exists()
+    # A FileNotFoundError named the hidden partial file beside the one asked for.
+    with pytest.raises(ValueError, match=re.escape(
+            f"cannot write {tmp_path / 'no' / 'push.npz'}: {tmp_path / 'no'} is not a "
+            "folder")):
+        trajectories.save(tmp_path / "no" / "push.npz")
+    # A TypeError from comparing the noise with 0 before it was checked.
+    with pytest.raises(ValueError, match=re.escape("action_noise must be a finite number "
+                                                   ">= 0, got '0.1'")):
+        record("push", 1, tmp_path / "noisy.npz", action_noise="0.1")
+    assert not (tmp_path / "noisy.npz").exists()
+
+
 def test_rlds_episodes_without_their_seed_are_refused_by_name(recorded, push_env, tmp_path):
     """Episode metadata cut short or flipped (envlogger reads None), or a dataset logged
     by envlogger around `load` as acme logs (no episode metadata): a TypeError from deep in
     the reader, by `read` and by `train --demos`."""
     import shutil
 
-    import envlogger
-
     import franka_composer
     from franka_composer.datasets import rlds_format
+
+    envlogger = rlds_format._envlogger()  # envlogger as the data extra runs it (numpy 2).
 
     for name, cut in (("cut", lambda raw: raw[:64]),
                       ("flipped", lambda raw: raw[:len(raw) // 2] + bytes(
@@ -416,6 +459,25 @@ def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_pat
     data.write_bytes(data.read_bytes()[:3000])
     _refused(dataset, push_env, "is not a readable Minari dataset (damaged?): OSError: "
                                 "Unable to synchronously open file (truncated file")
+
+
+@pytest.mark.parametrize("counted, message", [
+    (dict(total_episodes=1), "counts 1 episodes of 36 steps in all, and its data holds 2 "
+                             "(the first 1: 11 steps)"),  # Loaded one of two, silently.
+    (dict(total_steps=7), "counts 2 episodes of 7 steps in all, and its data holds 2 "
+                          "(the first 2: 36 steps)")])
+def test_a_minari_dataset_whose_counts_disagree_with_its_data_is_refused(
+        counted, message, recorded, push_env, tmp_path):
+    """What an append cut short between the data and metadata.json leaves."""
+    import shutil
+
+    path = tmp_path / "minari"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", path)
+    metadata = json.loads((path / "data" / "metadata.json").read_text())
+    assert (metadata["total_episodes"], metadata["total_steps"]) == (2, 36)
+    (path / "data" / "metadata.json").write_text(json.dumps({**metadata, **counted}))
+    _refused(path, push_env, f"{path}'s metadata.json {message}: an append cut short, or "
+                             "hand-edited?")
 
 
 def test_a_minari_dataset_of_another_env_is_refused_by_its_id(tmp_path, push_env,

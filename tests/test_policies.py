@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -151,10 +153,13 @@ def test_saved_rollout_loads_back_with_its_shapes(tmp_path):
         assert episode["terminated"][-1] == episode["is_success"][-1]
 
 
-def test_rollout_rejects_zero_episodes():
+@pytest.mark.parametrize("episodes, message", [
+    (0, "episodes must be >= 1, got 0"),
+    (2.5, "episodes must be a whole number >= 1, got 2.5")])  # A TypeError from range.
+def test_rollout_rejects_episodes_that_are_not_a_count(episodes, message):
     env = gym.make(env_id("push", "sparse"))
-    with pytest.raises(ValueError, match="episodes must be >= 1"):
-        rollout(env, make_expert(env), 0)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        rollout(env, make_expert(env), episodes)
 
 
 @pytest.mark.slow

@@ -19,7 +19,7 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end
-from franka_composer.tasks.config import expand_timing
+from franka_composer.tasks.config import expand_timing, readable_options
 from franka_composer.validation import check_choice, check_number, check_writable
 
 #: The formats `record` writes.
@@ -46,6 +46,7 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     registered = env_id(task, reward_type, control)  # Checks the three by name.
     check_number("episodes", episodes, minimum=1, integer=True)
     check_number("seed", seed, minimum=0, integer=True)
+    action_noise = check_number("action_noise", action_noise, minimum=0.0)
     out = pathlib.Path(out)
     source = source_name(policy_dir, action_noise)
     if format == "minari":
@@ -82,14 +83,6 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
         return dict(summary, path=str(out))
     finally:
         env.close()
-
-
-def readable_options(options: dict) -> dict:
-    """Task options as a dataset's metadata keeps them: plain values as they are, others
-    (a custom randomisation's distributions) as their repr, which reads like the Python
-    that made them."""
-    return {name: value if isinstance(value, (bool, int, float, str, type(None)))
-            else repr(value) for name, value in options.items()}
 
 
 def _check_dataset_id(dataset_id) -> str:

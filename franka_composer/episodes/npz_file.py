@@ -43,6 +43,8 @@ def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
     or not at all: beside the file, which it then replaces in one step (a recording
     interrupted while writing left an archive of some of the arrays in the old one's place,
     read as a foreign file)."""
+    if not episodes:
+        raise ValueError(f"no episodes to write to {path}: a dataset holds at least one")
     arrays = {key: np.concatenate([e[key] for e in episodes]) for key in episodes[0]}
     if metadata:
         arrays[METADATA_KEY] = np.array(json.dumps(metadata))
@@ -50,6 +52,8 @@ def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
     target = pathlib.Path(path)
     if target.suffix != ".npz":  # Where numpy's savez puts a file named without it.
         target = target.with_name(target.name + ".npz")
+    if not target.parent.is_dir():  # (Else the error names the partial file beside it.)
+        raise ValueError(f"cannot write {target}: {target.parent} is not a folder")
     replace_atomically(target, lambda partial: np.savez_compressed(
         partial, episode_length=lengths, **arrays))
 

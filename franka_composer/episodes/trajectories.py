@@ -46,8 +46,9 @@ class Trajectories:
 
     def save(self, path: str | os.PathLike, metadata: dict | None = None) -> None:
         """Writes every episode to a `.npz` file, with `metadata` (what they were recorded
-        with; `franka_composer.episodes.npz_file`)."""
-        npz_file.write(self.episodes, path, metadata)
+        with; `franka_composer.episodes.npz_file`), by default their own (`rollout`'s:
+        the env's task, controller, reward and options)."""
+        npz_file.write(self.episodes, path, self.metadata if metadata is None else metadata)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "Trajectories":

@@ -9,6 +9,9 @@ import dm_env
 import numpy as np
 
 from franka_composer.episodes import STEP_KEYS, Trajectories
+from franka_composer.tasks import TASK_CONFIGS
+from franka_composer.tasks.config import readable_options
+from franka_composer.validation import check_number
 
 def check_episodes_end(env) -> None:
     """A ValueError if episodes of the Gymnasium `env` end only on success (no `TimeLimit`:
@@ -33,8 +36,7 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
     every reset and step of episode i (e.g. to render a frame) and `on_episode_end(i)` when it
     ends (e.g. to advance a progress bar); neither counts in `env_seconds`.
     """
-    if episodes < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    check_number("episodes", episodes, minimum=1, integer=True)
     if isinstance(env, dm_env.Environment):
         raise ValueError("rollout runs a Gymnasium env (gym.make(id), or Shimmy's "
                          "DmControlCompatibilityV0 around a dm_env); a dm_env steps with "
@@ -72,4 +74,18 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
         collected.append(episode)
         if on_episode_end is not None:
             on_episode_end(index)
-    return Trajectories(collected, env_seconds)
+    return Trajectories(collected, env_seconds, metadata=recorded_with(env))
+
+
+def recorded_with(env) -> dict:
+    """What episodes of the Gymnasium `env` were recorded with, as a dataset says it
+    (`episodes.npz_file`): its task, controller, reward and the task options whose values
+    differ from the task's own; {} for an env of another package."""
+    task = getattr(getattr(env, "unwrapped", env), "task", None)
+    if task is None or getattr(task, "config", None) is None:
+        return {}
+    config, own = task.config, TASK_CONFIGS[task.config.name].options
+    options = {name: value for name, value in config.options.items()
+               if name not in ("control", "reward_type") and value != own.get(name)}
+    return {"task": config.name, "control": config.control.kind,
+            "reward_type": config.reward_type, "options": readable_options(options)}

@@ -437,6 +437,14 @@ def expand_timing(options: dict) -> dict:
     return {**timing, **options}
 
 
+def readable_options(options: dict) -> dict:
+    """Task options as a dataset's metadata keeps them: plain values as they are, others
+    (a custom randomisation's distributions) as their repr, which reads like the Python
+    that made them."""
+    return {name: value if isinstance(value, (bool, int, float, str, type(None)))
+            else repr(value) for name, value in options.items()}
+
+
 def _positive(name, value):
     return check_number(name, value, above=0.0)
 

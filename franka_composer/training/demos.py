@@ -216,16 +216,33 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
                          "franka_composer task")
     _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env, "minari")
     try:
-        return [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
-                 "action": np.asarray(episode.actions, dtype=np.float32),
-                 "reward": np.asarray(episode.rewards, dtype=np.float64),
-                 # The flags as stored: `check_episodes` refuses any but true and false.
-                 "terminated": np.asarray(episode.terminations),
-                 "truncated": np.asarray(episode.truncations),
-                 "is_success": np.asarray(episode.infos["is_success"][1:])}
-                for episode in dataset.iterate_episodes()]
+        episodes = [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
+                     "action": np.asarray(episode.actions, dtype=np.float32),
+                     "reward": np.asarray(episode.rewards, dtype=np.float64),
+                     # The flags as stored: `check_episodes` refuses any but true and false.
+                     "terminated": np.asarray(episode.terminations),
+                     "truncated": np.asarray(episode.truncations),
+                     "is_success": np.asarray(episode.infos["is_success"][1:])}
+                    for episode in dataset.iterate_episodes()]
+        stored = _stored_minari_episodes(data)
     except Exception as error:
         raise _unreadable_minari(path, error) from None
+    steps = sum(len(episode["action"]) for episode in episodes)
+    if (dataset.total_episodes, dataset.total_steps) != (stored, steps):
+        # Minari reads as many episodes as metadata.json counts: the others were dropped.
+        raise ValueError(f"{path}'s metadata.json counts {dataset.total_episodes} episodes "
+                         f"of {dataset.total_steps} steps in all, and its data holds {stored} "
+                         f"(the first {len(episodes)}: {steps} steps): an append cut "
+                         "short, or hand-edited?")
+    return episodes
+
+
+def _stored_minari_episodes(data: pathlib.Path) -> int:
+    """How many episodes a Minari dataset's data file holds (its groups episode_0, ...)."""
+    import h5py
+
+    with h5py.File(data / "main_data.hdf5", "r") as file:
+        return sum(name.startswith("episode_") for name in file)
 
 
 def _recorded_by_spec(env_spec) -> dict:
