@@ -309,6 +309,19 @@ def test_demonstrations_whose_rewards_the_task_does_not_give_are_refused(tmp_pat
                             "step 0: 0 stored, -1 from the goals)")
 
 
+def test_demonstrations_whose_success_flags_the_goals_do_not_give_are_refused(recorded,
+                                                                              push_env,
+                                                                              tmp_path):
+    """Every is_success flag inverted loaded, and the success rate read the opposite."""
+    loaded = Trajectories.load(recorded / "push.npz")
+    episodes = [{**episode, "is_success": ~episode["is_success"]}
+                for episode in loaded.episodes]
+    Trajectories(episodes).save(tmp_path / "inverted.npz", loaded.metadata)
+    _refused(tmp_path / "inverted.npz", push_env, "holds is_success flags its goals do not "
+                                                  "give (episode 0, step 0: True stored, "
+                                                  "False from the goals): edited?")
+
+
 def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch):
     """A policy that fails on its 20th action: no folder of steps that would read as a
     dataset of two short episodes."""

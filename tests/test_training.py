@@ -180,6 +180,15 @@ def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
     with pytest.raises(ValueError, match="a policy file of format 99; this version of "
                                          "franka_composer reads format 1"):
         load_trained(RunDir(committed), env, device="cpu")
+    # A diverged actor: torch's distributions raised on its NaN, naming no file.
+    broken = {name: tensor.clone() for name, tensor in state["actor"].items()}
+    name = sorted(broken)[-1]
+    broken[name][0] = float("nan")
+    torch.save({**state, "actor": broken}, committed / "policy.pt")
+    with pytest.raises(ValueError, match=re.escape(
+            f"{committed / 'policy.pt'}'s actor has parameters that are not finite (NaN or "
+            f"inf in {name}): saved from a run that diverged?")):
+        load_trained(RunDir(committed), env, device="cpu")
     for contents, message in (
             ((runs["sac"] / "policy.pt").read_bytes()[:1000],
              "is not a policy file \\(torch cannot read it: RuntimeError PytorchStreamReader"),

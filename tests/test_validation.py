@@ -319,6 +319,21 @@ def test_a_run_config_names_an_unknown_task_or_algorithm():
         RunConfig("push", "ppo", 0, hyperparameters("push", "sac"))
 
 
+def test_a_run_config_refuses_an_algorithm_without_the_settings_it_is_built_with():
+    """A config.json edited to another algorithm: a TypeError from inside sb3_contrib once
+    the env was built (TQC with SAC's or DDPG's settings)."""
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.run_config import RunConfig
+
+    with pytest.raises(ValueError, match=re.escape(
+            "tqc needs n_critics, n_quantiles, top_quantiles_to_drop_per_net, which the "
+            "hyperparameters leave unset (None)")):
+        RunConfig("push", "tqc", 0, hyperparameters("push", "sac"))
+    with pytest.raises(ValueError, match=re.escape("sac needs ent_coef, which")):
+        RunConfig("push", "sac", 0, hyperparameters("push", "ddpg"))
+    RunConfig("push", "ddpg", 0, hyperparameters("push", "tqc"))  # Built without them.
+
+
 @pytest.mark.parametrize("argv, message", [
     (["train", "--learning-starts", "-1"], "argument --learning-starts: must be an integer "
                                            ">= 0, got '-1'"),

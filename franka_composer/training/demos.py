@@ -182,7 +182,8 @@ def _check_sparse_rewards(path, episodes: list[dict]) -> None:
 def _check_rewards_are_the_tasks(path, episodes: list[dict], env) -> None:
     """Each stored reward is the one this run's task gives the step's goals (HER recomputes
     them so): a dataset recorded with another success threshold, say, would put successes
-    the run's task does not count into the buffer."""
+    the run's task does not count into the buffer. So is each `is_success` flag (the
+    sparse reward's 0), which the buffer's infos and success rates read."""
     for index, episode in enumerate(episodes):
         rewards = env.unwrapped.compute_reward(episode["achieved_goal"][1:],
                                                episode["desired_goal"][1:], None)
@@ -193,6 +194,13 @@ def _check_rewards_are_the_tasks(path, episodes: list[dict], env) -> None:
                 f"{path} holds rewards this task does not give its goals (episode {index}, "
                 f"step {step}: {episode['reward'][step]:g} stored, {rewards[step]:g} from the "
                 "goals): recorded with another distance_threshold or reward?")
+        wrong = np.flatnonzero(episode["is_success"] != (rewards == 0.0))
+        if wrong.size:
+            step = int(wrong[0])
+            raise ValueError(
+                f"{path} holds is_success flags its goals do not give (episode {index}, step "
+                f"{step}: {bool(episode['is_success'][step])} stored, "
+                f"{bool(rewards[step] == 0.0)} from the goals): edited?")
 
 
 def _npz_episodes(path: pathlib.Path, env) -> list[dict]:

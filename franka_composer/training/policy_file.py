@@ -107,6 +107,15 @@ def read_policy_file(config: RunConfig, path: pathlib.Path, device: str = "cpu")
     if saved_by != config.backend:
         raise ValueError(f"{path} holds an actor of {saved_by}, and its run's config.json "
                          f"says {config.backend}")
+    actor = state["actor"]
+    if not isinstance(actor, dict) or not all(torch.is_tensor(t) for t in actor.values()):
+        raise ValueError(f"{path} is not a policy file franka_composer wrote (its actor is "
+                         "not a mapping of parameter names to tensors)")
+    broken = [name for name, tensor in actor.items()
+              if tensor.is_floating_point() and not torch.isfinite(tensor).all()]
+    if broken:  # It would act NaN, or raise from inside torch's distributions.
+        raise ValueError(f"{path}'s actor has parameters that are not finite (NaN or inf in "
+                         f"{', '.join(broken)}): saved from a run that diverged?")
     return state
 
 

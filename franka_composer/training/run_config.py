@@ -30,6 +30,12 @@ def variant_label(setup: str, computation: str) -> str:
     return ", ".join(part for part in (setup, computation) if part)
 
 
+#: The hyperparameters each algorithm is built with that Table I leaves unset for others.
+_SETTINGS_OF_THE_ALGORITHM = {
+    "ddpg": (), "sac": ("ent_coef",),
+    "tqc": ("ent_coef", "n_critics", "n_quantiles", "top_quantiles_to_drop_per_net")}
+
+
 @dataclasses.dataclass(frozen=True)
 class RunConfig:
     """What a run trains: enough to rebuild its model and environments on resume.
@@ -98,6 +104,11 @@ class RunConfig:
             damping = task.replace(object_damping=damping).objects[0].joint_damping
         object.__setattr__(self, "object_damping", float(damping))
         check_choice("algorithm", self.algo, ALGOS)
+        unset = [name for name in _SETTINGS_OF_THE_ALGORITHM[self.algo]
+                 if getattr(self.hyperparameters, name) is None]
+        if unset:  # (Else a TypeError from inside SB3 once the env is built.)
+            raise ValueError(f"{self.algo} needs {', '.join(unset)}, which the "
+                             "hyperparameters leave unset (None)")
         check_choice("backend", self.backend, BACKENDS)
         check_choice("control", self.control, CONTROLS)
         check_choice("precision", self.precision, PRECISIONS)
