@@ -62,6 +62,73 @@ def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, messa
             gym.make("FrankaPushSparse-v0", **{option: value})
 
 
+@pytest.mark.parametrize("env_id, options, message", [
+    ("FrankaPushSparse-v0", dict(max_joint_step=0.5), "max_joint_step does nothing here: "
+     "control='mocap' moves the hand's target (max_tcp_step): leave it out"),
+    ("FrankaPushOscSparse-v0", dict(max_joint_step=0.5), "control='osc' moves the hand's"),
+    ("FrankaPushJointsSparse-v0", dict(max_tcp_step=0.01), "max_tcp_step does nothing here: "
+     "control='joints' moves joint targets (max_joint_step): leave it out"),
+    ("FrankaPushSparse-v0", dict(max_finger_step=0.001), "max_finger_step does nothing here: "
+     "actuated_gripper=False holds the fingers closed: give actuated_gripper=True as well, "
+     "or leave it out"),
+    ("FrankaPushSparse-v0", dict(goal_max_height=0.2), "goal_max_height does nothing here: "
+     "goal_in_air_probability=0 lifts no goal: give goal_in_air_probability as well, or "
+     "leave goal_max_height out"),
+    ("FrankaPushSparse-v0", dict(goal_in_air_probability=0.5), "goal_in_air_probability "
+     "does nothing here: goal_max_height=0 lifts no goal: give goal_max_height as well"),
+    ("FrankaStackSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5),
+     "goal_max_height does nothing here: stack's goals (stacked) are never lifted: leave it "
+     "out"),
+])
+def test_an_option_the_env_would_not_read_is_refused_saying_why(env_id, options, message):
+    """Each was taken, and the episodes were those without it (measured: the same
+    trajectory)."""
+    with pytest.raises(ValueError, match=re.escape(message)):
+        gym.make(env_id, **options)
+
+
+@pytest.mark.parametrize("options", [dict(object_range=(0.0, 0.0)),
+                                     dict(object_range=(0.1, 0.05)), dict(block_half_size=0.2)])
+def test_an_object_box_too_small_for_its_objects_is_refused_when_made(options):
+    """It was taken, and every reset then failed (Composer's EpisodeInitializationError
+    after its ten retries), not a ValueError, and only once the env was used."""
+    with pytest.raises(ValueError, match=re.escape(
+            "is too small to place stack's objects apart at every episode's start "
+            "(footprints across: block1 ")):
+        gym.make("FrankaStackSparse-v0", **options)
+
+
+def test_the_object_box_check_simulates_the_placement_episodes_use():
+    """The boundary: two 5.66 cm footprints 1 cm apart need 6.66 cm between centres. A box
+    along x as long as that places them only at its two ends: refused; twice as long
+    places them every time in 200 simulated starts, and resets."""
+    from franka_composer.tasks.placement import place_apart, room_to_place_apart
+
+    radii = [np.hypot(0.02, 0.02)] * 2
+    assert not room_to_place_apart((0.5, 0.0), (0.5667, 0.0), radii)
+    assert room_to_place_apart((0.5, 0.0), (0.64, 0.0), radii)
+    assert place_apart(lambda: np.zeros(2), radii) == 1  # The second found no room.
+    env = gym.make("FrankaStackSparse-v0", object_range=(0.14, 0.0))
+    layout = env.unwrapped.task.observation_layout
+    for seed in range(5):
+        obs, _ = env.reset(seed=seed)
+        first, second = (layout.read(obs["observation"], f"object{i}_position")
+                         for i in (1, 2))
+        assert np.linalg.norm(first[:2] - second[:2]) >= 0.0666 and first[1] == second[1]
+    env.close()
+
+
+@pytest.mark.parametrize("env_id, options", [
+    ("FrankaPushSparse-v0", dict(max_finger_step=0.1, actuated_gripper=True)),
+    ("FrankaPushSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5)),
+    ("FrankaPickAndPlaceSparse-v0", dict(goal_in_air_probability=0.0, max_finger_step=0.1)),
+    ("FrankaReachJointsSparse-v0", dict(max_joint_step=0.1, goal_max_height=0.1)),
+    ("FrankaPushOscSparse-v0", dict(timing="reference")),  # Its weld: unread by design.
+])
+def test_options_the_env_reads_are_taken(env_id, options):
+    gym.make(env_id, **options).close()
+
+
 @pytest.mark.parametrize("option, value, message", [
     ("orientation_goal", "random", "unknown orientation_goal 'random'; valid "
                                    "orientation_goals: face_up, uniform"),

@@ -25,6 +25,8 @@ from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
+from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
+                                             PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
 from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
                                         check_vector)
@@ -109,6 +111,11 @@ class BlockSpec:
     entity_name: str = "block"
     joint_damping: float = 0.0
 
+    @property
+    def footprint_radius(self) -> float:
+        """The radius (m) of the circle its upright footprint fits in."""
+        return float(np.hypot(self.half_size, self.half_size))
+
     def make(self) -> Prop:
         return Block(half_size=self.half_size, mass=self.mass, friction=self.friction,
                      name=self.entity_name, rgba=self.rgba,
@@ -126,6 +133,11 @@ class PuckSpec:
     friction: float = 0.04
     entity_name: str = "puck"
     joint_damping: float = 0.0
+
+    @property
+    def footprint_radius(self) -> float:
+        """The radius (m) of the circle its upright footprint fits in."""
+        return self.radius
 
     def make(self) -> Prop:
         return Puck(radius=self.radius, half_height=self.half_height, mass=self.mass,
@@ -294,6 +306,9 @@ class TaskConfig:
         for name, value in options.items():
             option = OPTIONS[name]
             config = option.set(config, option.check(name, value, config))
+        for name in options:
+            if name in _READ_ONLY_WHERE and not _READ_ONLY_WHERE[name][0](config):
+                raise ValueError(f"{name} does nothing here: {_READ_ONLY_WHERE[name][1](config)}")
         images = [name for name in IMAGE_OPTIONS if name in options]
         if images and not config.observations.pixels:
             raise ValueError(f"{', '.join(images)} set the camera observations, and "
@@ -315,6 +330,17 @@ class TaskConfig:
             raise ValueError(f"control_timestep must be at most {MAX_SUBSTEPS:,} physics "
                              f"steps of {self.physics.timestep:g} s, got "
                              f"{self.control_timestep!r}")
+        box = self.workspace.object_box
+        if not room_to_place_apart(box.low, box.high,
+                                   [spec.footprint_radius for spec in self.objects]):
+            sizes = ", ".join(f"{spec.entity_name} {2 * spec.footprint_radius:.3g} m"
+                              for spec in self.objects)
+            raise ValueError(f"object_range {tuple(box.size)} is too small to place "
+                             f"{self.name}'s objects apart at every episode's start "
+                             f"(footprints across: {sizes}; {PLACEMENT_MARGIN} m between "
+                             f"them; of {CHECKED_PLACEMENTS} simulated starts, one found no "
+                             f"room in {MAX_ATTEMPTS} draws): give a wider object_range or "
+                             "smaller objects")
 
     @property
     def time_limit(self) -> float:
@@ -389,6 +415,41 @@ class Option:
             return dataclasses.replace(config, objects=tuple(
                 dataclasses.replace(o, **{self.path[1]: value}) for o in config.objects))
         return _replace_path(config, self.path, value)
+
+
+#: The goals that `goal_max_height` and `goal_in_air_probability` lift (`goals.py`).
+LIFTED_GOALS = ("object_position", "tcp_position")
+
+
+def _lift_unread(config: TaskConfig, name: str, other: str) -> str:
+    """Why `name`, one of the two options that lift goals, is not read by `config`."""
+    if config.goal not in LIFTED_GOALS:
+        return f"{config.name}'s goals ({config.goal}) are never lifted: leave it out"
+    value = getattr(config.workspace, other)
+    return f"{other}={value:g} lifts no goal: give {other} as well, or leave {name} out"
+
+
+#: Options that only some configurations read, with the test that one does and what it
+#: does instead: given where nothing reads them, they are refused rather than ignored.
+#: (Not weld_time_constant: a named timing sets it under every controller, and those
+#: without a weld ignore it by design, `ControlSettings`.)
+_READ_ONLY_WHERE: dict[str, tuple[Callable[[TaskConfig], bool], Callable[[TaskConfig], str]]] = {
+    "max_tcp_step": (lambda c: c.control.moves_the_tcp,
+                     lambda c: f"control={c.control.kind!r} moves joint targets "
+                               "(max_joint_step): leave it out"),
+    "max_joint_step": (lambda c: not c.control.moves_the_tcp,
+                       lambda c: f"control={c.control.kind!r} moves the hand's target "
+                                 "(max_tcp_step): leave it out"),
+    "max_finger_step": (lambda c: c.control.actuated_gripper,
+                        lambda c: "actuated_gripper=False holds the fingers closed: give "
+                                  "actuated_gripper=True as well, or leave it out"),
+    "goal_max_height": (
+        lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_in_air_probability > 0,
+        lambda c: _lift_unread(c, "goal_max_height", "goal_in_air_probability")),
+    "goal_in_air_probability": (
+        lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_max_height > 0,
+        lambda c: _lift_unread(c, "goal_in_air_probability", "goal_max_height")),
+}
 
 
 def _replace_path(record, path: tuple[str, ...], value):

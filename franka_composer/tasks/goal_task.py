@@ -25,9 +25,7 @@ from franka_composer.tasks.config import (ObservationSettings, PhysicsSettings, 
                                          Workspace)
 from franka_composer.tasks.goals import GOALS, Goal
 from franka_composer.tasks.layout import ObservationLayout, layout_for
-
-#: Room (m) kept between the footprints of objects placed at an episode's start.
-PLACEMENT_MARGIN = 0.01
+from franka_composer.tasks.placement import MAX_ATTEMPTS, place_apart
 
 
 class GoalTask(composer.Task):
@@ -98,7 +96,8 @@ class GoalTask(composer.Task):
                 ignore_collisions=True,  # One prop, and the arm starts high above it.
                 settle_physics=False,  # It rests on the surface: nothing to settle.
             )]
-        return [ApartPlacer(self._props, low, high, self._arena.surface_height)]
+        radii = [spec.footprint_radius for spec in self._config.objects]
+        return [ApartPlacer(self._props, radii, low, high, self._arena.surface_height)]
 
     def _apply_physics_settings(self, settings: PhysicsSettings) -> None:
         option = self._arena.mjcf_model.option
@@ -336,37 +335,22 @@ class GoalTask(composer.Task):
 
 
 class ApartPlacer(composer.Initializer):
-    """Places several objects resting, upright, at uniform points of a box, each footprint
-    at least `PLACEMENT_MARGIN` from the others (rejection sampling; Composer retries the
-    episode if it fails). `PropPlacer` would count the floor the objects rest on as a
+    """Places several objects resting, upright, at uniform points of a box, their footprints
+    (circles of `radii`) apart (`placement.place_apart`; Composer retries the episode if it
+    finds no room). `PropPlacer` would count the floor the objects rest on as a
     collision."""
 
-    def __init__(self, props: list[Prop], low, high, surface_height: float,
-                 max_attempts: int = 100) -> None:
-        self._props, self._surface, self._max_attempts = props, surface_height, max_attempts
+    def __init__(self, props: list[Prop], radii, low, high, surface_height: float) -> None:
+        self._props, self._radii, self._surface = props, tuple(radii), surface_height
         self._xy = distributions.Uniform(low=low, high=high)
 
     def __call__(self, physics, random_state: np.random.RandomState) -> None:
-        placed: list[tuple[np.ndarray, float]] = []
-        for prop in self._props:
-            radius = _footprint_radius(prop)
-            for _ in range(self._max_attempts):
-                xy = np.asarray(self._xy(random_state=random_state))
-                if all(np.linalg.norm(xy - other) >= radius + other_radius + PLACEMENT_MARGIN
-                       for other, other_radius in placed):
-                    break
-            else:
-                raise composer.EpisodeInitializationError(
-                    f"no room for {prop.mjcf_model.model} after {self._max_attempts} tries")
-            placed.append((xy, radius))
+        placed = place_apart(lambda: self._xy(random_state=random_state), self._radii)
+        if isinstance(placed, int):
+            raise composer.EpisodeInitializationError(
+                f"no room for {self._props[placed].mjcf_model.model} after {MAX_ATTEMPTS} "
+                "draws")
+        for prop, xy in zip(self._props, placed):
             prop.set_pose(physics, position=[xy[0], xy[1], prop.resting_height + self._surface],
                           quaternion=[1.0, 0.0, 0.0, 0.0])
             prop.set_velocity(physics, velocity=np.zeros(3), angular_velocity=np.zeros(3))
-
-
-def _footprint_radius(prop: Prop) -> float:
-    """The radius (m) of the circle an upright object's footprint fits in."""
-    size = prop.geom.size
-    if prop.geom.type == "cylinder":
-        return float(size[0])
-    return float(np.hypot(size[0], size[1]))

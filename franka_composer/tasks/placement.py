@@ -1,0 +1,50 @@
+"""Where several objects start: apart, at uniform points of the object box.
+
+One rule for the episodes (`goal_task.ApartPlacer`) and for the check that a configuration
+leaves room for it (`TaskConfig.check`): a box too small for its objects made every reset
+fail (Composer's EpisodeInitializationError after its retries), long after the env was
+made.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+
+#: Room (m) kept between the footprints of objects placed at an episode's start.
+PLACEMENT_MARGIN = 0.01
+#: Draws per object before the placement gives up (Composer then retries the episode).
+MAX_ATTEMPTS = 100
+#: Placements the configuration check simulates; one that gives up refuses the box. A
+#: box passes with a chance of giving up below about 1/`CHECKED_PLACEMENTS` per placement,
+#: and Composer retries an episode 10 times: under 1e-20 of episodes would fail.
+CHECKED_PLACEMENTS = 200
+
+
+def place_apart(draw: Callable[[], np.ndarray], radii: Sequence[float]) -> list | int:
+    """Points (x, y) from `draw()`, one per footprint radius in `radii`, each footprint
+    `PLACEMENT_MARGIN` or more from those before it (rejection sampling); or the index of
+    the first object for which `MAX_ATTEMPTS` draws found no room."""
+    placed: list[tuple[np.ndarray, float]] = []
+    for index, radius in enumerate(radii):
+        for _ in range(MAX_ATTEMPTS):
+            xy = np.asarray(draw())
+            if all(np.linalg.norm(xy - other) >= radius + other_radius + PLACEMENT_MARGIN
+                   for other, other_radius in placed):
+                break
+        else:
+            return index
+        placed.append((xy, radius))
+    return [xy for xy, _ in placed]
+
+
+def room_to_place_apart(low, high, radii: Sequence[float]) -> bool:
+    """Whether `place_apart` places footprints of `radii` in the box [`low`, `high`] every
+    time in `CHECKED_PLACEMENTS` simulated placements (seeded: the same answer each time)."""
+    if len(radii) < 2:
+        return True
+    random = np.random.RandomState(0)
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    return all(not isinstance(place_apart(lambda: random.uniform(low, high), radii), int)
+               for _ in range(CHECKED_PLACEMENTS))
