@@ -10,6 +10,8 @@ import pathlib
 import tempfile
 from typing import Iterable, Sequence
 
+import numpy as np
+
 
 def check_choice(kind: str, value, choices: Sequence[str], *, also: str | None = None):
     """`value` if it is one of `choices`, else "unknown KIND VALUE; valid KINDs: ..."
@@ -37,9 +39,10 @@ def repeated(values) -> list[str]:
 
 
 def check_bool(name: str, value) -> bool:
-    """`value` if it is a bool (not a string such as "no", nor a number)."""
-    if isinstance(value, bool):
-        return value
+    """`value` as a bool if it is one, Python's or numpy's (not a string such as "no", nor
+    a number)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
     raise ValueError(f"{name} must be True or False, got {value!r}")
 
 

@@ -193,6 +193,17 @@ def test_rgb_array_frames_have_the_requested_size_and_show_the_goal(task_name, c
     env.close()  # Closing twice is harmless.
 
 
+@pytest.mark.parametrize("control_timestep, fps", [(0.05, 20), (0.5, 2), (0.3, 1 / 0.3),
+                                                   (2.0, 0.5)])
+def test_render_fps_is_one_frame_per_step(control_timestep, fps):
+    """Rounded to a whole number it read 0 at 2 s per step (videos of 0 frames/s)."""
+    env = gym.make("FrankaPushSparse-v0", control_timestep=control_timestep)
+    assert env.metadata["render_fps"] == fps and env.metadata["render_fps"] * env.unwrapped.dt \
+        == pytest.approx(1.0, rel=1e-12)
+    assert type(env.metadata["render_fps"]) is (int if fps == round(fps) else float)
+    env.close()
+
+
 def test_rgb_array_list_collects_the_frames_as_for_any_gymnasium_env():
     """gym.make wraps RenderCollection around an env whose entry point lists its render
     modes; the function entry point listed none, and the mode was refused."""

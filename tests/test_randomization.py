@@ -66,6 +66,21 @@ def test_every_task_controller_and_mode_keeps_the_goal_contract_under_the_defaul
     env.close()
 
 
+def test_numpy_constants_are_taken_as_the_numbers_they_hold():
+    """np.float32 and np.int64 constants were refused as "not a distribution or a constant"
+    (np.float64, a float subclass, was taken); numpy's bools for the bool options too."""
+    expected = None
+    for mass, delay, flag in ((0.5, 1, False), (np.float32(0.5), np.int64(1), np.False_)):
+        env = _make(randomization={"object_mass": mass, "observation_delay": delay},
+                    terminate_on_success=flag)
+        drawn = env.reset(seed=3)[1]["randomization"]
+        assert env.unwrapped.task.config.terminate_on_success is False
+        env.close()
+        assert drawn["object_mass"] == (0.5,) and drawn["observation_delay"] == 1
+        assert expected is None or drawn == expected
+        expected = drawn
+
+
 def test_drawn_parameters_stay_in_their_ranges_and_differ_across_episodes():
     env = _make("stack", randomization="default")
     draws = [env.reset(seed=0)[1]["randomization"]] + [

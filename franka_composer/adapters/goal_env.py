@@ -119,7 +119,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self.observation_space = spaces.Dict(space)
         action_spec = self._env.action_spec()
         self.action_space = spaces.Box(-1.0, 1.0, shape=action_spec.shape, dtype=np.float32)
-        self.metadata = {**self.metadata, "render_fps": int(round(1.0 / self.dt))}
+        self.metadata = {**self.metadata, "render_fps": _frames_per_second(self.dt)}
 
     # ----- Gymnasium API --------------------------------------------------------------------
 
@@ -260,6 +260,14 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         for key in self._pixel_keys:
             obs[key] = composer_obs[key]
         return obs
+
+
+def _frames_per_second(dt: float) -> int | float:
+    """One frame per step, as Gymnasium's `render_fps` (what video writers are given): a
+    whole number where it is one (20 at 0.05 s), else the exact rate (0.5 at 2 s a step;
+    rounded, it read 0)."""
+    rate = 1.0 / dt
+    return int(round(rate)) if abs(rate - round(rate)) <= 1e-9 * rate else rate
 
 
 def state_box(layout) -> spaces.Box:

@@ -9,6 +9,7 @@ None leaves that parameter out.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from typing import Any, Mapping
 
 import numpy as np
@@ -167,8 +168,10 @@ def _probe_draw(name: str, parameter: str, distribution, nominal, probe, noise=F
 
 
 def _constant(value) -> bool:
-    return isinstance(value, (int, float, np.ndarray, tuple, list)) and not isinstance(value,
-                                                                                      bool)
+    """Whether `value` is a constant a parameter can take: a number (Python's or numpy's),
+    an array, or a sequence of numbers; not a bool."""
+    return (isinstance(value, (numbers.Real, np.ndarray, tuple, list))
+            and not isinstance(value, (bool, np.bool_)))
 
 
 def _check_noise(parameter: str, reading: np.ndarray, sample) -> None:
