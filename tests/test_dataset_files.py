@@ -404,7 +404,7 @@ def test_rlds_episodes_without_their_seed_are_refused_by_name(recorded, push_env
     import franka_composer
     from franka_composer.datasets import rlds_format
 
-    envlogger = rlds_format._envlogger()  # envlogger as the data extra runs it (numpy 2).
+    envlogger = rlds_format.import_envlogger()  # As a user logging with it (numpy 2).
 
     for name, cut in (("cut", lambda raw: raw[:64]),
                       ("flipped", lambda raw: raw[:len(raw) // 2] + bytes(

@@ -64,7 +64,7 @@ def test_an_rlds_dataset_reads_with_envlogger_and_replays_exactly(tmp_path):
     summary = record("pick_and_place", 3, tmp_path / "rlds", format="rlds", seed=5,
                      action_noise=0.2, terminate_on_success=False)
     assert summary["steps"] == 150  # Three episodes cut at the time limit.
-    envlogger = rlds_format._envlogger()
+    envlogger = rlds_format.import_envlogger()
     with envlogger.Reader(data_directory=str(tmp_path / "rlds")) as reader:  # Its own reader.
         assert reader.metadata()["task"] == "pick_and_place"
         assert len(reader.episodes) == 3
@@ -104,7 +104,7 @@ def test_every_rlds_episode_ends_with_a_last_step(tmp_path, capsys):
     # The noisy osc expert fails some episodes: those end at the time limit, discount 1.
     assert main(["rollout", "--task", "push", "--control", "osc", "--action-noise", "0.2",
                  "--format", "rlds", "--episodes", "3", "--out", str(tmp_path / "rlds")]) == 0
-    envlogger = rlds_format._envlogger()
+    envlogger = rlds_format.import_envlogger()
     with envlogger.Reader(data_directory=str(tmp_path / "rlds")) as reader:
         ends = [(len(steps) - 1, steps[-1].timestep) for steps in map(list, reader.episodes)]
     assert len(ends) == 3 and all(last.last() for _, last in ends)

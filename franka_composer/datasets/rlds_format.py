@@ -10,7 +10,8 @@ environment's LAST step: discount 0 where the goal was reached (`terminate_on_su
 
 envlogger: 1.3 needs glibc >= 2.38 and protobuf < 7 (dm_control's tested set has 7), so the
 extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unicode_`
-(removed in NumPy 2) when it encodes arrays, which `_envlogger()` restores as `np.str_`.
+(removed in NumPy 2) when it encodes arrays, which `import_envlogger()` restores as
+`np.str_`: import envlogger through it to log with `envlogger.EnvLogger` yourself.
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from franka_composer import seeding
 from franka_composer.datasets.folders import make_folder
 
 
-def _envlogger():
-    """envlogger, with the one NumPy 1 name it uses put back under NumPy 2."""
+def import_envlogger():
+    """envlogger, with the one NumPy 1 name it uses put back under NumPy 2 (imported
+    plainly, its `EnvLogger` fails on the first step: np.unicode_ was removed)."""
     if "unicode_" not in np.__dict__:
         np.unicode_ = np.str_  # What NumPy 1 had under that name.
     import envlogger
@@ -37,7 +39,7 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     """Records `episodes` episodes of `policy` (acting on goal observations) in the Composer
     environment under the Gymnasium `env`, episode i reset with seed + i and run to its
     LAST step, into the RLDS directory `root`; returns its size and success rate."""
-    envlogger = _envlogger()
+    envlogger = import_envlogger()
     adapter = env.unwrapped
     composer_env, task = adapter.composer_env, adapter.task
     # Through gym.make the episode length is TimeLimit's, which the dm_env logged here does
@@ -82,7 +84,7 @@ def read(root: pathlib.Path) -> dict:
     envlogger cannot read, that holds no episodes (its step files emptied or cut short
     read as none), or an episode that is not one FIRST step, MID steps and one LAST step
     (its index files cut short join or split episodes), is a ValueError naming `root`."""
-    envlogger = _envlogger()
+    envlogger = import_envlogger()
     from envlogger.backends.riegeli_backend_reader import RiegeliBackendReader
 
     if not pathlib.Path(root).is_dir():
