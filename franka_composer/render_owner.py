@@ -18,6 +18,8 @@ from franka_composer import headless_gl
 
 # environment -> (process id, thread) of the thread that renders it.
 _OWNERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+# environment -> what sets its contexts aside if it is collected unclosed.
+_FINALIZERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 class RenderThreadError(RuntimeError):
@@ -36,6 +38,11 @@ def claim(environment) -> None:
         if owner is not None:  # Rendered before this process was forked from its parent.
             _abandon_contexts(environment.physics)
         _OWNERS[environment] = (os.getpid(), here)
+        # Dropped without close(), it is freed wherever the collector or the interpreter's
+        # exit runs: there its contexts are set aside as `release` sets them aside (freed
+        # from another thread, dm_control printed EGL errors, in collection and at exit).
+        _FINALIZERS[environment] = weakref.finalize(
+            environment, _set_aside_elsewhere, environment.physics, os.getpid(), here)
     elif owner[1] is not here:
         raise RenderThreadError(
             f"this environment renders on thread {owner[1].name!r}, which rendered it first "
@@ -49,9 +56,19 @@ def release(environment, physics) -> None:
     current on another thread (or the parent's, after a fork) cannot be made current here to
     be freed, so it is set aside until the process exits; the physics itself is freed."""
     owner = _OWNERS.pop(environment, None)
+    finalizer = _FINALIZERS.pop(environment, None)
+    if finalizer is not None:
+        finalizer.detach()  # Closed: nothing is left to set aside when it is collected.
     if owner is None or (owner[0] == os.getpid() and owner[1] is threading.current_thread()):
         return
     _abandon_contexts(physics)
+
+
+def _set_aside_elsewhere(physics, process: int, thread: threading.Thread) -> None:
+    """Sets aside `physics`'s GL contexts unless this is the `thread` of `process` that
+    made them current: the finalizer of an environment `claim` saw render."""
+    if process != os.getpid() or threading.current_thread() is not thread:
+        _abandon_contexts(physics)
 
 
 # GL contexts this process must not free: current on another thread, or inherited over a

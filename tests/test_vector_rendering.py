@@ -285,6 +285,22 @@ def test_closing_on_another_thread_leaves_nothing_to_fail_at_exit():
     assert (done.returncode, done.stdout.strip(), done.stderr.strip()) == (0, "closed", "")
 
 
+def test_an_env_rendered_on_another_thread_and_dropped_unclosed_is_collected_quietly():
+    """Collected on the main thread, its context current on the (finished) thread that
+    rendered it: dm_control's frees raised EGLError tracebacks ("Exception ignored in")."""
+    code = ("import gc, threading, gymnasium as gym, franka_composer\n"
+            "held = {}\n"
+            "def render():\n"
+            "    env = gym.make('FrankaPushSparse-v0', render_mode='rgb_array', width=32, "
+            "height=32)\n"
+            "    env.reset(seed=0); env.render(); held['env'] = env\n"
+            "thread = threading.Thread(target=render); thread.start(); thread.join()\n"
+            "held.clear(); gc.collect(); print('collected')\n"
+            "import os; os._exit(0)\n")  # (Left to the exit, dm_control still prints them.)
+    done = run_python(code)
+    assert (done.returncode, done.stdout.strip(), done.stderr.strip()) == (0, "collected", "")
+
+
 def test_a_pixel_step_on_another_thread_is_refused_before_the_physics_moves():
     env = gym.make("FrankaPushSparse-v0", observation_mode="pixels")
     obs, _ = env.reset(seed=0)
