@@ -395,6 +395,34 @@ def test_the_documented_recipe_writes_demonstrations_training_takes(push_env, tm
     assert not (tmp_path / "noisy.npz").exists()
 
 
+def test_numpy_options_are_recorded_as_the_numbers_they_hold(push_env, tmp_path):
+    """Kept as their repr ('np.float32(0.01)'), the npz's own demonstrations were refused,
+    and Minari refused np.False_ as not JSON."""
+    import gymnasium as gym
+
+    from franka_composer.policies import make_expert, rollout
+
+    options = dict(object_damping=np.float32(0.01), terminate_on_success=np.False_)
+    record("push", 1, tmp_path / "numpy.npz", seed=0, **options)
+    recorded = Trajectories.load(tmp_path / "numpy.npz").metadata["options"]
+    assert recorded == {"object_damping": float(np.float32(0.01)),
+                        "terminate_on_success": False}
+    assert type(recorded["terminate_on_success"]) is bool
+    damped = make_env("push", object_damping=float(np.float32(0.01)))
+    try:
+        assert len(demos.load_episodes(tmp_path / "numpy.npz", damped)) == 1
+    finally:
+        damped.close()
+    record("push", 1, tmp_path / "minari", format="minari", seed=0, **options)
+    # rollout's own record of its env says a preset by name, as the option takes it.
+    env = gym.make("FrankaPushSparse-v0", randomization="default")
+    try:
+        assert rollout(env, make_expert(env), 1, seed=0).metadata["options"] == {
+            "randomization": "default"}
+    finally:
+        env.close()
+
+
 def test_rlds_episodes_without_their_seed_are_refused_by_name(recorded, push_env, tmp_path):
     """Episode metadata cut short or flipped (envlogger reads None), or a dataset logged
     by envlogger around `load` as acme logs (no episode metadata): a TypeError from deep in
@@ -491,6 +519,22 @@ def test_a_minari_dataset_whose_counts_disagree_with_its_data_is_refused(
     (path / "data" / "metadata.json").write_text(json.dumps({**metadata, **counted}))
     _refused(path, push_env, f"{path}'s metadata.json {message}: an append cut short, or "
                              "hand-edited?")
+
+
+
+def test_minari_episodes_are_counted_in_either_of_minaris_formats(recorded, tmp_path):
+    """Minari's arrow format (pyarrow, not an extra here) keeps no hdf5 file: counting only
+    that, its datasets were refused as damaged."""
+    import shutil
+
+    hdf5 = recorded / "minari" / "franka_composer" / "push" / "expert-v0" / "data"
+    assert demos._stored_minari_episodes(hdf5) == 2
+    arrow = tmp_path / "arrow"  # What Minari's ArrowStorage writes: an episode per folder.
+    for episode in ("0", "1", "2"):
+        (arrow / episode).mkdir(parents=True)
+        (arrow / episode / "metadata.json").write_text("{}")
+    shutil.copy(hdf5 / "metadata.json", arrow / "metadata.json")
+    assert demos._stored_minari_episodes(arrow) == 3
 
 
 def test_a_minari_dataset_of_another_env_is_refused_by_its_id(tmp_path, push_env,

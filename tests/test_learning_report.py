@@ -355,6 +355,11 @@ def test_a_sweep_under_way_is_read_without_its_runs_not_evaluated_yet(tmp_path, 
                         *out]) == 2
     assert (f"no evaluations yet in {runs / 'push-sac-seed1'}, {runs / 'push-sac-seed2'}"
             in capsys.readouterr().err)
+    # Ended, with its evaluations lost: refused, not left out as one not begun.
+    RunDir(runs / "push-sac-seed1").write_outcome(18000, False, 180.0, 3600.0)
+    assert cli.console([command, str(runs), *out]) == 2
+    assert (f"{runs / 'push-sac-seed1'} has ended and has no evaluations (its eval.csv lost "
+            "or emptied?)" in capsys.readouterr().err)
 
 
 def test_a_variant_names_what_differs_from_the_papers_setup():

@@ -79,6 +79,15 @@ def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, messa
     ("FrankaStackSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5),
      "goal_max_height does nothing here: stack's goals (stacked) are never lifted: leave it "
      "out"),
+    ("FrankaReachSparse-v0", dict(object_centre=(0.2, 0.3)), "object_centre does nothing "
+     "here: reach has no object to place: leave it out"),
+    ("FrankaReachSparse-v0", dict(object_range=(0.5, 0.5)), "object_range does nothing"),
+    ("FrankaFlipSparse-v1", dict(goal_range=(0.1, 0.1)), "goal_range does nothing here: "
+     "flip's goals (orientation) are not drawn in the goal square: leave it out"),
+    ("FrankaFlipSparse-v1", dict(goal_centre=(0.5, 0.1)), "goal_centre does nothing here"),
+    ("FrankaFlipSparse-v1", dict(goal_yaw_range=0.2, orientation_goal="uniform"),
+     "goal_yaw_range does nothing here: orientation_goal='uniform' draws every orientation, "
+     "not a yaw about face up: leave it out"),
 ])
 def test_an_option_the_env_would_not_read_is_refused_saying_why(env_id, options, message):
     """Each was taken, and the episodes were those without it (measured: the same
@@ -124,6 +133,8 @@ def test_the_object_box_check_simulates_the_placement_episodes_use():
     ("FrankaPickAndPlaceSparse-v0", dict(goal_in_air_probability=0.0, max_finger_step=0.1)),
     ("FrankaReachJointsSparse-v0", dict(max_joint_step=0.1, goal_max_height=0.1)),
     ("FrankaPushOscSparse-v0", dict(timing="reference")),  # Its weld: unread by design.
+    ("FrankaStackSparse-v0", dict(goal_range=(0.1, 0.1), object_centre=(0.6, 0.05))),
+    ("FrankaFlipSparse-v1", dict(goal_yaw_range=0.2, object_range=(0.1, 0.1))),
 ])
 def test_options_the_env_reads_are_taken(env_id, options):
     gym.make(env_id, **options).close()

@@ -19,7 +19,7 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end
-from franka_composer.tasks.config import expand_timing, readable_options
+from franka_composer.tasks.config import expand_timing, plain_value, readable_options
 from franka_composer.validation import check_choice, check_number, check_writable
 
 #: The formats `record` writes.
@@ -54,8 +54,9 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     elif dataset_id is not None:
         raise ValueError("--dataset-id names a Minari dataset: give it with --format minari")
     _check_destination(out, format, dataset_id)
-    # A named timing is kept as the values it sets: what the name stands for may change.
-    options = expand_timing(options)
+    # A named timing is kept as the values it sets: what the name stands for may change;
+    # numpy's scalars as the numbers they hold, for the metadata and Minari's JSON.
+    options = {name: plain_value(value) for name, value in expand_timing(options).items()}
     if format == "minari":
         _check_json_options(options)
     metadata = {"task": task, "control": control, "reward_type": reward_type,

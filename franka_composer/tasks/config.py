@@ -24,7 +24,8 @@ from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
                                                   WELD_TIME_CONSTANT)
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
-from franka_composer.randomization import RandomizationSettings, randomization_settings
+from franka_composer.randomization import (PRESETS, RandomizationSettings,
+                                           randomization_settings)
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -417,7 +418,9 @@ class Option:
         return _replace_path(config, self.path, value)
 
 
-#: The goals that `goal_max_height` and `goal_in_air_probability` lift (`goals.py`).
+#: The goals drawn in the goal square (`goal_centre`, `goal_range`; `goals.py`), and those
+#: of them that `goal_max_height` and `goal_in_air_probability` lift.
+GOAL_SQUARE_GOALS = ("object_position", "tcp_position", "stacked")
 LIFTED_GOALS = ("object_position", "tcp_position")
 
 
@@ -443,6 +446,16 @@ _READ_ONLY_WHERE: dict[str, tuple[Callable[[TaskConfig], bool], Callable[[TaskCo
     "max_finger_step": (lambda c: c.control.actuated_gripper,
                         lambda c: "actuated_gripper=False holds the fingers closed: give "
                                   "actuated_gripper=True as well, or leave it out"),
+    **{name: (lambda c: bool(c.objects),
+              lambda c: f"{c.name} has no object to place: leave it out")
+       for name in ("object_centre", "object_range")},
+    **{name: (lambda c: c.goal in GOAL_SQUARE_GOALS,
+              lambda c: f"{c.name}'s goals ({c.goal}) are not drawn in the goal square: "
+                        "leave it out")
+       for name in ("goal_centre", "goal_range")},
+    "goal_yaw_range": (lambda c: c.orientation_goal.kind == "face_up",
+                       lambda c: f"orientation_goal={c.orientation_goal.kind!r} draws "
+                                 "every orientation, not a yaw about face up: leave it out"),
     "goal_max_height": (
         lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_in_air_probability > 0,
         lambda c: _lift_unread(c, "goal_max_height", "goal_in_air_probability")),
@@ -498,12 +511,30 @@ def expand_timing(options: dict) -> dict:
     return {**timing, **options}
 
 
+def plain_value(value):
+    """`value` with numpy scalars, also inside a tuple or list, as the Python numbers they
+    hold (JSON, and a dataset's metadata, take those)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (tuple, list)):
+        return type(value)(plain_value(item) for item in value)
+    return value
+
+
 def readable_options(options: dict) -> dict:
-    """Task options as a dataset's metadata keeps them: plain values as they are, others
-    (a custom randomisation's distributions) as their repr, which reads like the Python
-    that made them."""
-    return {name: value if isinstance(value, (bool, int, float, str, type(None)))
-            else repr(value) for name, value in options.items()}
+    """Task options as a dataset's metadata keeps them: plain values as they are, a
+    randomisation as the option takes it (a preset's name, None), others (a custom
+    randomisation's distributions) as their repr, which reads like the Python that made
+    them."""
+    readable = {}
+    for name, value in options.items():
+        value = plain_value(value)
+        if isinstance(value, RandomizationSettings):  # (A config's, not an option given.)
+            value = (None if not value.enabled else value.name if value.name in PRESETS
+                     else dict(value.ranges))
+        readable[name] = (value if isinstance(value, (bool, int, float, str, type(None)))
+                          else repr(value))
+    return readable
 
 
 def _positive(name, value):

@@ -246,7 +246,11 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
 
 
 def _stored_minari_episodes(data: pathlib.Path) -> int:
-    """How many episodes a Minari dataset's data file holds (its groups episode_0, ...)."""
+    """How many episodes a Minari dataset's data holds: in its hdf5 file (the groups
+    episode_0, ...; what `record` writes) or, in Minari's arrow format, its episode
+    folders (0/, 1/, ...)."""
+    if not (data / "main_data.hdf5").is_file():
+        return sum(path.is_dir() and path.name.isdigit() for path in data.iterdir())
     import h5py
 
     with h5py.File(data / "main_data.hdf5", "r") as file:

@@ -37,6 +37,8 @@ _COUNTS = ("batch_size", "buffer_size", "her_n_sampled_goal", "total_steps", "ev
            "eval_episodes", "train_every", "stop_after_evaluations")
 #: TQC's, None for the other algorithms.
 _TQC_COUNTS = ("n_critics", "n_quantiles", "top_quantiles_to_drop_per_net")
+#: The hyperparameters each algorithm is built with that are None in others' records.
+ALGORITHM_SETTINGS = {"ddpg": (), "sac": ("ent_coef",), "tqc": ("ent_coef", *_TQC_COUNTS)}
 
 
 def _check_ent_coef(value) -> None:

@@ -12,8 +12,9 @@ from franka_composer.controllers.settings import WELD_TIME_CONSTANT
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import timing_name
-from franka_composer.training.hyperparams import (ALGOS, BACKENDS, PRECISIONS,
-                                                  Hyperparameters, hyperparameters)
+from franka_composer.training.hyperparams import (ALGORITHM_SETTINGS, ALGOS, BACKENDS,
+                                                  PRECISIONS, Hyperparameters,
+                                                  hyperparameters)
 from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.validation import check_choice, check_number
 
@@ -28,12 +29,6 @@ NOT_LEARNING = ("total_steps", "eval_every", "eval_episodes", "stop_success_rate
 def variant_label(setup: str, computation: str) -> str:
     """A run's variant (`RunConfig.variant`) from its setup and computation labels."""
     return ", ".join(part for part in (setup, computation) if part)
-
-
-#: The hyperparameters each algorithm is built with that Table I leaves unset for others.
-_SETTINGS_OF_THE_ALGORITHM = {
-    "ddpg": (), "sac": ("ent_coef",),
-    "tqc": ("ent_coef", "n_critics", "n_quantiles", "top_quantiles_to_drop_per_net")}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -104,7 +99,7 @@ class RunConfig:
             damping = task.replace(object_damping=damping).objects[0].joint_damping
         object.__setattr__(self, "object_damping", float(damping))
         check_choice("algorithm", self.algo, ALGOS)
-        unset = [name for name in _SETTINGS_OF_THE_ALGORITHM[self.algo]
+        unset = [name for name in ALGORITHM_SETTINGS[self.algo]
                  if getattr(self.hyperparameters, name) is None]
         if unset:  # (Else a TypeError from inside SB3 once the env is built.)
             raise ValueError(f"{self.algo} needs {', '.join(unset)}, which the "

@@ -387,10 +387,17 @@ def run_directories(paths) -> list[pathlib.Path]:
 def split_evaluated(runs) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
     """`runs` split into those with evaluations and those with none yet (a sweep under way
     has cells not begun, or begun and not yet evaluated); none with any is a ValueError
-    naming them. A damaged eval.csv is a ValueError too, not a run waiting."""
+    naming them. A damaged eval.csv is a ValueError too, not a run waiting, and so is a run
+    that ended (its outcome.json written) with no evaluations: its eval.csv was lost."""
     evaluated, waiting = [], []
     for run in runs:
-        (evaluated if read_eval_rows(RunDir(run).eval_csv) else waiting).append(run)
+        if read_eval_rows(RunDir(run).eval_csv):
+            evaluated.append(run)
+        elif RunDir(run).read_outcome():
+            raise ValueError(f"{run} has ended and has no evaluations (its eval.csv lost or "
+                             "emptied?)")
+        else:
+            waiting.append(run)
     if not evaluated:
         raise ValueError(f"no evaluations yet in {', '.join(map(str, waiting))}")
     return evaluated, waiting
