@@ -792,7 +792,7 @@ def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_pa
 
     run = RunDir(runs["sac"])
     assert RunConfig.from_dict(run.read_state()["config"]) == run.read_config()
-    for edit, differs in (({"algo": "tqc"}, "algo: tqc, not sac"),
+    for edit, differs in (({"algo": "ddpg"}, "algo: ddpg, not sac"),
                           ({"seed": 5}, "seed: 5, not 1"),
                           ({"control": "osc"}, "control: osc, not mocap")):
         copy = tmp_path / f"edited-{next(iter(edit))}"
@@ -808,6 +808,16 @@ def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_pa
             cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
         assert {path.name: path.read_bytes() for path in copy.iterdir()
                 if path.is_file()} == files
+    # TQC under SAC's settings is no run's config at all: refused as such, first.
+    tqc = tmp_path / "edited-to-tqc"
+    shutil.copytree(run.root, tqc)
+    (tqc / "training.lock").unlink()
+    config = json.loads((tqc / "config.json").read_text())
+    (tqc / "config.json").write_text(json.dumps({**config, "algo": "tqc"}))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{tqc / 'config.json'} is not a run's config: tqc needs n_critics, n_quantiles, "
+            "top_quantiles_to_drop_per_net, which the hyperparameters leave unset (None)")):
+        cli.main(["train", "--resume", "--out", str(tqc), "--total-steps", "400"])
     # The loop checks too (a sweep's cells and scripts resume through it).
     with pytest.raises(ValueError, match="says other than the settings the run's checkpoint"):
         loop.train(RunDir(copy), resume=True, total_steps=400, device="cpu", progress=False)
