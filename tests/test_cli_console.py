@@ -30,6 +30,24 @@ def test_a_reader_gone_ends_the_command_quietly_with_sigpipes_status():
     assert read.returncode == 0 and "| push (bf16) | SAC | 0 | 250,000 |" in read.stdout
 
 
+def test_ctrl_c_ends_a_command_in_one_line_leaving_nothing_half_written(tmp_path):
+    """A rollout interrupted while it records: a 40-line traceback ending in
+    KeyboardInterrupt; now one line and the status a shell gives SIGINT, the file it was
+    writing never made."""
+    import time
+
+    out = tmp_path / "push.npz"
+    with subprocess.Popen([sys.executable, "-m", "franka_composer", "rollout", "--task",
+                           "push", "--episodes", "5000", "--out", str(out)], cwd=REPO,
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as rollout:
+        time.sleep(15)  # Past the imports (seconds): recording episodes (minutes).
+        rollout.send_signal(signal.SIGINT)
+        _, stderr = rollout.communicate(timeout=60)
+    assert (rollout.returncode, stderr) == (128 + signal.SIGINT,
+                                            "franka-composer: interrupted\n")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
     env = {**os.environ, "MENAGERIE_ROOT": str(tmp_path)}
     out = tmp_path / "demo"

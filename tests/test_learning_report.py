@@ -83,8 +83,14 @@ def test_minutes_to_a_threshold_are_the_median_seeds_own_wall_clock(tmp_path, ca
     assert rows[0] == ("| task | algorithm | seeds | steps reached | stopped early | "
                        "steps to 80 % | steps to 90 % | minutes to 80 % | minutes to 90 % | "
                        "wall h | CPU h |")
-    assert rows[2] == ("| push | SAC | 0, 1, 2 | 18,000 (running), 18,000 (running), 18,000 "
-                       "(running) | 0 of 3 | 14,000 | 16,000 | 2.5 | 3.0 | 0.1 | – |")
+    assert rows[2] == ("| push | SAC | 0, 1, 2 | 18,000 (unfinished), 18,000 (unfinished), "
+                       "18,000 (unfinished) | 0 of 3 | 14,000 | 16,000 | 2.5 | 3.0 | 0.1 | – |")
+    # One whose training lock a process holds is training now (all three read "running",
+    # stopped or not).
+    with RunDir(tmp_path / "push-sac-seed1").training_lock():
+        assert cli.main(["report", str(tmp_path)]) == 0
+    assert ("| 0, 1, 2 | 18,000 (unfinished), 18,000 (training), 18,000 (unfinished) |"
+            in capsys.readouterr().out)
 
 
 def test_curves_over_wall_clock_read_each_seed_at_its_latest_evaluation(tmp_path):
@@ -189,7 +195,7 @@ def test_the_table_has_a_row_per_cell_in_the_papers_order_and_the_total(tmp_path
         "| task | algorithm | seeds | steps reached | stopped early | steps to 80 % | "
         "steps to 90 % | wall h | CPU h |",
         "|---|---|---|---|---|---|---|---|---|",
-        "| push | TQC | 0, 1 | 10,000 (running), 8,000 | 1 of 2 | – | – | 0.0 | "
+        "| push | TQC | 0, 1 | 10,000 (unfinished), 8,000 | 1 of 2 | – | – | 0.0 | "
         "≥ 0.5 (1 unknown) |",
         "| slide | SAC | 0 | 18,000 | 0 of 1 | 14,000 | 16,000 | 0.0 | 1.0 |",
         "",
@@ -348,7 +354,7 @@ def test_a_sweep_under_way_is_read_without_its_runs_not_evaluated_yet(tmp_path, 
         f"left out: {runs / f'push-sac-seed{seed}'} has no evaluations yet" for seed in (1, 2)]
     if command == "report":
         assert printed.out.splitlines()[2].startswith(
-            "| push | SAC | 0 | 18,000 (running) | 0 of 1 | 14,000 | 16,000 |")
+            "| push | SAC | 0 | 18,000 (unfinished) | 0 of 1 | 14,000 | 16,000 |")
     else:
         assert printed.out == f"1 curve(s) -> {tmp_path / 'curves.png'}\n"
     assert cli.console([command, str(runs / "push-sac-seed1"), str(runs / "push-sac-seed2"),

@@ -163,10 +163,12 @@ def test_evaluate_passes_over_a_damaged_model_zip_for_the_final_checkpoint(finis
         cli.main(["evaluate", str(run.root), "--episodes", "2", "--device", "cpu"])
 
 
-def test_evaluate_names_a_run_with_nothing_trained_before_it_plays_any(tmp_path, capsys,
-                                                                       monkeypatch):
-    """A run kept while still training (config.json and eval.csv, no model) among finished
-    ones: `evaluate` names it at once, not after playing the others, and makes no env."""
+def test_evaluate_leaves_out_a_run_with_nothing_trained_yet_and_names_it(tmp_path, capsys,
+                                                                        monkeypatch):
+    """A run still training before its first checkpoint (config.json and eval.csv, no
+    model; a sweep under way) among finished ones: `evaluate` plays the others and names it
+    (it refused them all, as `report` and `plot` did). Alone, it is refused before any env
+    is made; a run that ended with nothing to play is refused too."""
     import shutil
 
     from franka_composer.training import policy_file
@@ -177,8 +179,19 @@ def test_evaluate_names_a_run_with_nothing_trained_before_it_plays_any(tmp_path,
     shutil.copy(kept / "eval.csv", training / "eval.csv")
     config = json.loads((kept / "config.json").read_text())
     (training / "config.json").write_text(json.dumps({**config, "seed": 2}))
+    assert cli.main(["evaluate", str(kept), str(training), "--episodes", "2", "--device",
+                     "cpu"]) == 0
+    printed = capsys.readouterr()
+    assert printed.err == (f"left out: {training} has nothing trained yet (no model.zip, no "
+                           "checkpoint, no policy.pt)\n")
+    assert printed.out.startswith(f"{kept}: push ddpg seed 1, ")
+    assert str(training) not in printed.out
     made = []
     monkeypatch.setattr(policy_file, "make_env", lambda *args, **kwargs: made.append(args))
+    with pytest.raises(ValueError, match=re.escape(
+            f"nothing trained yet in {training} (no model.zip, no checkpoint, no policy.pt)")):
+        cli.main(["evaluate", str(training), "--episodes", "2", "--device", "cpu"])
+    shutil.copy(kept / "outcome.json", training / "outcome.json")  # Ended: nothing to play.
     with pytest.raises(ValueError, match=re.escape(
             f"{training} has no model yet (no model.zip, no checkpoint, no policy.pt)")):
         cli.main(["evaluate", str(kept), str(training), "--episodes", "2", "--device", "cpu"])

@@ -374,7 +374,9 @@ def test_a_cell_trained_as_another_run_is_refused_before_anything_runs(tmp_path)
     assert str(error.value) == (
         f"{trained.root} holds a run other than the one this sweep gives that cell (the "
         "sweep's setting, not the run's: precision: bf16, not fp32; batch_size: 64, not "
-        "512): move it aside, or sweep into another --out")
+        "512): if it is this sweep's, give the options after -- it was run with (--status "
+        "and --sync read the cells as the sweep trains them); else move it aside, or sweep "
+        "into another --out")
     assert {path: path.stat().st_mtime_ns for path in out.rglob("*")} == before
     # The same run with a larger budget is the same cell; a cell without a checkpoint
     # starts afresh with the sweep's settings, whatever its directory held.
@@ -508,6 +510,31 @@ def test_a_sweeps_own_ray_cluster_listens_on_loopback_only(tmp_path, monkeypatch
         cli.main([*sweep, "--", *TINY])
     assert asked[0]["_node_ip_address"] == "127.0.0.1" and asked[0]["num_cpus"] == 1
     assert asked[0]["address"] is None
+
+
+def test_a_sweep_stopped_while_ray_starts_shuts_down_what_it_started(tmp_path, capsys,
+                                                                      monkeypatch):
+    """A SIGTERM or Ctrl-C in Ray's first seconds came before the sweep's own handlers and
+    outside its shutdown: Ray's agents stayed behind (and SIGTERM said nothing). Ctrl-C
+    here (a SIGTERM without the sweep's handler would end the test run itself)."""
+    import ray
+
+    shut = []
+
+    def init(**kwargs):
+        os.kill(os.getpid(), signal.SIGINT)  # Arrives while Ray starts.
+        time.sleep(5)
+        pytest.fail("the signal did not stop the sweep")
+
+    monkeypatch.setattr(ray, "init", init)
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "shutdown", lambda: shut.append(True))
+    out = tmp_path / "s"
+    assert cli.console(["sweep", "--out", str(out), "--tasks", "push", "--algos", "sac",
+                        "--seeds", "0", "--steps", "200", "--num-cpus", "1", "--",
+                        *TINY]) == 130
+    assert shut == [True] and not out.exists()
+    assert "interrupted" in capsys.readouterr().out
 
 
 def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monkeypatch):

@@ -469,9 +469,11 @@ def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, mon
                 "its checkpoint at step 130 was not written where a resume goes on exactly "
                 "(an episode's end, with the random generators saved); the run goes on with "
                 "a fresh episode stream and from here is not the run an uninterrupted one "
-                "would be")):
+                "would be")) as warned:
             assert cli.main(["train", "--resume", "--out", str(out), "--total-steps", "200",
                              "--no-progress", "--device", "cpu"]) == 0
+        # That warning alone: not SB3's advice to pass an option train does not have.
+        assert not [w for w in warned if "truncate_last_trajectory" in str(w.message)]
     # The run's seed and step, above the evaluation's seed: at step 10,000 they met.
     assert seeds[-1] == 1 + FRESH_STREAM_SEED_OFFSET + 130
     assert FRESH_STREAM_SEED_OFFSET > EVAL_SEED_OFFSET
@@ -1223,6 +1225,22 @@ def test_an_evaluation_off_the_grid_neither_stops_a_run_nor_survives_a_raised_bu
 def test_a_run_without_the_rule_records_that_it_went_the_distance(runs):
     outcome = RunDir(runs["sac"]).read_outcome()
     assert outcome["steps"] == 300 and outcome["stopped_early"] is False
+
+
+def test_a_resume_of_a_run_that_has_ended_says_it_trained_nothing(runs, tmp_path, capsys):
+    """It printed "trained 300 steps -> model.zip", as if it had."""
+    import shutil
+
+    out = tmp_path / "ended"
+    shutil.copytree(runs["sac"], out)
+    (out / "training.lock").unlink(missing_ok=True)
+    files = {path.name: path.read_bytes() for path in out.iterdir() if path.is_file()}
+    capsys.readouterr()
+    assert _train(out, "sac", 300, "--resume") == 0
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        f"{out} had ended at 300 steps: nothing to train (a larger --total-steps goes on)")
+    assert {path.name: path.read_bytes() for path in out.iterdir()
+            if path.is_file() and path.name != "training.lock"} == files
 
 
 def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):

@@ -54,7 +54,9 @@ def console(argv: list[str] | None = None) -> int:
     cannot be found, a process that cannot render (`HeadlessGLError`) and a file that
     cannot be written or read after all (OSError: a full disk, a folder removed meanwhile;
     status 1); a reader that has gone (`franka-composer evaluate ... | head`) ends the
-    command quietly, with the status a shell gives a command SIGPIPE ends."""
+    command quietly, with the status a shell gives a command SIGPIPE ends; so does Ctrl-C
+    where the command has nothing of its own to say (train and sweep say what they kept),
+    saying so in one line (what it was writing is left whole or not at all)."""
     warnings.formatwarning = _format_warning
     try:
         try:
@@ -71,6 +73,9 @@ def console(argv: list[str] | None = None) -> int:
     except OSError as error:  # After BrokenPipeError, one of its kind.
         print(f"franka-composer: error: {error}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("franka-composer: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
 
 
 _PACKAGE = pathlib.Path(__file__).resolve().parents[1]

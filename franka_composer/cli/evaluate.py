@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import pathlib
 
-from franka_composer.cli.options import add_run_dirs, episode_seed, output_file, positive_int
+from franka_composer.cli.options import (add_run_dirs, episode_seed, output_file,
+                                         positive_int, report_waiting)
 from franka_composer.training.models import DEVICES
 
 
@@ -34,17 +35,19 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.evaluation import measure_success
-    from franka_composer.training.policy_file import check_trained, trained_on_its_task
+    from franka_composer.training.policy_file import split_trained, trained_on_its_task
     from franka_composer.training.report import (RunResult, markdown_table, seeds_note,
                                                  with_variant)
-    from franka_composer.training.runs import RunDir, check_out_apart
+    from franka_composer.training.runs import check_out_apart
     from franka_composer.training.sweep import run_directories
 
     roots = run_directories(args.runs)
     check_out_apart(args.out, roots)
-    for run in map(RunDir, roots):  # Every run named before the first is played, not after.
-        run.read_config()
-        check_trained(run)
+    # Every run checked before the first is played, not after; those not trained yet (a
+    # sweep under way) are left out and named.
+    roots, waiting = split_trained(roots)
+    report_waiting(waiting, "has nothing trained yet (no model.zip, no checkpoint, no "
+                            "policy.pt)")
     results = []
     for root in roots:
         with trained_on_its_task(root, device=args.device) as (config, env, model):

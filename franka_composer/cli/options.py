@@ -174,11 +174,11 @@ def add_run_dirs(parser: argparse.ArgumentParser) -> None:
                              "sweep directories (every run in them)")
 
 
-def report_waiting(waiting) -> None:
-    """Names on stderr the runs left out for having no evaluations yet (`split_evaluated`):
-    the table or figure has the others' seeds only."""
+def report_waiting(waiting, why: str = "has no evaluations yet") -> None:
+    """Names on stderr the runs left out as not far enough yet (`split_evaluated`,
+    `split_trained`): the table or figure has the others' seeds only."""
     for run in waiting:
-        print(f"left out: {run} has no evaluations yet", file=sys.stderr)
+        print(f"left out: {run} {why}", file=sys.stderr)
 
 
 def task_names(text: str) -> tuple[str, ...]:

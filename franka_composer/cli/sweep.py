@@ -137,8 +137,10 @@ def _check_trained_as(run, config, *, started: bool = True) -> None:
     if differences:
         raise ValueError(f"{run.root} holds a run other than the one this sweep gives that "
                          f"cell (the sweep's setting, not the run's: "
-                         f"{'; '.join(differences)}): move it aside, or sweep into another "
-                         "--out")
+                         f"{'; '.join(differences)}): if it is this sweep's, give the "
+                         "options after -- it was run with (--status and --sync read the "
+                         "cells as the sweep trains them); else move it aside, or sweep into "
+                         "another --out")
 
 
 def _check_sweep_folder(out, *, synced: bool) -> None:

@@ -18,7 +18,7 @@ from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
-from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY
+from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, run_finished
 from franka_composer.training.signals import interrupt_on
 
 
@@ -409,6 +409,8 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         return 130
     if not args.resume:
         run_dir = loop.start(out, config)
+    # Ended (by the stopping rule, or at the budget the resume gives it): it trains nothing.
+    ended = args.resume and run_finished(run_dir, args.total_steps)
     threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
@@ -435,5 +437,10 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         return 130
     early = " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
         "stopped_early") else ""
+    if ended:
+        print(f"{run_dir.root} had ended at {model.num_timesteps} steps{early}: nothing to "
+              "train (a larger --total-steps goes on)")
+        return 0
     print(f"trained {model.num_timesteps} steps{early} -> {run_dir.final_model}")
     return 0
+

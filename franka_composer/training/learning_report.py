@@ -34,6 +34,12 @@ REACH_TOLERANCE = 1e-9
 THRESHOLDS = (0.8, 0.9)
 
 
+def _unfinished(run: "RunRecord") -> str:
+    """What the steps column says of a run that has not ended: training now, or stopped
+    (to be resumed, or lost)."""
+    return "" if run.finished else " (training)" if run.training else " (unfinished)"
+
+
 @dataclasses.dataclass(frozen=True)
 class RunRecord:
     """One run as its files tell it."""
@@ -50,6 +56,7 @@ class RunRecord:
     curve: dict[int, float]  # evaluated step -> success rate
     wall_times: dict[int, float]  # evaluated step -> the run's wall-clock seconds there
     stop_after: int = SMOOTHING  # the evaluations in a row the stopping rule asks for
+    training: bool = False  # unfinished, and a process holds its training lock now
 
 
 def read_run(root: pathlib.Path) -> RunRecord:
@@ -65,7 +72,8 @@ def read_run(root: pathlib.Path) -> RunRecord:
         wall_s=float(outcome.get("wall_time_s", last["wall_time_s"])),
         cpu_s=outcome.get("cpu_time_s"), curve=success_curve(rows),
         wall_times={row["steps"]: row["wall_time_s"] for row in rows},
-        stop_after=config.hyperparameters.stop_after_evaluations)
+        stop_after=config.hyperparameters.stop_after_evaluations,
+        training=not outcome and run.trainer() is not None)
 
 
 def smoothed(curve: dict[int, float]) -> dict[int, float]:
@@ -185,7 +193,7 @@ def markdown_table(runs: list[RunRecord],
              "|---|---|---|---|---|" + "---|" * len(columns) + "---|---|"]
     for task, variant, algo in sorted(cells, key=cell_order):
         cell = cells[(task, variant, algo)]
-        reached = ", ".join(f"{run.steps:,}" + ("" if run.finished else " (running)")
+        reached = ", ".join(f"{run.steps:,}" + _unfinished(run)
                             for run in cell)
         crossings = [steps_text(steps_to(cell, t)) for t in thresholds]
         if wall_clock:

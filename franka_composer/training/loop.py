@@ -28,7 +28,8 @@ from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, unpickling
-from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, RunDir, write_eval_rows
+from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunDir, run_finished,
+                                          write_eval_rows)
 from franka_composer.training.signals import stop_requests
 from franka_composer.training.target_bounds import clip_target_critic
 
@@ -64,7 +65,11 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
     exact = bool(state.get("exact")) and run.checkpoint_generators.is_file()
     model = load_model(config.algo, checked_model(run.checkpoint_model), env=env,
                        device=device, backend=config.backend, force_reset=not exact)
-    with unpickling(run.checkpoint_buffer):
+    with unpickling(run.checkpoint_buffer), warnings.catch_warnings():
+        # SB3's advice for a buffer saved inside an episode (truncate_last_trajectory) is
+        # no option of train's: such a resume goes on with a fresh stream, warned below.
+        warnings.filterwarnings("ignore", message="The last trajectory in the replay buffer "
+                                "will be truncated")
         model.load_replay_buffer(run.checkpoint_buffer)
     stream = exact_resume.restore(model, run.checkpoint_generators) if exact else None
     fresh = stream is None
@@ -155,7 +160,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     outcome = run.read_outcome()
     if resume:  # `train` has checked it is resumable.
         rows = run.kept_evaluations()
-        if outcome.get("stopped_early") or (outcome and hp.total_steps <= outcome["steps"]):
+        if run_finished(run, hp.total_steps):
             # It has ended, by the stopping rule or at this budget: nothing to train, and
             # its files stay as they are.
             return _trained_model(run, config, env, eval_env, device, run.best_model())

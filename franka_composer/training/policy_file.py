@@ -154,6 +154,28 @@ def check_trained(run: RunDir) -> None:
     read_policy_file(run.read_config(), run.policy_file)
 
 
+def split_trained(roots) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
+    """`roots` split into the runs with something trained to play (each checked,
+    `check_trained`) and those not yet (a sweep under way: a cell not begun, or before its
+    first checkpoint); a run that ended with nothing to play, or none with anything, is a
+    ValueError naming it."""
+    trained, waiting = [], []
+    for root in roots:
+        run = RunDir(pathlib.Path(root))
+        run.read_config()
+        if (not any(path.is_file() for path in (run.final_model, run.checkpoint_model,
+                                                 run.policy_file))
+                and not run.read_outcome()):
+            waiting.append(root)
+            continue
+        check_trained(run)
+        trained.append(root)
+    if not trained:
+        raise ValueError(f"nothing trained yet in {', '.join(map(str, waiting))} (no "
+                         "model.zip, no checkpoint, no policy.pt)")
+    return trained, waiting
+
+
 def load_trained(run: RunDir, env: gym.Env, device: str = "auto"):
     """What `run` trained, ready to act on `env`: its full model (model.zip, else its latest
     checkpoint: `RunDir.best_model`) where it has one whole, else its policy file (a run as

@@ -308,22 +308,29 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     failed: set[str] = set()
     if todo:
         started = not ray.is_initialized()
-        if started:
-            # A cluster of its own listens on loopback only: Ray's ports take no
-            # authentication, and a sweep on a laptop need not open them to its network.
-            local = {} if address else dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1")
-            ray.init(address=address, include_dashboard=False, log_to_driver=False, **local)
-        root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
-        remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
-        submitted = time.time()
-        pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
+        pending: dict = {}
         try:
+            # Signals stop it from here, Ray's start included: a stop while Ray starts
+            # shuts down what it started (it left Ray's agents running, and no message).
             with interrupt_on(signal.SIGTERM, signal.SIGINT):  # Stops with checkpoints.
+                if started:
+                    # A cluster of its own listens on loopback only: Ray's ports take no
+                    # authentication, and a sweep on a laptop need not open them to its
+                    # network.
+                    local = ({} if address else
+                             dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1"))
+                    ray.init(address=address, include_dashboard=False, log_to_driver=False,
+                             **local)
+                root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
+                remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
+                submitted = time.time()
+                pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
                 _wait_for_cells(pending, cells, root, failed, submitted, refresh_s, show)
         except BaseException:
             for ref in pending:
                 ray.cancel(ref)  # KeyboardInterrupt in the task: its run checkpoints.
-            ray.wait(list(pending), num_returns=len(pending), timeout=60)
+            if pending:
+                ray.wait(list(pending), num_returns=len(pending), timeout=60)
             raise
         finally:
             if started:
