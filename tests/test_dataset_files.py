@@ -414,6 +414,13 @@ def test_numpy_options_are_recorded_as_the_numbers_they_hold(push_env, tmp_path)
     finally:
         damped.close()
     record("push", 1, tmp_path / "minari", format="minari", seed=0, **options)
+    # A randomisation's numpy constants too (they are valid constants there).
+    record("push", 1, tmp_path / "constants.npz", seed=0,
+           randomization={"object_mass": np.float32(0.5)})
+    assert Trajectories.load(tmp_path / "constants.npz").metadata["options"] == {
+        "randomization": "{'object_mass': 0.5}"}
+    record("push", 1, tmp_path / "constants", format="minari", seed=0,
+           randomization={"object_mass": np.float32(0.5)})
     # rollout's own record of its env says a preset by name, as the option takes it.
     env = gym.make("FrankaPushSparse-v0", randomization="default")
     try:
@@ -519,7 +526,6 @@ def test_a_minari_dataset_whose_counts_disagree_with_its_data_is_refused(
     (path / "data" / "metadata.json").write_text(json.dumps({**metadata, **counted}))
     _refused(path, push_env, f"{path}'s metadata.json {message}: an append cut short, or "
                              "hand-edited?")
-
 
 
 def test_minari_episodes_are_counted_in_either_of_minaris_formats(recorded, tmp_path):

@@ -1241,6 +1241,13 @@ def test_a_resume_of_a_run_that_has_ended_says_it_trained_nothing(runs, tmp_path
         f"{out} had ended at 300 steps: nothing to train (a larger --total-steps goes on)")
     assert {path.name: path.read_bytes() for path in out.iterdir()
             if path.is_file() and path.name != "training.lock"} == files
+    # Ended by the success rule: no budget goes on, and it is not told one does.
+    outcome = json.loads((out / "outcome.json").read_text())
+    (out / "outcome.json").write_text(json.dumps({**outcome, "stopped_early": True}))
+    assert _train(out, "sac", 5000, "--resume") == 0
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        f"{out} had ended at 300 steps (stopped early: the success rule was met): nothing "
+        "to train")
 
 
 def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):

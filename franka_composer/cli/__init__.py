@@ -56,7 +56,7 @@ def console(argv: list[str] | None = None) -> int:
     status 1); a reader that has gone (`franka-composer evaluate ... | head`) ends the
     command quietly, with the status a shell gives a command SIGPIPE ends; so does Ctrl-C
     where the command has nothing of its own to say (train and sweep say what they kept),
-    saying so in one line (what it was writing is left whole or not at all)."""
+    saying so in one line."""
     warnings.formatwarning = _format_warning
     try:
         try:

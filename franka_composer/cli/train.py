@@ -438,9 +438,9 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     early = " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
         "stopped_early") else ""
     if ended:
+        more = "" if early else " (a larger --total-steps goes on)"
         print(f"{run_dir.root} had ended at {model.num_timesteps} steps{early}: nothing to "
-              "train (a larger --total-steps goes on)")
+              f"train{more}")
         return 0
     print(f"trained {model.num_timesteps} steps{early} -> {run_dir.final_model}")
     return 0
-

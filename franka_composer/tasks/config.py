@@ -512,12 +512,15 @@ def expand_timing(options: dict) -> dict:
 
 
 def plain_value(value):
-    """`value` with numpy scalars, also inside a tuple or list, as the Python numbers they
-    hold (JSON, and a dataset's metadata, take those)."""
+    """`value` with numpy scalars, also inside a tuple, list or mapping (a randomisation's
+    constants), as the Python numbers they hold (JSON, and a dataset's metadata, take
+    those)."""
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, (tuple, list)):
         return type(value)(plain_value(item) for item in value)
+    if isinstance(value, dict):
+        return {key: plain_value(item) for key, item in value.items()}
     return value
 
 

@@ -321,11 +321,14 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
                              dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1"))
                     ray.init(address=address, include_dashboard=False, log_to_driver=False,
                              **local)
-                root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
-                remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
-                submitted = time.time()
-                pending = {remote.remote(cell, root, tuple(train_args)): cell for cell in todo}
-                _wait_for_cells(pending, cells, root, failed, submitted, refresh_s, show)
+                # Ray's start put its own SIGTERM handler in (it exits): the sweep's again.
+                with interrupt_on(signal.SIGTERM, signal.SIGINT):
+                    root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
+                    remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
+                    submitted = time.time()
+                    pending = {remote.remote(cell, root, tuple(train_args)): cell
+                               for cell in todo}
+                    _wait_for_cells(pending, cells, root, failed, submitted, refresh_s, show)
         except BaseException:
             for ref in pending:
                 ray.cancel(ref)  # KeyboardInterrupt in the task: its run checkpoints.
