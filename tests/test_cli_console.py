@@ -37,12 +37,19 @@ def test_ctrl_c_ends_a_command_in_one_line_leaving_nothing_half_written(tmp_path
     import time
 
     out = tmp_path / "push.npz"
+    # SIGINT as a terminal sends it: a test run in the background of a shell without job
+    # control ignores it, and so would the command it starts.
     with subprocess.Popen([sys.executable, "-m", "franka_composer", "rollout", "--task",
                            "push", "--episodes", "5000", "--out", str(out)], cwd=REPO,
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as rollout:
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT,
+                                                           signal.SIG_DFL)) as rollout:
         time.sleep(15)  # Past the imports (seconds): recording episodes (minutes).
         rollout.send_signal(signal.SIGINT)
-        _, stderr = rollout.communicate(timeout=60)
+        try:
+            _, stderr = rollout.communicate(timeout=60)
+        finally:
+            rollout.kill()
     assert (rollout.returncode, stderr) == (128 + signal.SIGINT,
                                             "franka-composer: interrupted\n")
     assert list(tmp_path.iterdir()) == []
