@@ -91,11 +91,15 @@ class RandomizationSettings:
         # Composer's distributions compare by value but are not hashable.
         return hash((self.name, self.parameters))
 
-    def __repr__(self) -> str:
+    @property
+    def option(self):
         """What the option was given: None, a preset's name, or the mapping."""
         if not self.ranges:
-            return "None"
-        return repr(self.name) if self.name in PRESETS else repr(dict(self.ranges))
+            return None
+        return self.name if self.name in PRESETS else dict(self.ranges)
+
+    def __repr__(self) -> str:
+        return repr(self.option)
 
 
 def markdown_table(preset: str = "default") -> str:

@@ -24,8 +24,7 @@ from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
                                                   WELD_TIME_CONSTANT)
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
-from franka_composer.randomization import (PRESETS, RandomizationSettings,
-                                           randomization_settings)
+from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -533,8 +532,7 @@ def readable_options(options: dict) -> dict:
     for name, value in options.items():
         value = plain_value(value)
         if isinstance(value, RandomizationSettings):  # (A config's, not an option given.)
-            value = (None if not value.enabled else value.name if value.name in PRESETS
-                     else dict(value.ranges))
+            value = value.option
         readable[name] = (value if isinstance(value, (bool, int, float, str, type(None)))
                           else repr(value))
     return readable

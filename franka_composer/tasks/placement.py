@@ -8,6 +8,7 @@ made.
 
 from __future__ import annotations
 
+import functools
 from typing import Callable, Sequence
 
 import numpy as np
@@ -41,10 +42,16 @@ def place_apart(draw: Callable[[], np.ndarray], radii: Sequence[float]) -> list 
 
 def room_to_place_apart(low, high, radii: Sequence[float]) -> bool:
     """Whether `place_apart` places footprints of `radii` in the box [`low`, `high`] every
-    time in `CHECKED_PLACEMENTS` simulated placements (seeded: the same answer each time)."""
+    time in `CHECKED_PLACEMENTS` simulated placements (seeded: the same answer each time;
+    simulated once per box and footprints, not at every check of a config: 3 ms)."""
     if len(radii) < 2:
         return True
+    return _room(tuple(map(float, low)), tuple(map(float, high)), tuple(map(float, radii)))
+
+
+@functools.lru_cache(maxsize=64)
+def _room(low: tuple, high: tuple, radii: tuple) -> bool:
     random = np.random.RandomState(0)
-    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    low, high = np.asarray(low), np.asarray(high)
     return all(not isinstance(place_apart(lambda: random.uniform(low, high), radii), int)
                for _ in range(CHECKED_PLACEMENTS))

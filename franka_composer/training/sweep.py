@@ -401,9 +401,10 @@ def split_evaluated(runs) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
     that ended (its outcome.json written) with no evaluations: its eval.csv was lost."""
     evaluated, waiting = [], []
     for run in runs:
-        if read_eval_rows(RunDir(run).eval_csv):
+        run_dir = RunDir(run)
+        if read_eval_rows(run_dir.eval_csv):
             evaluated.append(run)
-        elif RunDir(run).read_outcome():
+        elif run_dir.read_outcome():
             raise ValueError(f"{run} has ended and has no evaluations (its eval.csv lost or "
                              "emptied?)")
         else:
