@@ -134,21 +134,26 @@ class BoundSurfaceGuard:
                 shifted = points.copy()
                 shifted[:, :2] += fraction * np.asarray(sideways)
                 lowest = min(lowest, self._lowest_hit(shifted, 0.0))
-        return min(lowest, self._palm_clearance(np.asarray(sideways), fractions))
+        return min(lowest, self._palm_clearance(np.asarray(sideways), fractions, points))
 
-    def _palm_clearance(self, sideways: np.ndarray, fractions) -> float:
+    def _palm_clearance(self, sideways: np.ndarray, fractions,
+                        points: np.ndarray | None = None) -> float:
         """How far the palm's underside can move down before it meets the top of an object
         under it (now and at `fractions` of the way `sideways`), the objects held between
         the fingers excepted. The palm is 20 cm wide: a 6 cm puck fits between the corners
-        the rays start from, and a hand lowered beside it would press it under the palm."""
-        model, data = self._model, self._data
-        if not len(self._objects):
+        the rays start from, and a hand lowered beside it would press it under the palm.
+        `points`: the footprint, if already computed."""
+        model, data, objects = self._model, self._data, self._objects
+        if not len(objects):
             return np.inf
+        points = self.footprint() if points is None else points
+        bottom = points[:4, 2].min()  # The palm's corners come first.
+        if bottom - np.max(data.geom_xpos[objects, 2] + model.geom_rbound[objects]) > PALM_REACH:
+            return np.inf  # Every object's top is out of reach (its bounding sphere's is).
         rotation, origin = data.xmat[self._palm].reshape(3, 3), data.xpos[self._palm]
-        bottom = self.footprint()[:4, 2].min()  # The palm's corners come first.
         held = None
         lowest = np.inf
-        for geom in self._objects:
+        for geom in objects:
             top, radius = _top_and_radius(model, data, geom)
             if bottom - top > min(lowest, PALM_REACH):
                 continue
@@ -204,25 +209,29 @@ class BoundSurfaceGuard:
         `stiffness` (N/m) to push with at most `max_push_force`."""
         return self.max_push_force() / stiffness
 
-    def guard(self, tcp: np.ndarray, target: np.ndarray, stiffness: float) -> float:
-        """The height for a target `target` (m, world) of the tool centre point now at
-        `tcp`, pulled by a spring of vertical `stiffness` (N/m): `target[2]`, raised where
-        it would send the hand into a surface beneath it deeper than the press depth."""
+    def touching(self, tcp: np.ndarray, target: np.ndarray) -> float:
+        """The height of the tool centre point, now at `tcp`, at which the hand would touch
+        a surface beneath it on its way to `target` (m, world): the floor or an object's
+        top, under the hand or along the way; -inf if none is within reach."""
         descent = tcp[2] - target[2]
         sideways = target[:2] - tcp[:2]
         if descent <= 0.0:
             # Not going down: only the palm can press on something, carried sideways over
             # an object whose top is above the palm's underside.
             fractions = (0.0, *PATH_FRACTIONS) if np.hypot(*sideways) > MIN_SIDEWAYS else (0.0,)
-            touching = tcp[2] - self._palm_clearance(sideways, fractions)
-        else:
-            surfaces = self._surfaces
-            highest = np.max(self._data.geom_xpos[surfaces, 2]
-                             + self._model.geom_rbound[surfaces])
-            points = self.footprint()
-            if points[:, 2].min() - descent > highest:
-                return target[2]  # Nothing within reach below: no rays needed.
-            touching = tcp[2] - self.clearance(sideways, points)
+            return tcp[2] - self._palm_clearance(sideways, fractions)
+        surfaces = self._surfaces
+        highest = np.max(self._data.geom_xpos[surfaces, 2] + self._model.geom_rbound[surfaces])
+        points = self.footprint()
+        if points[:, 2].min() - descent > highest:
+            return -np.inf  # Nothing within reach below: no rays needed.
+        return tcp[2] - self.clearance(sideways, points)
+
+    def guard(self, tcp: np.ndarray, target: np.ndarray, stiffness: float) -> float:
+        """The height for a target `target` (m, world) of the tool centre point now at
+        `tcp`, pulled by a spring of vertical `stiffness` (N/m): `target[2]`, raised where
+        it would send the hand into a surface beneath it deeper than the press depth."""
+        touching = self.touching(tcp, target)
         if target[2] >= touching:
             return target[2]
         return max(target[2], touching - self.press_depth(stiffness))

@@ -181,20 +181,41 @@ def hand_tilt_degrees(env) -> float:
     return float(np.degrees(np.arccos(np.clip(-axis[2], -1, 1))))
 
 
-def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):
-    """Drives the tool centre point to `target` with proportional actions; returns the last
-    timestep. Used by physical tests that need the hand somewhere first."""
-    size = env.action_spec().shape[0]
+def cartesian_action(env, move, gripper=None) -> np.ndarray:
+    """The action of `env` (a dm_env of this suite, any controller) that moves the tool
+    centre point by `move` (m, clipped to a full step per axis) and commands the gripper
+    where it is actuated (None: 0). Under `joints`, the joint deltas that do so to first
+    order (the Jacobian's pseudo-inverse), scaled into [-1, 1]: what a policy moving the
+    hand in joint space sends (`experiments/controller_press.py`)."""
+    import mujoco
+
     control = env.task.config.control
+    move = np.clip(np.asarray(move, np.float64), -control.max_tcp_step, control.max_tcp_step)
+    if control.kind == "joints":
+        physics = env.physics
+        model, data = physics.model.ptr, physics.data.ptr
+        jacobian = np.zeros((3, model.nv))
+        mujoco.mj_jacSite(model, data, jacobian, None,
+                          physics.bind(env.task.panda.tcp_site).element_id)
+        arm = jacobian[:, physics.bind(env.task.panda.joints).dofadr]
+        deltas = arm.T @ np.linalg.solve(arm @ arm.T + 1e-6 * np.eye(3), move)
+        deltas /= control.max_joint_step
+        motion = deltas / max(1.0, np.abs(deltas).max())
+    else:
+        motion = move / control.max_tcp_step
+    fingers = [0.0 if gripper is None else gripper] if control.actuated_gripper else []
+    return np.array([*motion, *fingers], np.float32)
+
+
+def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):
+    """Drives the tool centre point to `target` with proportional actions (any controller:
+    `cartesian_action`); returns the last timestep. Used by physical tests that need the
+    hand somewhere first."""
     for _ in range(max_steps):
         tcp = timestep.observation["panda/tcp_position"]
         if np.linalg.norm(np.asarray(target) - tcp) < tolerance:
             break
-        action = np.zeros(size, np.float32)
-        action[:3] = np.clip(control.tcp_action(tcp, target, max_speed=np.inf), -1, 1)
-        if gripper is not None:
-            action[3] = gripper
-        timestep = env.step(action)
+        timestep = env.step(cartesian_action(env, np.asarray(target) - tcp, gripper))
     return timestep
 
 

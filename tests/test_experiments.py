@@ -208,21 +208,18 @@ def test_the_edge_flick_the_physics_page_records_happens_at_both_timings():
 @pytest.mark.slow
 def test_the_controller_press_the_controllers_page_records():
     """docs/guide/controllers.md's table, as `controller_press.py` measures it on
-    pick-and-place seed 0: the guarded controllers hold the specification's bounds (object
-    within 2 mm of its height, under 0.3 m/s), the joints controller, without the guard,
-    does not."""
+    pick-and-place seed 0: every controller holds the specification's bounds (object
+    within 2 mm of its height, under 0.3 m/s, the force within the arm's push)."""
     module = load_script(EXPERIMENTS / "controller_press.py")
     readings = {control: module.press("pick_and_place", control, 0, 80, "default")
                 for control in ("mocap", "osc", "joints")}
-    for control in ("mocap", "osc"):
-        reading = readings[control]
+    for reading in readings.values():
         assert reading["sank_mm"] < 2 and reading["rose_mm"] < 2
         assert reading["fastest_m_s"] < 0.3 and reading["moved_mm"] < 1
         assert reading["peak_force_n"] < 136 and reading["into_floor_mm"] < 2
     joints = readings["joints"]
-    assert joints["rose_mm"] == pytest.approx(8.20, abs=0.01)
-    assert joints["fastest_m_s"] == pytest.approx(0.537, abs=0.001)
-    assert joints["moved_mm"] == pytest.approx(72.5, abs=0.1)
+    assert joints["fastest_m_s"] == pytest.approx(0.004, abs=0.001)
+    assert joints["peak_force_n"] == pytest.approx(115, abs=1)
 
 
 @pytest.mark.slow
@@ -244,7 +241,9 @@ def test_osc_tracking_the_controllers_page_records():
 
 def test_joint_tracking_the_controllers_page_records():
     """docs/guide/controllers.md's joints cell, as `joint_tracking.py` measures it: joint 2
-    covers 83 % of a full command from rest, then 115-124 % held; joint 6, 97 then 98-99."""
+    covers 83 % of a full command from rest, then 115-124 % held, until in the fifth step
+    the hand nears the floor and the surface guard brakes it (99 %); joint 6, 97 then
+    98-99."""
     import franka_composer
 
     module = load_script(EXPERIMENTS / "joint_tracking.py")
@@ -252,8 +251,8 @@ def test_joint_tracking_the_controllers_page_records():
                                time_limit=None)
     shoulder = module.shares(env, [1], 1, 5)[:, 0]
     wrist = module.shares(env, [5], 1, 5)[:, 0]
-    assert round(shoulder[0]) == 83 and (round(shoulder[1:].min()), round(
-        shoulder[1:].max())) == (115, 124)
+    assert round(shoulder[0]) == 83 and (round(shoulder[1:4].min()), round(
+        shoulder[1:4].max())) == (115, 124) and round(shoulder[4]) == 99
     assert round(wrist[0]) == 97 and (round(wrist[1:].min()), round(wrist[1:].max())) == (98, 99)
 
 

@@ -21,8 +21,9 @@ WIDTH = 88
 #: versions"); a task whose goals changed adds its lines (`TaskConfig.version_history`).
 VERSION_HISTORY = (
     "v0: this implementation of the paper's tasks on the Menagerie Panda, with contacts "
-    "that hold when the hand presses under mocap and osc (objects cannot be pressed into "
-    "the floor or launched; joints has no surface guard: docs/guide/controllers.md), seeds "
+    "that hold when the hand presses (objects cannot be pressed into the floor or "
+    "launched; under joints since 0.4.0, which added its surface guard: "
+    "docs/guide/controllers.md), seeds "
     "of any size through np.random.SeedSequence, and three controllers (mocap, osc, "
     "joints).",
 )

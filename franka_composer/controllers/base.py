@@ -1,4 +1,5 @@
-"""What every controller shares: the action spec, action checks, the gripper, binding.
+"""What every controller shares: the action spec, action checks, the gripper, the surface
+guard, binding.
 
 A controller is built with the task (it may add elements to the arena, as the mocap body)
 and owns the action law. The law itself (`ActionLaw`) works on one MjModel / MjData through
@@ -29,10 +30,18 @@ class ActionLaw:
         self._settings, self._model, self._data, self._ids = settings, model, data, ids
         self._qpos, self._ctrl = data.qpos, data.ctrl
         self._fingers, self._gripper = ids["fingers"], ids["gripper"]
+        self._tcp_pos = data.site_xpos[ids["tcp_site"]]
+        self._guard = ids["guard"]
 
     def on(self, model, data) -> "ActionLaw":
         """The same law on another MjData of the same model (e.g. a copy)."""
-        return type(self)(self._settings, model, data, self._ids)
+        return type(self)(self._settings, model, data,
+                          dict(self._ids, guard=self._guard.on(model, data)))
+
+    @property
+    def guard(self) -> BoundSurfaceGuard:
+        """What keeps the hand from being driven into the surface beneath it."""
+        return self._guard
 
     def finger_width(self) -> float:
         """Distance between the fingers (m): the sum of the two finger joints' slides."""
@@ -63,18 +72,7 @@ class TcpTargetLaw(ActionLaw):
 
     def __init__(self, settings, model, data, ids: dict) -> None:
         super().__init__(settings, model, data, ids)
-        self._tcp_pos = data.site_xpos[ids["tcp_site"]]
-        self._guard = ids["guard"]
         self._target = np.zeros(3)
-
-    def on(self, model, data) -> "TcpTargetLaw":
-        return type(self)(self._settings, model, data,
-                          dict(self._ids, guard=self._guard.on(model, data)))
-
-    @property
-    def guard(self) -> BoundSurfaceGuard:
-        """What keeps the target from running into the surface beneath the hand."""
-        return self._guard
 
     def _set_target(self, action: np.ndarray, stiffness: float) -> bool:
         """Sets the target to the tool centre point plus `max_tcp_step` times the first three
@@ -100,6 +98,7 @@ class Controller:
                              f"arm_actuation={self.ARM_ACTUATION!r}, got "
                              f"{panda.arm_actuation!r}")
         self._panda, self._settings = panda, settings
+        self._surface_guard = SurfaceGuard(panda)
         # Bounds of the action's own shape, as dm_control's suites give them: an agent may
         # take spec.minimum as an action (scalar bounds are dm_env-legal but are no action).
         shape = (settings.action_size,)
@@ -133,10 +132,13 @@ class Controller:
         raise NotImplementedError
 
     def _law_ids(self, physics) -> dict:
-        """The ids every law needs: the finger joints' qpos addresses, the gripper servo."""
+        """What every law needs: the finger joints' qpos addresses, the gripper servo, the
+        tool centre point's site and the surface guard bound to the physics."""
         left, right = (int(a) for a in physics.bind(self._panda.finger_joints).qposadr)
         return dict(fingers=(left, right),
-                    gripper=int(physics.bind(self._panda.gripper_actuator).element_id))
+                    gripper=int(physics.bind(self._panda.gripper_actuator).element_id),
+                    tcp_site=int(physics.bind(self._panda.tcp_site).element_id),
+                    guard=self._surface_guard.bind(physics))
 
     @property
     def law(self) -> ActionLaw:
@@ -175,25 +177,6 @@ class Controller:
         on the checked action."""
         action = self.validate(action)
         self.law(action if perturb is None else perturb(action))
-
-
-class TcpTargetController(Controller):
-    """A controller whose law is a `TcpTargetLaw`: it owns the surface guard, and gives the
-    law the tool centre point and the guard bound to the physics."""
-
-    def __init__(self, arena, panda: Panda, settings: ControlSettings) -> None:
-        super().__init__(arena, panda, settings)
-        self._surface_guard = SurfaceGuard(panda)
-
-    @property
-    def surface_guard(self) -> SurfaceGuard:
-        """What keeps the target from running into the surface beneath the hand."""
-        return self._surface_guard
-
-    def _law_ids(self, physics) -> dict:
-        return dict(super()._law_ids(physics),
-                    tcp_site=int(physics.bind(self._panda.tcp_site).element_id),
-                    guard=self._surface_guard.bind(physics))
 
 
 def contiguous(indices, what: str) -> slice:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from franka_composer.controllers.base import TcpTargetController, TcpTargetLaw
+from franka_composer.controllers.base import Controller, TcpTargetLaw
 
 # The weld's stiffness is the settings' (`ControlSettings.weld_time_constant`, the reasons
 # beside it). Weld impedance d: held still by a surface, MuJoCo makes a weld 1 / (1 - d) times
@@ -29,7 +29,7 @@ _EQUALITY = mujoco.mjtConstraint.mjCNSTR_EQUALITY
 
 
 
-class MocapController(TcpTargetController):
+class MocapController(Controller):
     """Adds a mocap body and a weld to the arena, and turns actions into mocap targets."""
 
     ARM_ACTUATION = "none"

@@ -43,7 +43,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from franka_composer.controllers.base import TcpTargetController, TcpTargetLaw, contiguous
+from franka_composer.controllers.base import Controller, TcpTargetLaw, contiguous
 
 #: Seconds between torque updates (250 Hz: every other 2 ms physics step), the torques held
 #: in between. The real Panda's torque loop runs at 1 kHz; at 500 Hz (every physics step)
@@ -73,7 +73,7 @@ def _gains(factor: float) -> tuple[float, float, float, float]:
             rotation_stiffness, 2 * DAMPING_RATIO * np.sqrt(rotation_stiffness))
 
 
-class OscController(TcpTargetController):
+class OscController(Controller):
     """Drives the Panda's torque motors with the operational-space law."""
 
     ARM_ACTUATION = "torque"
