@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import gymnasium as gym
+from gymnasium.wrappers import FilterObservation, FlattenObservation
 import numpy as np
 import pytest
 
@@ -98,6 +99,40 @@ def test_an_expert_reads_the_state_through_the_task_in_the_pixel_modes():
                                   pixel_height=16)
     np.testing.assert_array_equal(_dm_env_actions(dm_env, make_expert(dm_env)),
                                   expected["action"])
+
+
+def test_in_the_pixel_modes_an_expert_reads_the_true_state_not_the_sensed_one():
+    """Under sensing randomisation the pixel-mode expert is a privileged one: it plans with
+    the physics' state, as the state-mode expert does without the randomisation (with it,
+    the state-mode expert plans with the delayed observation, and acts otherwise)."""
+    plain = gym.make("FrankaPushSparse-v0")
+    expected = rollout(plain, make_expert(plain), 1, seed=2).episodes[0]["action"]
+    delayed = {"observation_delay": 2}
+    pixels = gym.make("FrankaPushSparse-v0", observation_mode="pixels", pixel_width=16,
+                      pixel_height=16, randomization=delayed)
+    np.testing.assert_array_equal(
+        rollout(pixels, make_expert(pixels), 1, seed=2).episodes[0]["action"], expected)
+    state = gym.make("FrankaPushSparse-v0", randomization=delayed)
+    sensed = rollout(state, make_expert(state), 1, seed=2).episodes[0]["action"]
+    assert sensed.shape != expected.shape or not np.array_equal(sensed, expected)
+
+
+@pytest.mark.parametrize("wrap", [
+    FlattenObservation, lambda env: FilterObservation(env, ["observation"])])
+def test_an_expert_refuses_an_env_whose_observations_hold_no_goal(wrap):
+    env = wrap(gym.make("FrankaPushSparse-v0"))
+    with pytest.raises(ValueError, match=r"this env's observations hold none \(observation "
+                                         r"space .*FlattenObservation or FilterObservation"):
+        make_expert(env)
+
+
+def test_an_expert_given_a_flat_observation_says_it_takes_the_dict():
+    env = gym.make("FrankaPushSparse-v0")
+    obs, _ = env.reset(seed=0)
+    flat = FlattenObservation(env).observation(obs)
+    with pytest.raises(ValueError, match=r"takes the observation dict its env returns, got "
+                                         r"ndarray of shape \(24,\)"):
+        make_expert(env)(flat)
 
 
 def test_an_expert_without_its_env_says_how_to_read_pixel_observations():

@@ -273,6 +273,16 @@ def test_unknown_reset_options_are_refused_before_anything_changes():
     env.reset(options={})  # Empty options are no options.
 
 
+@pytest.mark.parametrize("options", [5, "abc", [], 0, "", ("goal",)])
+def test_reset_options_that_are_no_dict_are_refused(options):
+    """Gymnasium's reset takes a dict or None: anything else is named, not iterated over
+    ('abc' read as three options) nor, when falsy, taken for no options."""
+    env = gym.make("FrankaPushSparse-v0")
+    with pytest.raises(ValueError, match=f"reset options must be a dict or None .*got "
+                                         f"{type(options).__name__} "):
+        env.reset(seed=0, options=options)
+
+
 def test_a_closed_gymnasium_env_says_so():
     env = gym.make("FrankaPushSparse-v0", render_mode="rgb_array")
     env.reset(seed=0)

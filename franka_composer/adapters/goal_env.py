@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import pickle
 import sys
+from collections.abc import Mapping
 from typing import Any
 
 import gymnasium as gym
@@ -149,6 +150,9 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._check_open()
         if seed is not None:
             seed = seeding.check_seed(seed)  # Before anything is reseeded; numpy ints as int.
+        if options is not None and not isinstance(options, Mapping):
+            raise ValueError(f"reset options must be a dict or None (Gymnasium's reset), got "
+                             f"{type(options).__name__} {options!r}")
         if options:
             raise ValueError(f"unknown reset option(s) {', '.join(map(repr, sorted(options)))}; "
                              "this environment takes none (task options go to gym.make)")

@@ -7,9 +7,11 @@ demonstrations: `rollout(env, make_expert(env), episodes=100).save("push.npz")`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from franka_composer.policies.base import Expert
 from franka_composer.policies.flip import FlipExpert
-from franka_composer.policies.observations import ExpertInput
+from franka_composer.policies.observations import GOAL_KEY, ExpertInput
 from franka_composer.policies.pick_and_place import PickAndPlaceExpert
 from franka_composer.policies.push import PushExpert
 from franka_composer.policies.reach import ReachExpert
@@ -34,7 +36,8 @@ def make_expert(env) -> Expert:
     """A fresh scripted expert for `env`: a Gymnasium env of this package (wrapped or not),
     a dm_env from `franka_composer.load`, or Shimmy's wrapper of one. `expert(obs)` takes
     the observation that env returns, in every observation mode: in the pixel modes the
-    expert reads the state through the env's task, never from the images. It reads the env's
+    expert reads the state through the env's task, never from the images (the true state:
+    sensing noise and delay do not reach it). It reads the env's
     observation layout and task configuration; a task without an expert is a ValueError
     naming those with one, and so is an env under joint control (the experts act on dx,
     dy, dz: mocap and osc)."""
@@ -46,10 +49,26 @@ def make_expert(env) -> Expert:
     expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
     check_expert_control(task.config.control)
     _check_expert_gripper(task.config)
+    _check_goal_observations(getattr(env, "observation_space", None), task.desired_goal_key)
     composer_env = getattr(unwrapped, "composer_env", unwrapped)
     expert_input = ExpertInput(task.observation_layout, task.desired_goal_key,
                                read_state=lambda: task.state_vector(composer_env.physics))
     return expert(task.observation_layout, task.config, expert_input)
+
+
+def _check_goal_observations(space, composer_goal_key: str) -> None:
+    """A ValueError where a Gymnasium env's observations (`space`; None for a dm_env) are
+    not dicts holding the desired goal, which the expert plans towards: a wrapper such as
+    FlattenObservation or FilterObservation has changed them."""
+    if space is None:
+        return
+    keys = getattr(space, "spaces", None)
+    if not isinstance(keys, Mapping) or not ({GOAL_KEY, composer_goal_key} & set(keys)):
+        raise ValueError(
+            f"an expert plans towards the desired goal, and this env's observations hold "
+            f"none (observation space {space}; a wrapper such as FlattenObservation or "
+            f"FilterObservation changed them): make the expert for the env inside that "
+            f"wrapper and give it that env's observations")
 
 
 def _check_expert_gripper(config) -> None:

@@ -6,12 +6,14 @@ The experts read the Gymnasium goal dict's state vector (`observation`) and goal
 - a dm_env (Composer) observation with the state observables: flattened by the task's
   layout, as the Gymnasium adapter does;
 - an observation without the state (the pixel modes, either interface): the state read
-  through the task from the physics (`GoalTask.state_vector`), never from the images.
+  through the task from the physics (`GoalTask.state_vector`), never from the images: the
+  true state, which sensing noise and delay (randomisation) do not reach.
 """
 
 from __future__ import annotations
 
-from typing import Callable, Mapping
+from collections.abc import Mapping
+from typing import Callable
 
 import numpy as np
 
@@ -38,6 +40,10 @@ class ExpertInput:
         self._read_state = read_state
 
     def __call__(self, obs: Mapping) -> Mapping:
+        if not isinstance(obs, Mapping):
+            raise ValueError(f"an expert takes the observation dict its env returns, got "
+                             f"{type(obs).__name__}"
+                             + (f" of shape {obs.shape}" if hasattr(obs, "shape") else ""))
         if STATE_KEY in obs:
             return obs
         goal = self._goal(obs)
