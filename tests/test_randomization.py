@@ -381,6 +381,38 @@ def test_her_relabelled_rewards_are_exact_under_randomisation():
     assert 0.1 < (rewards == 0).mean() < 1
 
 
+@pytest.mark.parametrize("parameter, distribution, drawn", [
+    # Rarely outside: 64 draws pass, and a reset hours into a run would be the first.
+    ("object_mass", distributions.Normal(1.0, 0.1), "[-inf, inf]"),
+    ("joint_damping", 1.0 + 0.1 * distributions.Normal(0.0, 1.0), "[-inf, inf]"),
+    ("floor_friction", distributions.Exponential(1.0) + 0.0, "[0, inf]"),
+    ("object_friction", distributions.Uniform(0.5, 1.5) - 0.5, "[0, 1]"),
+    ("observation_delay", distributions.Poisson(0.01), "[0, inf]"),
+    ("observation_delay", 60 * distributions.Bernoulli(1e-4), "[0, 60]"),
+])
+def test_a_distribution_that_can_draw_outside_its_parameters_range_is_refused_at_once(
+        parameter, distribution, drawn, monkeypatch):
+    import franka_composer.suite
+
+    monkeypatch.setattr(franka_composer.suite, "build_task",
+                        lambda *args, **kwargs: pytest.fail("a task was built"))
+    with pytest.raises(ValueError, match=re.escape(f"draws in {drawn}: refused now, not at "
+                                                   "the first reset that draws outside")):
+        _make(randomization={parameter: distribution})
+
+
+@pytest.mark.parametrize("parameter, distribution", [
+    ("object_mass", distributions.LogNormal(0.0, 0.2)),
+    ("object_mass", noises.Multiplicative(distributions.Uniform(0.8, 1.2))),
+    ("controller_gain", distributions.Uniform(0.5, 1.5) / distributions.Uniform(1.0, 2.0)),
+    ("joint_damping", -distributions.Uniform(-1.5, -0.5)),
+    ("observation_delay", distributions.UniformInteger(0, 51)),
+])
+def test_a_distribution_bounded_within_its_parameters_range_is_accepted(parameter,
+                                                                       distribution):
+    _make(randomization={parameter: distribution}).close()
+
+
 @pytest.mark.parametrize("value, message", [
     ("defaults", "unknown randomization 'defaults'; valid randomizations: None or a mapping, "
                  "default"),

@@ -9,13 +9,13 @@ None leaves that parameter out.
 from __future__ import annotations
 
 import dataclasses
-import numbers
 from typing import Any, Mapping
 
 import numpy as np
 from dm_control.composer.variation import distributions, variation_values
 
-from franka_composer.randomization.parameters import PARAMETERS, noisy, relative
+from franka_composer.randomization.parameters import (
+    PARAMETERS, draw_range, is_constant, noisy, relative)
 from franka_composer.validation import check_choice, check_names
 
 #: Each preset: parameter -> (distribution class, its arguments, why this range).
@@ -139,7 +139,7 @@ def _settings(name: str, mapping: Mapping, label: str) -> RandomizationSettings:
     probe = np.random.RandomState(0)
     for parameter, distribution in ranges:
         spec = PARAMETERS[parameter]
-        if not (callable(distribution) or _constant(distribution)):
+        if not (callable(distribution) or is_constant(distribution)):
             raise ValueError(f"{name} {parameter!r} must be a composer.variation distribution "
                              f"or a constant, got {distribution!r}")
         for _ in range(PROBE_DRAWS):
@@ -155,6 +155,11 @@ def _settings(name: str, mapping: Mapping, label: str) -> RandomizationSettings:
                 for reading in (np.ones(1), np.ones(7)):
                     _check_noise(parameter, reading, _probe_draw(
                         name, parameter, distribution, reading, probe, noise=True))
+        if spec.episode and not (spec.per_object and spec.kind == "colour"
+                                 and relative(distribution)):
+            # Draws it could make later (a jitter about each object's own colour is checked
+            # from that colour: `Randomizer`).
+            spec.check_range(parameter, distribution, draw_range(distribution, spec.nominal()))
     return RandomizationSettings(ranges, label)
 
 
@@ -169,13 +174,6 @@ def _probe_draw(name: str, parameter: str, distribution, nominal, probe, noise=F
     except Exception as error:  # pylint: disable=broad-except
         raise ValueError(f"{name} {parameter!r} cannot draw from {distribution!r}: "
                          f"{type(error).__name__}: {error}") from error
-
-
-def _constant(value) -> bool:
-    """Whether `value` is a constant a parameter can take: a number (Python's or numpy's),
-    an array, or a sequence of numbers; not a bool."""
-    return (isinstance(value, (numbers.Real, np.ndarray, tuple, list))
-            and not isinstance(value, (bool, np.bool_)))
 
 
 def _check_noise(parameter: str, reading: np.ndarray, sample) -> None:
