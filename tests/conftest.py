@@ -3,6 +3,7 @@ left to the package (EGL, loaded at the first frame), so the tests run the users
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import os
 import pathlib
@@ -181,30 +182,16 @@ def hand_tilt_degrees(env) -> float:
     return float(np.degrees(np.arccos(np.clip(-axis[2], -1, 1))))
 
 
-def cartesian_action(env, move, gripper=None) -> np.ndarray:
-    """The action of `env` (a dm_env of this suite, any controller) that moves the tool
-    centre point by `move` (m, clipped to a full step per axis) and commands the gripper
-    where it is actuated (None: 0). Under `joints`, the joint deltas that do so to first
-    order (the Jacobian's pseudo-inverse), scaled into [-1, 1]: what a policy moving the
-    hand in joint space sends (`experiments/controller_press.py`)."""
-    import mujoco
+@functools.lru_cache
+def _controller_press():
+    return load_script(pathlib.Path(__file__).resolve().parents[1] / "experiments"
+                       / "controller_press.py")
 
-    control = env.task.config.control
-    move = np.clip(np.asarray(move, np.float64), -control.max_tcp_step, control.max_tcp_step)
-    if control.kind == "joints":
-        physics = env.physics
-        model, data = physics.model.ptr, physics.data.ptr
-        jacobian = np.zeros((3, model.nv))
-        mujoco.mj_jacSite(model, data, jacobian, None,
-                          physics.bind(env.task.panda.tcp_site).element_id)
-        arm = jacobian[:, physics.bind(env.task.panda.joints).dofadr]
-        deltas = arm.T @ np.linalg.solve(arm @ arm.T + 1e-6 * np.eye(3), move)
-        deltas /= control.max_joint_step
-        motion = deltas / max(1.0, np.abs(deltas).max())
-    else:
-        motion = move / control.max_tcp_step
-    fingers = [0.0 if gripper is None else gripper] if control.actuated_gripper else []
-    return np.array([*motion, *fingers], np.float32)
+
+def cartesian_action(env, move, gripper=None) -> np.ndarray:
+    """`experiments/controller_press.py`'s action that moves the tool centre point by `move`
+    (m) under any controller, the gripper (where actuated) at `gripper` (None: 0)."""
+    return _controller_press().cartesian_action(env, move, 0.0 if gripper is None else gripper)
 
 
 def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):

@@ -99,10 +99,9 @@ def test_pressing_down_on_an_object_neither_sinks_nor_launches_it(object_task_na
         "the hand does not touch the object at the press's end"
     assert lowest > resting - 0.002  # Measured: < 0.001 mm below rest.
     assert fastest < 0.3  # m/s; measured < 0.01.
-    # Under joints a press that does not hold the hand level turns it (by up to 40 degrees
-    # here), and the turning hand drags slide's low-friction puck (measured 11 mm).
-    moved = np.linalg.norm(timestep.observation[key][:2] - start[:2])
-    assert moved < (0.015 if control == "joints" and object_task_name == "slide" else 0.01)
+    # Under joints a press that does not hold the hand level turns it (by up to 44 degrees
+    # here), and the turning hand drags slide's low-friction puck (measured 6.2, 8.5 mm).
+    assert np.linalg.norm(timestep.observation[key][:2] - start[:2]) < 0.01
 
 
 def test_landing_on_an_object_while_moving_sideways_neither_sinks_nor_launches_it(
@@ -174,8 +173,32 @@ def test_a_press_in_joint_space_is_bounded_by_what_the_arm_can_push():
     the floor overshoots it by little (unguarded: landings of up to 457 N on objects)."""
     env, deepest, forces = _press_bare_floor(0.6, 0.0, control="joints")
     limit = env.task.controller.law.guard.max_push_force()
-    assert max(forces) < 1.2 * limit  # Measured 1.10.
-    assert 0.7 * limit < min(forces[-10:]) and max(forces[-10:]) <= 1.02 * limit  # ~0.87.
+    assert max(forces) < 1.2 * limit  # Measured 1.12.
+    assert 0.7 * limit < min(forces[-10:]) and max(forces[-10:]) <= 1.02 * limit  # ~0.91.
+
+
+def test_the_joints_guard_keeps_its_targets_near_the_asked_ones_by_a_singular_pose():
+    """In this pose the servos' compliance at the tool centre point is near singular
+    (condition number ~1e7): holding the target's x, y and orientation exactly while
+    raising it moved the targets 0.53 rad, two joints onto their limits, and threw the
+    hand 5.4 cm up; damped, the targets stay within a step of the asked ones."""
+    env = franka_composer.load("push", seed=0, control="joints", terminate_on_success=False)
+    env.reset()
+    physics, law = env.physics, env.task.controller.law
+    joints = physics.bind(env.task.panda.joints)
+    joints.qpos = [-0.373, -1.732, -2.064, -0.414, -2.058, 2.292, 2.472]
+    physics.data.qvel[:] = 0.0
+    physics.forward()
+    law.reset()
+    start = physics.bind(env.task.panda.tcp_site).xpos.copy()
+    assert law.guard.clearance() < 0.02  # The fingertips ~1.5 cm above the floor.
+    action = cartesian_action(env, [0, 0, -0.05])
+    law(action.astype(np.float64))
+    assert law.has_substep  # The guard acts.
+    servos = physics.bind(env.task.panda.arm_actuators).ctrl
+    assert np.abs(servos - joints.qpos).max() < 0.06  # rad; measured 0.041.
+    timestep = env.step(action)
+    assert timestep.observation["panda/tcp_position"][2] - start[2] < 0.002  # No leap up.
 
 
 def test_the_push_force_bound_follows_from_the_joint_torque_limits():

@@ -55,7 +55,7 @@ def test_bad_controls_and_actions_are_refused_clearly():
         env.step(np.zeros(3, np.float32))
     with pytest.raises(ValueError, match="scripted experts act on dx, dy, dz, which the "
                                          "joints controller does not take"):
-        make_expert(gym.make("FrankaPushJointsSparse-v0"))
+        make_expert(gym.make("FrankaPushJointsSparse-v1"))
     # Its actions were of the wrong length, a broadcast error at the first step.
     for id_, actuated in (("FrankaPushSparse-v0", True), ("FrankaPickAndPlaceSparse-v0", False)):
         with pytest.raises(ValueError, match=re.escape(
@@ -180,7 +180,7 @@ def test_zero_joint_actions_hold_every_joint():
 
 
 def test_joint_control_observes_the_joint_angles_last():
-    env = gym.make("FrankaPickAndPlaceJointsSparse-v0")
+    env = gym.make("FrankaPickAndPlaceJointsSparse-v1")
     obs, _ = env.reset(seed=0)
     layout = env.unwrapped.observation_layout
     assert layout.names[-1] == "joint_angles" and layout.slice("joint_angles").stop == 26

@@ -39,7 +39,8 @@ def _random_rollout(env, seed: int, steps: int):
 def test_every_task_is_registered_under_every_controller_with_its_episode_length():
     tasks = {"Push": "push", "Slide": "slide", "PickAndPlace": "pick_and_place",
              "Reach": "reach", "Stack": "stack", "Flip": "flip"}
-    assert set(ALL_IDS) == {f"Franka{t}{c}{r}-v{SPEC[task].get('version', 0)}"
+    # The Joints ids one version up: the surface guard acts under joints since 0.4.0.
+    assert set(ALL_IDS) == {f"Franka{t}{c}{r}-v{SPEC[task].get('version', 0) + (c == 'Joints')}"
                             for t, task in tasks.items()
                             for c in ("", "Osc", "Joints") for r in ("Sparse", "Dense")}
     for id_, registered in franka_composer.ENV_IDS.items():
@@ -49,12 +50,19 @@ def test_every_task_is_registered_under_every_controller_with_its_episode_length
     assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
     assert env_id("stack", "sparse", "osc") == "FrankaStackOscSparse-v0"
     assert env_id("flip", "dense", "osc") == "FrankaFlipOscDense-v1"
+    assert env_id("push", "sparse", "joints") == "FrankaPushJointsSparse-v1"
+    assert env_id("flip", "sparse", "joints") == "FrankaFlipJointsSparse-v2"
 
 
-def test_the_replaced_flip_ids_point_to_their_successor():
-    """Flip's goals changed in v1: Gymnasium names the new id for the old one."""
-    with pytest.raises(gym.error.DeprecatedEnv, match="Please use `FrankaFlipSparse-v1`"):
-        gym.make("FrankaFlipSparse-v0")
+@pytest.mark.parametrize("old, new", [
+    ("FrankaFlipSparse-v0", "FrankaFlipSparse-v1"),  # Flip's goals changed in v1.
+    ("FrankaPushJointsSparse-v0", "FrankaPushJointsSparse-v1"),  # The guard under joints.
+    ("FrankaFlipJointsDense-v1", "FrankaFlipJointsDense-v2"),
+])
+def test_replaced_ids_point_to_their_successor(old, new):
+    """Gymnasium names the new id for the old one."""
+    with pytest.raises(gym.error.DeprecatedEnv, match=f"Please use `{new}`"):
+        gym.make(old)
 
 
 def test_spaces_match_the_spec(env_name):

@@ -66,7 +66,7 @@ def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, messa
     ("FrankaPushSparse-v0", dict(max_joint_step=0.5), "max_joint_step does nothing here: "
      "control='mocap' moves the hand's target (max_tcp_step): leave it out"),
     ("FrankaPushOscSparse-v0", dict(max_joint_step=0.5), "control='osc' moves the hand's"),
-    ("FrankaPushJointsSparse-v0", dict(max_tcp_step=0.01), "max_tcp_step does nothing here: "
+    ("FrankaPushJointsSparse-v1", dict(max_tcp_step=0.01), "max_tcp_step does nothing here: "
      "control='joints' moves joint targets (max_joint_step): leave it out"),
     ("FrankaPushSparse-v0", dict(max_finger_step=0.001), "max_finger_step does nothing here: "
      "actuated_gripper=False holds the fingers closed: give actuated_gripper=True as well, "
@@ -131,7 +131,7 @@ def test_the_object_box_check_simulates_the_placement_episodes_use():
     ("FrankaPushSparse-v0", dict(max_finger_step=0.1, actuated_gripper=True)),
     ("FrankaPushSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5)),
     ("FrankaPickAndPlaceSparse-v0", dict(goal_in_air_probability=0.0, max_finger_step=0.1)),
-    ("FrankaReachJointsSparse-v0", dict(max_joint_step=0.1, goal_max_height=0.1)),
+    ("FrankaReachJointsSparse-v1", dict(max_joint_step=0.1, goal_max_height=0.1)),
     ("FrankaPushOscSparse-v0", dict(timing="reference")),  # Its weld: unread by design.
     ("FrankaStackSparse-v0", dict(goal_range=(0.1, 0.1), object_centre=(0.6, 0.05))),
     ("FrankaFlipSparse-v1", dict(goal_yaw_range=0.2, object_range=(0.1, 0.1))),
@@ -228,7 +228,7 @@ def test_an_id_that_names_a_controller_keeps_it_and_a_plain_id_takes_any():
     with pytest.raises(ValueError, match="FrankaPushOscSparse-v0 is the sparse push task, "
                                          "under osc control: its task, reward_type and "
                                          "control cannot be changed; use "
-                                         "'FrankaPushJointsSparse-v0'"):
+                                         "'FrankaPushJointsSparse-v1'"):
         gym.make("FrankaPushOscSparse-v0", control="joints")
     with pytest.raises(ValueError, match="unknown control 'torque'; valid controls: mocap, "
                                          "osc, joints"):

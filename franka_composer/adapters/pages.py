@@ -21,11 +21,13 @@ WIDTH = 88
 #: versions"); a task whose goals changed adds its lines (`TaskConfig.version_history`).
 VERSION_HISTORY = (
     "v0: this implementation of the paper's tasks on the Menagerie Panda, with contacts "
-    "that hold when the hand presses (objects cannot be pressed into the floor or "
-    "launched; under joints since 0.4.0, which added its surface guard: "
-    "docs/guide/controllers.md), seeds "
-    "of any size through np.random.SeedSequence, and three controllers (mocap, osc, "
-    "joints).",
+    "that hold when the hand presses under mocap and osc (objects cannot be pressed into "
+    "the floor or launched), seeds of any size through np.random.SeedSequence, and three "
+    "controllers (mocap, osc, joints).",
+    "Joints ids one version up (v1; flip's v2), 0.4.0: the surface guard acts under joints "
+    "as well, raising the servo targets near surfaces and braking a descending hand (a "
+    "press in joint space had lifted objects 13 mm and shoved them up to 38 cm: "
+    "docs/guide/controllers.md).",
 )
 
 

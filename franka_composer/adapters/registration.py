@@ -4,9 +4,10 @@ loop, no list.
 `Franka{Task}{Sparse,Dense}-v<version>` for every task under the default (mocap) controller (the
 paper's three are the reference implementation's ids, so users of `panda_mujoco_gym` switch
 by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v<version>` under the
-others, panda-gym's naming. The suffix is the task's version (`TaskConfig.version`): -v0,
-except flip's -v1 (reachable goals); an older suffix is not registered, so `gym.make` of it
-raises Gymnasium's "deprecated, use -v1" error. Each task has its own class,
+others, panda-gym's naming. The suffix is the task's version (`TaskConfig.version`) plus the
+controller's (`CONTROL_VERSIONS`): -v0, except flip's -v1 (reachable goals) and the Joints
+ids' one more (the surface guard under joints); an older suffix is not registered, so
+`gym.make` of it raises Gymnasium's "deprecated, use -v1" error. Each task has its own class,
 `Franka{Task}Env`, whose docstring is the task's documentation page (`pages.page`: spaces,
 observation table, rewards, episode rules, version history).
 """
@@ -19,7 +20,7 @@ import gymnasium as gym
 
 from franka_composer.adapters.goal_env import FrankaGoalEnv
 from franka_composer.adapters.pages import page
-from franka_composer.controllers import CONTROLS
+from franka_composer.controllers import CONTROL_VERSIONS, CONTROLS
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.rewards import REWARD_TYPES
 from franka_composer.validation import check_choice
@@ -33,14 +34,15 @@ def _camel(task: str) -> str:
 
 def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`; with `osc` ->
-    `FrankaPickAndPlaceOscDense-v0`. The suffix is the task's `TaskConfig.version` (flip's
-    is 1: its goals changed). An unknown task, reward type or controller is a ValueError
-    naming the valid ones."""
+    `FrankaPickAndPlaceOscDense-v0`, with `joints` -> `FrankaPickAndPlaceJointsDense-v1`.
+    The suffix is the task's `TaskConfig.version` (flip's is 1: its goals changed) plus the
+    controller's (`CONTROL_VERSIONS`: joints' is 1, its surface guard). An unknown task,
+    reward type or controller is a ValueError naming the valid ones."""
     check_choice("task", task, ALL_TASKS)
     check_choice("reward_type", reward_type, REWARD_TYPES)
     check_choice("control", control, CONTROLS)
     controller = "" if control == "mocap" else control.capitalize()
-    version = TASK_CONFIGS[task].version
+    version = TASK_CONFIGS[task].version + CONTROL_VERSIONS[control]
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
 

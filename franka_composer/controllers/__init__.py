@@ -18,6 +18,11 @@ from franka_composer.controllers.mocap import MocapController, MocapLaw
 from franka_composer.controllers.osc import OscController, OscLaw
 from franka_composer.controllers.settings import CONTROLS, ControlSettings
 
+#: What each controller adds to its ids' version (`Franka{Task}Joints...-v<task's + this>`):
+#: bumped when its dynamics change, the change written in every task's version history
+#: (`adapters.pages.VERSION_HISTORY`).
+CONTROL_VERSIONS: dict[str, int] = {"mocap": 0, "osc": 0, "joints": 1}
+
 #: The controller class for each value of the `control` option.
 CONTROLLERS: dict[str, type[Controller]] = {
     "mocap": MocapController,
@@ -31,6 +36,6 @@ def make_controller(arena, panda, settings: ControlSettings) -> Controller:
     return CONTROLLERS[settings.kind](arena, panda, settings)
 
 
-__all__ = ["ActionLaw", "CONTROLLERS", "CONTROLS", "ControlSettings", "Controller",
+__all__ = ["ActionLaw", "CONTROLLERS", "CONTROLS", "CONTROL_VERSIONS", "ControlSettings", "Controller",
            "JointController", "JointLaw", "MocapController", "MocapLaw", "OscController",
            "OscLaw", "make_controller"]

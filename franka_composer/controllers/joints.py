@@ -34,6 +34,10 @@ BRAKING_TIME = 0.05
 #: The brake acts once the hand is within 2 v / omega of the surface plus this (m): v its
 #: descent, omega the frequency of the servos' vertical spring with the arm's inertia.
 BRAKE_MARGIN = 0.005
+#: Damping of the lift's solve, relative to the compliance's mean eigenvalue: near a
+#: singular pose holding the target's x, y and orientation exactly takes joint motions
+#: of radians (condition numbers of 1e7 seen); damped, the target may drift sideways a little.
+LIFT_DAMPING = 1e-3
 _UP = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
 
 
@@ -115,7 +119,10 @@ class JointLaw(ActionLaw):
             # (the least change of the targets weighted by the servos' stiffness), then as
             # deep as asked, up to the press depth: a press straight down with at most the
             # force the arm can push down with there.
-            lift = yielding.T @ np.linalg.solve(yielding @ jacobian.T, _UP)
+            compliance6 = yielding @ jacobian.T  # C = J K^-1 J^T.
+            compliance6[np.diag_indices(6)] += LIFT_DAMPING * np.trace(compliance6) / 6
+            lift = yielding.T @ np.linalg.solve(compliance6, _UP)
+            lift /= jacobian[2] @ lift  # Straight up by depth, exactly (to first order).
             press = min(depth / compliance, self._guard.max_push_force())
             self._targets += depth * lift - press * self._per_newton
             np.clip(self._targets, self._low, self._high, out=self._targets)

@@ -18,7 +18,7 @@ import gymnasium as gym
 from franka_composer.adapters.registration import env_id
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
-from franka_composer.policies.rollout import check_episodes_end
+from franka_composer.policies.rollout import check_episodes_end, recorded_with
 from franka_composer.tasks.config import expand_timing, plain_value, readable_options
 from franka_composer.validation import check_choice, check_number, check_writable
 
@@ -59,10 +59,10 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     options = {name: plain_value(value) for name, value in expand_timing(options).items()}
     if format == "minari":
         _check_json_options(options)
-    metadata = {"task": task, "control": control, "reward_type": reward_type,
-                "source": source, "seed": seed, "action_noise": float(action_noise),
-                "options": readable_options(options)}
     env = gym.make(registered, **options)
+    # What the episodes were recorded with, as a rollout's trajectories say it, and by whom.
+    metadata = dict(recorded_with(env), source=source, seed=seed,
+                    action_noise=float(action_noise))
     try:
         check_episodes_end(env)  # Before anything is written.
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)
