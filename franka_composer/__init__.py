@@ -3,8 +3,8 @@
 Six tasks: push, slide and pick_and_place (the paper's), reach, stack and flip (panda-gym's).
 `load(name)` gives a dm_env environment; importing this package also registers the
 Gymnasium ids `Franka{Push,Slide,PickAndPlace,Reach,Stack}{Sparse,Dense}-v0` and
-`FrankaFlip{Sparse,Dense}-v1`, with `Osc` and `Joints` after the task name for the other
-controllers.
+`FrankaFlip{Sparse,Dense}-v1`, with `Osc` (same versions) and `Joints` (one version up:
+the surface guard acts under joints) after the task name for the other controllers.
 """
 
 import warnings as _warnings

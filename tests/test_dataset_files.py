@@ -352,6 +352,66 @@ def test_an_rlds_recording_cut_short_leaves_nothing_behind(tmp_path, monkeypatch
     assert list((tmp_path / "empty").iterdir()) == []
 
 
+def _joints_npz(path, metadata_changes: dict):
+    """Two episodes of random actions on push under joints, their metadata changed."""
+    import gymnasium as gym
+
+    from franka_composer.policies import rollout
+
+    env = gym.make("FrankaPushJointsSparse-v1")
+    try:
+        trajectories = rollout(env, lambda obs: env.action_space.sample(), 2, seed=0)
+    finally:
+        env.close()
+    metadata = {key: value for key, value in {**trajectories.metadata,
+                                              **metadata_changes}.items()
+                if value is not None}
+    trajectories.save(path, metadata)
+    return path
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({}, None),  # As recorded now: taken.
+    ({"id": None}, "names no id, so it was recorded before joints control's ids went to "
+                   "version 1, whose dynamics changed"),
+    ({"id": "FrankaPushJointsSparse-v0"}, "was recorded under FrankaPushJointsSparse-v0, an "
+                                          "older version of FrankaPushJointsSparse-v1"),
+])
+def test_demonstrations_of_dynamics_since_changed_are_refused(changes, message, tmp_path):
+    """The Joints ids went up a version with the surface guard under joints: a dataset that
+    names an older id, or through joints none (recorded before ids were named), holds
+    transitions of the dynamics before."""
+    path = _joints_npz(tmp_path / "joints.npz", changes)
+    env = make_env("push", control="joints")
+    try:
+        if message is None:
+            assert len(demos.load_episodes(path, env)) == 2
+        else:
+            _refused(path, env, message)
+    finally:
+        env.close()
+
+
+def test_a_minari_dataset_names_its_id_in_its_env_spec(tmp_path):
+    """A Minari dataset carries its id in its env spec, not in franka_composer's metadata:
+    through joints it is taken as of the present dynamics when that id is the present one."""
+    import gymnasium as gym
+
+    from franka_composer.datasets import minari_format
+
+    env = gym.make("FrankaPushJointsSparse-v1")
+    try:
+        minari_format.write(env, lambda obs: env.action_space.sample(), 2, 0, tmp_path,
+                            "push/joints-random-v0", "random actions")
+    finally:
+        env.close()
+    run_env = make_env("push", control="joints")
+    try:
+        assert len(demos.load_episodes(tmp_path / "push" / "joints-random-v0", run_env)) == 2
+    finally:
+        run_env.close()
+
+
 def test_the_documented_recipe_writes_demonstrations_training_takes(push_env, tmp_path):
     """`rollout(env, make_expert(env), episodes).save(path)` (the policies module's
     docstring) wrote no metadata, and `train --demos` refused the file as one from before
@@ -366,7 +426,8 @@ def test_the_documented_recipe_writes_demonstrations_training_takes(push_env, tm
     finally:
         env.close()
     assert Trajectories.load(tmp_path / "push.npz").metadata == {
-        "task": "push", "control": "mocap", "reward_type": "sparse", "options": {}}
+        "id": "FrankaPushSparse-v0", "task": "push", "control": "mocap",
+        "reward_type": "sparse", "options": {}}
     assert len(demos.load_episodes(tmp_path / "push.npz", push_env)) == 2
     # What differs from the task's own is recorded, and checked against the run's env.
     env = gym.make("FrankaPushSparse-v0", timing="reference", object_damping=0.01)
@@ -558,7 +619,7 @@ def test_a_minari_dataset_of_another_env_is_refused_by_its_id(tmp_path, push_env
     env.create_dataset(dataset_id="pendulum/random-v0", algorithm_name="random")
     env.close()
     _refused(tmp_path / "pendulum" / "random-v0", push_env,
-             "is a Minari dataset of Pendulum-v1, not of a franka_composer task")
+             "was recorded under Pendulum-v1, not a franka_composer id")
 
 
 def test_a_minari_dataset_without_its_env_spec_is_refused_saying_how_to_record_it(

@@ -383,12 +383,20 @@ def test_her_relabelled_rewards_are_exact_under_randomisation():
 
 @pytest.mark.parametrize("parameter, distribution, drawn", [
     # Rarely outside: 64 draws pass, and a reset hours into a run would be the first.
-    ("object_mass", distributions.Normal(1.0, 0.1), "[-inf, inf]"),
-    ("joint_damping", 1.0 + 0.1 * distributions.Normal(0.0, 1.0), "[-inf, inf]"),
-    ("floor_friction", distributions.Exponential(1.0) + 0.0, "[0, inf]"),
+    ("object_mass", distributions.Normal(1.0, 0.1), "(-inf, inf)"),
+    ("joint_damping", 1.0 + 0.1 * distributions.Normal(0.0, 1.0), "(-inf, inf)"),
+    ("floor_friction", distributions.Exponential(1.0) + 0.0, "[0, inf)"),
     ("object_friction", distributions.Uniform(0.5, 1.5) - 0.5, "[0, 1]"),
-    ("observation_delay", distributions.Poisson(0.01), "[0, inf]"),
+    ("observation_delay", distributions.Poisson(0.01), "[0, inf)"),
     ("observation_delay", 60 * distributions.Bernoulli(1e-4), "[0, 60]"),
+    # Through a divisor or a product that can be 0 or unbounded.
+    ("object_mass", 1.0 / distributions.Normal(1.0, 0.3), "(-inf, inf)"),
+    ("object_mass", distributions.Uniform(0.0, 1.0) * distributions.Normal(1.0, 0.3),
+     "(-inf, inf)"),
+    ("object_mass", distributions.Exponential(1.0) * distributions.Normal(1.0, 0.3),
+     "(-inf, inf)"),
+    ("object_mass", distributions.Uniform(0.5, 1.5) / distributions.Uniform(0.0, 1.0),
+     "(-inf, inf)"),
 ])
 def test_a_distribution_that_can_draw_outside_its_parameters_range_is_refused_at_once(
         parameter, distribution, drawn, monkeypatch):
@@ -407,6 +415,14 @@ def test_a_distribution_that_can_draw_outside_its_parameters_range_is_refused_at
     ("controller_gain", distributions.Uniform(0.5, 1.5) / distributions.Uniform(1.0, 2.0)),
     ("joint_damping", -distributions.Uniform(-1.5, -0.5)),
     ("observation_delay", distributions.UniformInteger(0, 51)),
+    ("observation_delay", distributions.UniformInteger(51)),  # 0 to 50.
+    # Above 0 however scaled: LogNormal's 0 is never drawn.
+    ("object_mass", 0.5 * distributions.LogNormal(0.0, 0.1)),
+    ("object_mass", distributions.LogNormal(0.0, 0.1) / 2),
+    ("object_mass", 1.0 / distributions.LogNormal(0.0, 0.1)),
+    ("object_mass", distributions.Uniform(0.5, 1.5) * distributions.LogNormal(0.0, 0.1)),
+    ("object_mass", noises.Multiplicative(distributions.LogNormal(0.0, 0.1)) * 0.5),
+    ("object_mass", distributions.LogNormal(0.0, 0.1) * distributions.LogNormal(0.0, 0.1)),
 ])
 def test_a_distribution_bounded_within_its_parameters_range_is_accepted(parameter,
                                                                        distribution):

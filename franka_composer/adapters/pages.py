@@ -24,6 +24,10 @@ VERSION_HISTORY = (
     "that hold when the hand presses under mocap and osc (objects cannot be pressed into "
     "the floor or launched), seeds of any size through np.random.SeedSequence, and three "
     "controllers (mocap, osc, joints).",
+)
+#: What each controller's version bump changed (`controllers.CONTROL_VERSIONS`), newest last,
+#: after the task's own history on its page.
+CONTROL_VERSION_HISTORY = (
     "Joints ids one version up (v1; flip's v2), 0.4.0: the surface guard acts under joints "
     "as well, raising the servo targets near surfaces and braking a descending hand (a "
     "press in joint space had lifted objects 13 mm and shoved them up to 38 cm: "
@@ -133,7 +137,8 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
             'camera="workspace" | "top", **options); the options, with this task\'s values:',
             "\n".join(options)]),
-        ("Version history", list(VERSION_HISTORY) + list(config.version_history)),
+        ("Version history", [*VERSION_HISTORY, *config.version_history,
+                             *CONTROL_VERSION_HISTORY]),
     ]
     lines = [textwrap.fill(config.description, WIDTH), "",
              textwrap.fill(f"Ids: {', '.join(ids)} (sparse and dense reward), "

@@ -46,6 +46,14 @@ def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
 
+def newer_version(id_: str) -> str | None:
+    """The registered id that `id_`, not registered, is another version of (its name with
+    another suffix), or None."""
+    name = id_.rsplit("-v", 1)[0]
+    return next((registered for registered in ENV_IDS
+                 if registered.rsplit("-v", 1)[0] == name), None)
+
+
 class RegisteredEnv(NamedTuple):
     """What an id fixes."""
 

@@ -20,7 +20,7 @@ from franka_composer.controllers.settings import CONTROLS, ControlSettings
 
 #: What each controller adds to its ids' version (`Franka{Task}Joints...-v<task's + this>`):
 #: bumped when its dynamics change, the change written in every task's version history
-#: (`adapters.pages.VERSION_HISTORY`).
+#: (`adapters.pages.CONTROL_VERSION_HISTORY`).
 CONTROL_VERSIONS: dict[str, int] = {"mocap": 0, "osc": 0, "joints": 1}
 
 #: The controller class for each value of the `control` option.

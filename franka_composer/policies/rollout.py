@@ -79,13 +79,17 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
 
 def recorded_with(env) -> dict:
     """What episodes of the Gymnasium `env` were recorded with, as a dataset says it
-    (`episodes.npz_file`): its task, controller, reward and the task options whose values
-    differ from the task's own; {} for an env of another package."""
+    (`episodes.npz_file`): the id of its task, controller and reward (whose version says
+    which dynamics), them, and the task options whose values differ from the task's own;
+    {} for an env of another package."""
+    from franka_composer.adapters.registration import env_id
+
     task = getattr(getattr(env, "unwrapped", env), "task", None)
     if task is None or getattr(task, "config", None) is None:
         return {}
     config, own = task.config, TASK_CONFIGS[task.config.name].options
     options = {name: value for name, value in config.options.items()
                if name not in ("control", "reward_type") and value != own.get(name)}
-    return {"task": config.name, "control": config.control.kind,
+    return {"id": env_id(config.name, config.reward_type, config.control.kind),
+            "task": config.name, "control": config.control.kind,
             "reward_type": config.reward_type, "options": readable_options(options)}

@@ -12,7 +12,7 @@ applied to the reading as its corruptors are (`noisy`).
 
 Samples are checked before anything reaches MuJoCo: a factor must be finite and > 0, a
 colour within [0, 1], a delay a whole number of control steps >= 0. Where the range a
-distribution draws in is known (`draw_range`), it is checked as the option is set: a factor
+distribution draws in is known (`ranges.draw_range`), it is checked as the option is set: a factor
 drawn from `Normal(1, 0.1)` is refused then, not at the episode, hours into a run, whose
 draw first goes below 0.
 """
@@ -20,11 +20,11 @@ draw first goes below 0.
 from __future__ import annotations
 
 import dataclasses
-import numbers
-import operator
 
 import numpy as np
-from dm_control.composer.variation import base, distributions, noises, variation_values
+from dm_control.composer.variation import noises, variation_values
+
+from franka_composer.randomization.ranges import Interval
 
 #: The groups, in the order their streams are split off (`randomizer.py`): each group
 #: draws from its own stream, so randomising one never changes what another draws.
@@ -34,12 +34,11 @@ GROUPS = ("physics", "visual", "sensing", "action")
 MAX_DELAY = 50
 
 
-#: What a sample of each bounded kind must be, and the bounds (a factor's: above 0).
+#: What a sample of each bounded kind must be, and the bounds (a factor's open at 0).
 _REQUIREMENTS = {"factor": "is a factor and must draw > 0",
                  "colour": "is a colour and must draw numbers in [0, 1]",
                  "steps": f"must draw a whole number of control steps in [0, {MAX_DELAY}]"}
-_BOUNDS = {"factor": (np.nextafter(0.0, 1.0), np.inf), "colour": (0.0, 1.0),
-           "steps": (0.0, float(MAX_DELAY))}
+_BOUNDS = {"factor": (0.0, np.inf), "colour": (0.0, 1.0), "steps": (0.0, float(MAX_DELAY))}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -79,18 +78,17 @@ class Parameter:
             return 0
         raise ValueError(f"a {self.kind} parameter has no episode value")
 
-    def check_range(self, name: str, distribution, drawn: tuple | None) -> None:
+    def check_range(self, name: str, distribution, drawn: Interval | None) -> None:
         """A ValueError naming `name` where the range `distribution` draws in (`drawn`,
-        from `draw_range`; None: not known) holds values a sample may not take."""
+        `ranges.draw_range`; None: not known) holds values a sample may not take."""
         if drawn is None or self.kind not in _BOUNDS:
             return
-        low, high = np.min(drawn[0]), np.max(drawn[1])
-        if np.isnan([low, high]).any():
+        if np.isnan([drawn.low, drawn.high]).any():
             return  # No range: the draws say why (`Uniform(nan, 1)` cannot draw).
         least, most = _BOUNDS[self.kind]
-        if not least <= low <= high <= most:
+        if not drawn.within(least, most, above_least=self.kind == "factor"):
             raise ValueError(f"randomization {name!r} {_REQUIREMENTS[self.kind]}, and "
-                             f"{distribution!r} draws in [{low:g}, {high:g}]: refused now, "
+                             f"{distribution!r} draws in {drawn}: refused now, "
                              f"not at the first reset that draws outside (maybe hours into "
                              f"a run); bound it")
 
@@ -136,87 +134,6 @@ def relative(distribution) -> bool:
     they are called with (`noises.Additive`, `noises.Multiplicative`), rather than draw
     independently of it (a distribution, arithmetic on distributions, a constant)."""
     return isinstance(distribution, (noises.Additive, noises.Multiplicative))
-
-
-def is_constant(value) -> bool:
-    """Whether `value` is a constant a parameter can take: a number (Python's or numpy's),
-    an array, or a sequence of numbers; not a bool."""
-    return (isinstance(value, (numbers.Real, np.ndarray, tuple, list))
-            and not isinstance(value, (bool, np.bool_)))
-
-
-def draw_range(distribution, nominal) -> tuple[np.ndarray, np.ndarray] | None:
-    """The closed interval (low, high), componentwise, that `distribution`, called with
-    `initial_value=nominal`, draws in: for constants, Composer's distributions with constant
-    arguments, its noise wrappers and arithmetic on them; None where it is not known (a
-    distribution of distributions, a variation of one's own: only the draws are checked).
-    A range open at 0 (`LogNormal`) has the smallest positive float as its low end."""
-    if is_constant(distribution):
-        value = np.asarray(distribution, dtype=np.float64)
-        return value, value
-    kind = type(distribution)
-    if isinstance(distribution, distributions.Distribution):
-        arguments = (*distribution._args, *distribution._kwargs.values())  # pylint: disable=protected-access
-        if not all(is_constant(argument) for argument in arguments):
-            return None
-        ranges = _DISTRIBUTION_RANGES.get(kind)
-        return None if ranges is None else tuple(
-            np.asarray(end, dtype=np.float64) for end in ranges(*arguments))
-    if kind in (noises.Additive, noises.Multiplicative):
-        if distribution._cumulative:  # pylint: disable=protected-access
-            return None  # About the current value, which drifts.
-        op = operator.add if kind is noises.Additive else operator.mul
-        return _combine(op, (np.asarray(nominal, dtype=np.float64),) * 2,
-                        draw_range(distribution._variation, nominal))  # pylint: disable=protected-access
-    if kind is base._BinaryOperation:  # pylint: disable=protected-access
-        return _combine(distribution._op, draw_range(distribution._first, nominal),  # pylint: disable=protected-access
-                        draw_range(distribution._second, nominal))  # pylint: disable=protected-access
-    if kind is base._UnaryOperation and distribution._op is operator.neg:  # pylint: disable=protected-access
-        inner = draw_range(distribution._variation, nominal)  # pylint: disable=protected-access
-        return None if inner is None else (-inner[1], -inner[0])
-    return None
-
-
-def _normal_range(loc, scale):
-    return (loc, loc) if np.all(np.asarray(scale) == 0) else (-np.inf, np.inf)
-
-
-#: The range each of Composer's distributions draws in, from its (constant) arguments.
-_DISTRIBUTION_RANGES = {
-    distributions.Uniform: lambda low, high: (np.minimum(low, high), np.maximum(low, high)),
-    distributions.UniformInteger: lambda low, high: (
-        (0, np.asarray(low) - 1) if high is None else (low, np.asarray(high) - 1)),
-    distributions.UniformChoice: lambda choices: (np.min(choices, axis=0),
-                                                  np.max(choices, axis=0)),
-    distributions.Normal: _normal_range,
-    distributions.LogNormal: lambda mean, sigma: (np.nextafter(0.0, 1.0), np.inf),
-    distributions.Exponential: lambda scale: (0.0, np.inf),
-    distributions.Poisson: lambda lam: (0.0, np.inf),
-    distributions.Bernoulli: lambda prob: (0.0, 1.0),
-}
-
-
-def _combine(op, first, second):
-    """Interval arithmetic: the range of `op` (+, -, *, /) over two ranges; None where
-    either is unknown or the operation is another."""
-    if first is None or second is None:
-        return None
-    (a, b), (c, d) = first, second
-    if op is operator.add:
-        return a + c, b + d
-    if op is operator.sub:
-        return a - d, b - c
-    if op is operator.truediv:
-        if np.any((c <= 0) & (d >= 0)):
-            return None  # Divides by a range holding 0.
-        c, d = 1.0 / d, 1.0 / c
-    elif op is not operator.mul:
-        return None
-    with np.errstate(invalid="ignore"):
-        corners = np.stack(np.broadcast_arrays(a * c, a * d, b * c, b * d))
-    if np.isnan(corners).any():
-        return None  # 0 times an unbounded end.
-    return corners.min(axis=0), corners.max(axis=0)
 
 
 def _real(value) -> bool:

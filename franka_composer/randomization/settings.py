@@ -14,8 +14,8 @@ from typing import Any, Mapping
 import numpy as np
 from dm_control.composer.variation import distributions, variation_values
 
-from franka_composer.randomization.parameters import (
-    PARAMETERS, draw_range, is_constant, noisy, relative)
+from franka_composer.randomization.parameters import PARAMETERS, noisy, relative
+from franka_composer.randomization.ranges import draw_range, is_constant
 from franka_composer.validation import check_choice, check_names
 
 #: Each preset: parameter -> (distribution class, its arguments, why this range).

@@ -17,7 +17,8 @@ import pathlib
 
 import numpy as np
 
-from franka_composer.adapters.registration import ENV_IDS
+from franka_composer.adapters.registration import ENV_IDS, newer_version
+from franka_composer.controllers import CONTROL_VERSIONS
 from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
 from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.rewards import reward_from_distance
@@ -91,6 +92,13 @@ def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
     if recorded["reward_type"] != "sparse":
         raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
                          f"the sparse {_SPARSE.tolist()} that training uses")
+    if "id" in recorded and recorded["id"] not in ENV_IDS:
+        raise _not_registered(path, recorded["id"])
+    if "id" not in recorded and CONTROL_VERSIONS[control]:
+        raise ValueError(f"{path} names no id, so it was recorded before {control} control's "
+                         f"ids went to version {CONTROL_VERSIONS[control]}, whose dynamics "
+                         "changed (the task's version history): its transitions are of the "
+                         "dynamics before; record it again")
     mode = _recorded_options(path, recorded).get("observation_mode")
     if mode == "pixels":
         raise ValueError(f"{path} was recorded with observation_mode 'pixels' and holds no "
@@ -220,8 +228,7 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
     except Exception as error:  # h5py, json and Minari raise what they meet.
         raise _unreadable_minari(path, error) from None
     if env_spec is not None and env_spec.id not in ENV_IDS:
-        raise ValueError(f"{path} is a Minari dataset of {env_spec.id}, not of a "
-                         "franka_composer task")
+        raise _not_registered(path, env_spec.id)
     _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env, "minari")
     try:
         episodes = [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
@@ -258,12 +265,24 @@ def _stored_minari_episodes(data: pathlib.Path) -> int:
 
 
 def _recorded_by_spec(env_spec) -> dict:
-    """What a Minari dataset's env spec says its env was: what its id fixes (the plain ids'
-    mocap control among it), and the options it was made with."""
+    """What a Minari dataset's env spec says its env was: its id, what the id fixes (the
+    plain ids' mocap control among it), and the options it was made with."""
     if env_spec is None:
         return {}
     registered = ENV_IDS.get(env_spec.id)
-    return {**(registered._asdict() if registered else {}), **env_spec.kwargs}
+    return {"id": env_spec.id, **(registered._asdict() if registered else {}),
+            **env_spec.kwargs}
+
+
+def _not_registered(path, recorded_id: str) -> ValueError:
+    """A dataset recorded under an id this version does not register: an older version of
+    one (dynamics since changed), or none of franka_composer's."""
+    newer = newer_version(recorded_id)
+    if newer is None:
+        return ValueError(f"{path} was recorded under {recorded_id}, not a franka_composer id")
+    return ValueError(f"{path} was recorded under {recorded_id}, an older version of {newer}: "
+                      "its transitions are of dynamics since changed (the task's version "
+                      "history); record it again")
 
 
 def _unreadable_minari(path, error: Exception) -> ValueError:
