@@ -376,6 +376,9 @@ def _joints_npz(path, metadata_changes: dict):
                    "version 1, whose dynamics changed"),
     ({"id": "FrankaPushJointsSparse-v0"}, "was recorded under FrankaPushJointsSparse-v0, an "
                                           "older version of FrankaPushJointsSparse-v1"),
+    ({"id": "FrankaPushJointsSparse-v3"}, "was recorded under FrankaPushJointsSparse-v3, a "
+                                          "newer version than this franka_composer's "
+                                          "FrankaPushJointsSparse-v1"),
 ])
 def test_demonstrations_of_dynamics_since_changed_are_refused(changes, message, tmp_path):
     """The Joints ids went up a version with the surface guard under joints: a dataset that

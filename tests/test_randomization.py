@@ -397,6 +397,9 @@ def test_her_relabelled_rewards_are_exact_under_randomisation():
      "(-inf, inf)"),
     ("object_mass", distributions.Uniform(0.5, 1.5) / distributions.Uniform(0.0, 1.0),
      "(-inf, inf)"),
+    # 1 / a range below an open 0 (-0.0 or 0.0 alike) is below 0: here above -inf, to 1.
+    ("gripper_gain", 1.0 + 1.0 / (0.0 - distributions.LogNormal(3.2, 1.0)), "(-inf, 1)"),
+    ("object_mass", distributions.UniformChoice(1000) / 100, "[0, 9.99]"),  # 0 to 999.
 ])
 def test_a_distribution_that_can_draw_outside_its_parameters_range_is_refused_at_once(
         parameter, distribution, drawn, monkeypatch):
@@ -423,6 +426,8 @@ def test_a_distribution_that_can_draw_outside_its_parameters_range_is_refused_at
     ("object_mass", distributions.Uniform(0.5, 1.5) * distributions.LogNormal(0.0, 0.1)),
     ("object_mass", noises.Multiplicative(distributions.LogNormal(0.0, 0.1)) * 0.5),
     ("object_mass", distributions.LogNormal(0.0, 0.1) * distributions.LogNormal(0.0, 0.1)),
+    ("object_mass", 0.5 / -(0.0 - distributions.LogNormal(0.0, 0.1))),
+    ("observation_delay", distributions.UniformChoice(51)),  # 0 to 50.
 ])
 def test_a_distribution_bounded_within_its_parameters_range_is_accepted(parameter,
                                                                        distribution):

@@ -46,7 +46,7 @@ def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
 
-def newer_version(id_: str) -> str | None:
+def other_version(id_: str) -> str | None:
     """The registered id that `id_`, not registered, is another version of (its name with
     another suffix), or None."""
     name = id_.rsplit("-v", 1)[0]

@@ -37,7 +37,8 @@ class Interval:
 
     @classmethod
     def of(cls, low, high, low_open=False, high_open=False) -> "Interval":
-        low, high = np.asarray(low, np.float64), np.asarray(high, np.float64)
+        # + 0.0: one zero, whichever its sign (1 / -0.0 would flip an end's side).
+        low, high = np.asarray(low, np.float64) + 0.0, np.asarray(high, np.float64) + 0.0
         low, high, low_open, high_open = np.broadcast_arrays(
             low, high, np.asarray(low_open) | np.isinf(low), np.asarray(high_open) | np.isinf(high))
         return cls(low, high, low_open, high_open)
@@ -92,8 +93,10 @@ class Interval:
         if np.any(self.holds_zero()):
             return Interval.of(-np.inf, np.inf)
         with np.errstate(divide="ignore"):
-            low, high = 1.0 / self.high, 1.0 / self.low
-        # 1 / an open 0 end is unbounded; 1 / an infinite end is 0, never drawn.
+            # A 0 end is open, on the side the interval lies on: its reciprocal unbounded
+            # that side. 1 / an infinite end is 0, never drawn.
+            low = np.where(self.high == 0, -np.inf, 1.0 / self.high)
+            high = np.where(self.low == 0, np.inf, 1.0 / self.low)
         return Interval.of(low, high, self.high_open, self.low_open)
 
 
@@ -148,8 +151,10 @@ _RANGES = {
     distributions.Uniform: lambda low, high: Interval.of(np.minimum(low, high),
                                                          np.maximum(low, high)),
     distributions.UniformInteger: _uniform_integer,
-    distributions.UniformChoice: lambda choices: Interval.of(np.min(choices, axis=0),
-                                                             np.max(choices, axis=0)),
+    # numpy's choice(n), n a number, draws from 0 to n - 1.
+    distributions.UniformChoice: lambda choices: (
+        Interval.of(0, np.asarray(choices) - 1) if np.ndim(choices) == 0
+        else Interval.of(np.min(choices, axis=0), np.max(choices, axis=0))),
     distributions.Normal: lambda loc, scale: (
         Interval.of(loc, loc) if np.all(np.asarray(scale) == 0) else Interval.of(-np.inf, np.inf)),
     distributions.LogNormal: lambda mean, sigma: Interval.of(0.0, np.inf, low_open=True),
