@@ -78,8 +78,11 @@ def solved_contacts(env, solved) -> list:
     return found
 
 
-def _move_to(env, timestep, target, gripper: float, steps: int = 80, tolerance: float = 0.001):
-    """Drives the tool centre point to `target`; returns the last timestep."""
+def move_tcp_to(env, timestep, target, gripper: float = -1.0, steps: int = 80,
+                tolerance: float = 0.001):
+    """Drives the tool centre point to `target` (`cartesian_action`, the gripper at
+    `gripper`) for at most `steps` steps, until within `tolerance` (m); returns the last
+    timestep. The physical tests use it too (`tests/conftest.py`)."""
     for _ in range(steps):
         offset = np.asarray(target) - timestep.observation["panda/tcp_position"]
         if np.linalg.norm(offset) < tolerance:
@@ -130,7 +133,7 @@ def press(task: str, control: str, seed: int, steps: int, timing: str) -> dict:
     model = physics.model.ptr
     name = prop.mjcf_model.model
     start = np.array(timestep.observation[f"{name}/position"])
-    timestep = _move_to(env, timestep, start + [0.0, 0.0, prop.resting_height + HOVER], -1.0)
+    timestep = move_tcp_to(env, timestep, start + [0.0, 0.0, prop.resting_height + HOVER], -1.0)
     robot = set(physics.bind(panda.mjcf_model.find_all("body")).element_id)
     floor = physics.bind(env.task.root_entity.floor).element_id
     solved = mujoco.MjData(model)
@@ -165,12 +168,12 @@ def held_press(control: str, seed: int, steps: int, timing: str) -> dict:
     upper, lower = env.task.props
     first = np.asarray(timestep.observation["block1/position"]).copy()
     second = np.asarray(timestep.observation["block2/position"]).copy()
-    timestep = _move_to(env, timestep, first + [0, 0, 0.08], 1.0, tolerance=0.002)
-    timestep = _move_to(env, timestep, first, 1.0, tolerance=0.002)
+    timestep = move_tcp_to(env, timestep, first + [0, 0, 0.08], 1.0, tolerance=0.002)
+    timestep = move_tcp_to(env, timestep, first, 1.0, tolerance=0.002)
     for _ in range(6):
         timestep = env.step(cartesian_action(env, np.zeros(3), -1.0))
-    timestep = _move_to(env, timestep, first + [0, 0, 0.10], -1.0, tolerance=0.002)
-    timestep = _move_to(env, timestep, second + [0, 0, 0.10], -1.0, tolerance=0.002)
+    timestep = move_tcp_to(env, timestep, first + [0, 0, 0.10], -1.0, tolerance=0.002)
+    timestep = move_tcp_to(env, timestep, second + [0, 0, 0.10], -1.0, tolerance=0.002)
     physics = env.physics
     upper_geoms = set(physics.bind(upper.mjcf_model.find_all("geom")).element_id)
     lower_geoms = set(physics.bind(lower.mjcf_model.find_all("geom")).element_id)

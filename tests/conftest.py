@@ -183,7 +183,8 @@ def hand_tilt_degrees(env) -> float:
 
 
 @functools.lru_cache
-def _controller_press():
+def controller_press():
+    """`experiments/controller_press.py`, whose press the contact tests run."""
     return load_script(pathlib.Path(__file__).resolve().parents[1] / "experiments"
                        / "controller_press.py")
 
@@ -191,19 +192,16 @@ def _controller_press():
 def cartesian_action(env, move, gripper=None) -> np.ndarray:
     """`experiments/controller_press.py`'s action that moves the tool centre point by `move`
     (m) under any controller, the gripper (where actuated) at `gripper` (None: 0)."""
-    return _controller_press().cartesian_action(env, move, 0.0 if gripper is None else gripper)
+    return controller_press().cartesian_action(env, move, 0.0 if gripper is None else gripper)
 
 
 def move_tcp_to(env, timestep, target, gripper=None, max_steps=30, tolerance=0.004):
-    """Drives the tool centre point to `target` with proportional actions (any controller:
-    `cartesian_action`); returns the last timestep. Used by physical tests that need the
-    hand somewhere first."""
-    for _ in range(max_steps):
-        tcp = timestep.observation["panda/tcp_position"]
-        if np.linalg.norm(np.asarray(target) - tcp) < tolerance:
-            break
-        timestep = env.step(cartesian_action(env, np.asarray(target) - tcp, gripper))
-    return timestep
+    """`experiments/controller_press.py`'s drive of the tool centre point to `target` (any
+    controller), the gripper (where actuated) at `gripper` (None: 0); returns the last
+    timestep. Used by physical tests that need the hand somewhere first."""
+    return controller_press().move_tcp_to(env, timestep, target,
+                                          0.0 if gripper is None else gripper,
+                                          steps=max_steps, tolerance=tolerance)
 
 
 def grasp_block(env):

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import franka_composer
-from conftest import cartesian_action, grasp_block, move_tcp_to
+from conftest import cartesian_action, controller_press, grasp_block, move_tcp_to
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
 pytestmark = pytest.mark.usefixtures("composer_path")
@@ -28,26 +28,16 @@ _Contact = collections.namedtuple("_Contact", "geom1 geom2 dist")
 
 def _robot_contacts(env):
     """(contact, normal force N) for each active contact between the hand and the world,
-    solved for the present state on a copy of the data: a step leaves the constraint forces
-    of its last substep's contacts, which read through the new contacts are stale, and
-    uninitialised where the contacts changed (once: 4e306 N)."""
+    solved for the present state on a copy of the data (`solved_contacts`: read off a step
+    they are stale, and once were 4e306 N)."""
     physics = env.physics
     model = physics.model.ptr
-    data = mujoco.MjData(model)
-    mujoco.mj_copyData(data, model, physics.data.ptr)
-    mujoco.mj_forward(model, data)
+    solved = mujoco.MjData(model)
     robot = set(physics.bind(env.task.panda.mjcf_model.find_all("body")).element_id)
-    force = np.zeros(6)
-    found = []
-    for i in range(data.ncon):
-        contact = data.contact[i]
-        if contact.efc_address < 0:
-            continue
-        if (model.geom_bodyid[contact.geom1] in robot) != (model.geom_bodyid[contact.geom2] in robot):
-            mujoco.mj_contactForce(model, data, i, force)
-            found.append((_Contact(int(contact.geom1), int(contact.geom2),
-                                   float(contact.dist)), float(force[0])))
-    return found
+    return [(_Contact(int(contact.geom1), int(contact.geom2), float(contact.dist)), force)
+            for contact, force in controller_press().solved_contacts(env, solved)
+            if (model.geom_bodyid[contact.geom1] in robot)
+            != (model.geom_bodyid[contact.geom2] in robot)]
 
 
 def _closed(env):

@@ -46,12 +46,18 @@ def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
 
+def split_version(id_: str) -> tuple[str, int]:
+    """`FrankaPushJointsSparse-v1` -> ("FrankaPushJointsSparse", 1); -1 for no version."""
+    name, _, suffix = id_.rpartition("-v")
+    return (name, int(suffix)) if name and suffix.isdigit() else (id_, -1)
+
+
 def other_version(id_: str) -> str | None:
     """The registered id that `id_`, not registered, is another version of (its name with
     another suffix), or None."""
-    name = id_.rsplit("-v", 1)[0]
+    name = split_version(id_)[0]
     return next((registered for registered in ENV_IDS
-                 if registered.rsplit("-v", 1)[0] == name), None)
+                 if split_version(registered)[0] == name), None)
 
 
 class RegisteredEnv(NamedTuple):

@@ -17,7 +17,7 @@ import pathlib
 
 import numpy as np
 
-from franka_composer.adapters.registration import ENV_IDS, other_version
+from franka_composer.adapters.registration import ENV_IDS, other_version, split_version
 from franka_composer.controllers import CONTROL_VERSIONS
 from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
 from franka_composer.tasks import TASK_CONFIGS
@@ -280,19 +280,13 @@ def _not_registered(path, recorded_id: str) -> ValueError:
     registered = other_version(recorded_id)
     if registered is None:
         return ValueError(f"{path} was recorded under {recorded_id}, not a franka_composer id")
-    if _version(recorded_id) > _version(registered):
+    if split_version(recorded_id)[1] > split_version(registered)[1]:
         return ValueError(f"{path} was recorded under {recorded_id}, a newer version than "
                           f"this franka_composer's {registered}: by a later release, whose "
                           "dynamics this one does not have; train with that release")
     return ValueError(f"{path} was recorded under {recorded_id}, an older version of "
                       f"{registered}: its transitions are of dynamics since changed (the "
                       "task's version history); record it again")
-
-
-def _version(id_: str) -> int:
-    """An id's version: FrankaPushJointsSparse-v1 -> 1."""
-    suffix = id_.rsplit("-v", 1)[-1]
-    return int(suffix) if suffix.isdigit() else -1
 
 
 def _unreadable_minari(path, error: Exception) -> ValueError:
