@@ -379,11 +379,18 @@ def _joints_npz(path, metadata_changes: dict):
     ({"id": "FrankaPushJointsSparse-v3"}, "was recorded under FrankaPushJointsSparse-v3, a "
                                           "newer version than this franka_composer's "
                                           "FrankaPushJointsSparse-v1"),
+    ({"id": "FrankaSlideJointsSparse-v1"},
+     "names the id 'FrankaSlideJointsSparse-v1', which fixes task='slide', control='joints' "
+     "and reward_type='sparse', but says it was recorded with task='push': its metadata "
+     "contradicts itself"),
+    ({"id": "FrankaPushOscSparse-v0"}, "but says it was recorded with control='joints'"),
+    ({"id": "FrankaPushJointsDense-v1"}, "but says it was recorded with reward_type='sparse'"),
 ])
 def test_demonstrations_of_dynamics_since_changed_are_refused(changes, message, tmp_path):
     """The Joints ids went up a version with the surface guard under joints: a dataset that
     names an older id, or through joints none (recorded before ids were named), holds
-    transitions of the dynamics before."""
+    transitions of the dynamics before. One whose id contradicts its own task, control or
+    reward type (edited by hand) cannot be believed either way."""
     path = _joints_npz(tmp_path / "joints.npz", changes)
     env = make_env("push", control="joints")
     try:

@@ -82,6 +82,7 @@ def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
                          f"with, so it cannot be checked against this run ({_UNSAID[format]}):"
                          f" record it again, e.g. franka-composer rollout --task "
                          f"{config.name} --control {control} {again}")
+    _check_id_agrees(path, recorded)
     if recorded["task"] != config.name:
         raise ValueError(f"{path} holds demonstrations of {recorded['task']}, not "
                          f"{config.name}")
@@ -92,8 +93,6 @@ def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
     if recorded["reward_type"] != "sparse":
         raise ValueError(f"{path} was recorded with {recorded['reward_type']} rewards, not "
                          f"the sparse {_SPARSE.tolist()} that training uses")
-    if "id" in recorded and recorded["id"] not in ENV_IDS:
-        raise _not_registered(path, recorded["id"])
     if "id" not in recorded and CONTROL_VERSIONS[control]:
         raise ValueError(f"{path} names no id, so it was recorded before {control} control's "
                          f"ids went to version {CONTROL_VERSIONS[control]}, whose dynamics "
@@ -109,6 +108,27 @@ def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
     if recorded_dynamics != _dynamics(config):
         raise ValueError(f"{path} was recorded at {recorded_dynamics}, and this run trains at "
                          f"{_dynamics(config)}: its transitions are of other dynamics")
+
+
+def _check_id_agrees(path, recorded: dict) -> None:
+    """The id a dataset names is registered, and fixes what its task, control and reward
+    type say (a plain id takes any control): the two disagree only in a file edited by
+    hand, and which to believe cannot be told."""
+    if "id" not in recorded:
+        return
+    if recorded["id"] not in ENV_IDS:
+        raise _not_registered(path, recorded["id"])
+    fixed = ENV_IDS[recorded["id"]]
+    said = {"task": recorded["task"], "control": recorded["control"],
+            "reward_type": recorded["reward_type"]}
+    contradicted = [f"{key}={value!r}" for key, value in said.items()
+                    if value != getattr(fixed, key)
+                    and not (key == "control" and fixed.control == "mocap")]
+    if contradicted:
+        raise ValueError(f"{path} names the id {recorded['id']!r}, which fixes task="
+                         f"{fixed.task!r}, control={fixed.control!r} and reward_type="
+                         f"{fixed.reward_type!r}, but says it was recorded with "
+                         f"{', '.join(contradicted)}: its metadata contradicts itself")
 
 
 #: Why a dataset of each format may not say what it was recorded with.
