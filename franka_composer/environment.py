@@ -124,7 +124,10 @@ def check_time_limit(time_limit) -> float:
             or not time_limit > 0):
         raise ValueError(f"time_limit must be a number of seconds > 0, or None for no limit, "
                          f"got {time_limit!r}")
-    return float(time_limit)
+    try:
+        return float(time_limit)
+    except OverflowError:  # An int past a float's range: longer than any episode.
+        return NO_LIMIT
 
 
 def control_steps(time_limit: float, control_timestep: float) -> float:

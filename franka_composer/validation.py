@@ -54,14 +54,32 @@ def check_number(name: str, value, *, minimum: float | None = None,
     real = isinstance(value, numbers.Real) and not isinstance(value, bool)
     if integer:
         real = real and isinstance(value, numbers.Integral)
-    if not real or not math.isfinite(value):
+    if not real or not (integer or _finite(value)):  # An int of any size is finite.
         kind = "a whole number" if integer else "a finite number"
-        raise ValueError(f"{name} must be {kind}{_bounds(minimum, maximum, above)}, "
-                         f"got {value!r}")
+        raise ValueError(f"{name} must be {kind}{_bounds(minimum, maximum, above)}"
+                         f"{' that a 64-bit float holds' if real and isinstance(value, numbers.Integral) else ''}, got {_shown(value)}")
     if ((minimum is not None and value < minimum) or (maximum is not None and value > maximum)
             or (above is not None and value <= above)):
-        raise ValueError(f"{name} must be{_bounds(minimum, maximum, above)}, got {value!r}")
+        raise ValueError(f"{name} must be{_bounds(minimum, maximum, above)}, "
+                         f"got {_shown(value)}")
     return int(value) if integer else float(value)
+
+
+def _finite(value: numbers.Real) -> bool:
+    """Whether `value` is finite as a float (an int too large for one is not)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+def _shown(value) -> str:
+    """`value`'s repr for a message, cut short (an int's repr past 4,300 digits raises)."""
+    try:
+        text = repr(value)
+    except ValueError:
+        return "an integer of over 4,300 digits"
+    return text if len(text) <= 80 else f"{text[:40]}... ({len(text)} characters)"
 
 
 def check_vector(name: str, value, size: int, **bounds) -> tuple[float, ...]:

@@ -47,6 +47,14 @@ NAN, INF = float("nan"), float("inf")
     ("control_timestep", -0.05, "control_timestep must be > 0, got -0.05"),
     ("control_timestep", 0.051, "control_timestep must be a whole multiple of the physics "
                                 r"timestep \(0.002 s\), got 0.051"),
+    # Within 1e-6 of a step relative to 25 steps, past Composer's 1e-6 of a step absolute:
+    # Composer's own error, raised from deep inside, before the check was Composer's.
+    ("control_timestep", 0.05000002, "control_timestep must be a whole multiple of the "
+                                     r"physics timestep \(0.002 s\), got 0.05000002"),
+    ("object_mass", 10**400, r"object_mass must be a finite number > 0 that a 64-bit float "
+                             r"holds, got 1000000000000000000000000000000000000000\.\.\. "
+                             r"\(401 characters\)"),
+    ("block_half_size", -10**400, "block_half_size must be a finite number > 0 that a 64-bit"),
     ("distance_threshold", "0.05", "distance_threshold must be a finite number > 0, got '0.05'"),
     ("distance_threshold", True, "distance_threshold must be a finite number > 0, got True"),
     ("reward_type", "shaped", "unknown reward_type 'shaped'; valid reward_types: sparse, dense"),
@@ -467,3 +475,18 @@ def test_train_refuses_a_learning_start_inside_the_first_episode_and_leaves_noth
                         "--out", str(out)]) == 2
     assert "learning_starts must be >= 49 for push" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_number_too_large_for_a_float_is_refused_by_name_and_an_int_of_any_size_is_whole():
+    """Python's ints have no bound: one past a float's range is not a finite number (it
+    raised OverflowError), while a whole-number option (a seed) takes any size; the message
+    shows a long number cut short (repr of an int past 4,300 digits itself raises)."""
+    from franka_composer.validation import check_number
+
+    assert check_number("seed", 10**400, minimum=0, integer=True) == 10**400
+    with pytest.raises(ValueError, match=r"pixel_height must be >= 1 and <= 1024, got "
+                                         r"1{1}0{39}\.\.\. \(401 characters\)"):
+        check_number("pixel_height", 10**400, minimum=1, maximum=1024, integer=True)
+    with pytest.raises(ValueError, match="time_scale must be a finite number > 0 that a 64-bit "
+                                         "float holds, got an integer of over 4,300 digits"):
+        check_number("time_scale", 10**5000, above=0)

@@ -320,9 +320,10 @@ class TaskConfig:
 
     def check(self) -> None:
         """Checks what no single option can: the timestep ratio, a whole number of physics
-        steps that MuJoCo's step count (a C int) holds."""
+        steps (to within Composer's own 1e-6 of a step, which it checks again) that MuJoCo's
+        step count (a C int) holds."""
         substeps = self.control_timestep / self.physics.timestep
-        if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6 * substeps:
+        if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
                              f"timestep ({self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
