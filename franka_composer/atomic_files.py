@@ -10,7 +10,12 @@ import pathlib
 def replace_atomically(path: pathlib.Path, write) -> None:
     """`write(partial)` writes the file beside `path` (the same suffix), which then takes
     `path`'s place in one step: a run killed while writing leaves the file it had whole,
-    or none, never half of one; a write that fails takes its partial file with it."""
+    or none, never half of one; a write that fails takes its partial file with it. A link
+    is written through (the file it points to replaced, the link kept); a device, FIFO or
+    socket is refused (`validation.check_writable`), not replaced by a file."""
+    path = pathlib.Path(os.path.realpath(path))
+    if path.exists() and not path.is_file():
+        raise ValueError(f"cannot write to {path}: it is not a regular file")
     # Hidden and named after the whole file name, so that it is no file of the user's
     # (keep.npz's partial file is not keep.partial.npz).
     partial = path.with_name(f".{path.name}.partial{path.suffix}")

@@ -98,13 +98,20 @@ def check_writable(path, *, folder: bool = False) -> pathlib.Path:
     written over. Found out before the work whose result would be lost to the path. A file
     is made there and removed again, since os.access says yes to root even in /proc:
     `tempfile.TemporaryFile`, unnamed where the file system allows (O_TMPFILE), so even the
-    folder's modification time stays as it was."""
+    folder's modification time stays as it was. A link is followed (the file written is the
+    one it points to, `atomic_files.replace_atomically`); a device, FIFO or socket is
+    refused: a file put in its place would break what uses it (root may replace /dev/null)."""
     path = pathlib.Path(path)
-    if not folder and path.exists() and not path.is_dir():
-        if not os.access(path, os.W_OK):
+    real = pathlib.Path(os.path.realpath(path))
+    if not folder and real.exists() and not real.is_dir():
+        if not real.is_file():
+            raise ValueError(f"cannot write to {path}: it is not a regular file (a device, "
+                             "FIFO or socket), which a file written in its place would "
+                             "replace; give a file's path")
+        if not os.access(real, os.W_OK):
             raise ValueError(f"cannot write to {path}: it is read-only")
         return path
-    start = path if folder else path.parent
+    start = real if folder else real.parent
     nearest = next((ancestor for ancestor in (start, *start.parents) if ancestor.exists()),
                    pathlib.Path("."))
     if not nearest.is_dir():

@@ -307,3 +307,14 @@ def env_checker_findings(env, sb3: bool = False) -> set[str]:
             sb3_check_env(env.unwrapped, warn=True)
     return {str(warning.message) for warning in found}
 
+
+
+def write_policy_file(path: pathlib.Path, size: int) -> None:
+    """A policy file as franka_composer writes one (`read_policy_file` reads it whole), of
+    an actor of `size` parameters: what a finished run keeps."""
+    import torch
+
+    from franka_composer.training.policy_file import FORMAT
+
+    torch.save({"actor": {"weight": torch.ones(size)}, "steps": 2000, "format": FORMAT,
+                "backend": "sb3"}, path)

@@ -8,9 +8,11 @@ import json
 import os
 import pathlib
 import re
+import stat
 
 import pytest
 
+from conftest import write_policy_file
 from franka_composer import cli
 from franka_composer.training import hyperparameters
 from franka_composer.training.run_config import RunConfig
@@ -67,6 +69,41 @@ def test_an_output_path_where_no_file_can_be_made_is_refused_as_parsed(before, o
     error = _parse_error([*before, option, str(path)], capsys)
     assert re.search(f"error: argument {option}: cannot write to {path}: no file can be made "
                      r"in /proc \(.+\)$", error)
+
+
+@pytest.mark.parametrize("before, option", [o for o in OUTPUTS if o[1] == "--out"
+                                             and o[0][0] in ("evaluate", "plot", "report")])
+def test_an_output_file_that_is_a_fifo_is_refused_as_parsed_and_left_one(before, option,
+                                                                        tmp_path, capsys):
+    """Written over atomically, a FIFO, a device or a socket would be replaced by a file
+    (as root, /dev/null was): refused instead, and left as it was."""
+    fifo = tmp_path / ("fifo.png" if before[0] == "plot" else "fifo")
+    os.mkfifo(fifo)
+    error = _parse_error([*before, option, str(fifo)], capsys)
+    assert error.endswith(f"error: argument {option}: cannot write to {fifo}: it is not a "
+                          "regular file (a device, FIFO or socket), which a file written in "
+                          "its place would replace; give a file's path")
+    assert stat.S_ISFIFO(fifo.lstat().st_mode)
+
+
+def test_an_output_file_through_a_link_is_written_through_and_the_link_kept(tmp_path):
+    from franka_composer.atomic_files import replace_atomically
+    from franka_composer.validation import check_writable
+
+    (tmp_path / "real").mkdir()
+    target = tmp_path / "real" / "table.md"
+    target.write_text("old")
+    link = tmp_path / "table.md"
+    link.symlink_to(target)
+    assert check_writable(link) == link
+    replace_atomically(link, lambda path: path.write_text("new"))
+    assert link.is_symlink() and target.read_text() == "new"
+    assert sorted(path.name for path in (tmp_path / "real").iterdir()) == ["table.md"]
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match=f"cannot write to {fifo}: it is not a regular file"):
+        replace_atomically(fifo, lambda path: path.write_text("new"))
+    assert stat.S_ISFIFO(fifo.lstat().st_mode)
 
 
 def test_a_writable_output_path_is_taken_and_its_folder_left_as_it_was(tmp_path):
@@ -289,11 +326,11 @@ def test_keep_copies_each_file_whole_or_not_at_all(tmp_path, monkeypatch):
     import shutil
 
     run = _run(tmp_path / "run")
-    run.policy_file.write_bytes(b"policy" * 1000)
+    write_policy_file(run.policy_file, 1000)
     kept = tmp_path / "kept"
     assert cli.main(["keep", str(run.root), "--into", str(kept)]) == 0
     copied = (kept / "run" / "policy.pt").read_bytes()
-    run.policy_file.write_bytes(b"longer policy" * 1000)
+    write_policy_file(run.policy_file, 2000)
     copy = shutil.copy
 
     def half(source, target):
@@ -310,6 +347,28 @@ def test_keep_copies_each_file_whole_or_not_at_all(tmp_path, monkeypatch):
     assert (kept / "run" / "policy.pt").read_bytes() == copied
     assert sorted(path.name for path in (kept / "run").iterdir()) == [
         "config.json", "eval.csv", "outcome.json", "policy.pt"]  # No partial file left.
+
+
+def test_keep_refuses_a_damaged_policy_file_and_keeps_a_lost_ones_copy(tmp_path):
+    """A finished run's policy.pt is read before anything is copied: a damaged one would
+    replace the whole one kept. A finished run that lost its policy.pt leaves the kept copy
+    (of the same run) as it was; one taken on to a larger budget drops it until it ends."""
+    run = _run(tmp_path / "run")
+    write_policy_file(run.policy_file, 10)
+    kept = tmp_path / "kept"
+    assert cli.main(["keep", str(run.root), "--into", str(kept)]) == 0
+    whole = (kept / "run" / "policy.pt").read_bytes()
+    run.policy_file.write_bytes(b"")
+    with pytest.raises(ValueError, match=re.escape(f"{run.policy_file} is not a policy file "
+                                                   "(torch cannot read it")):
+        cli.main(["keep", str(run.root), "--into", str(kept)])
+    assert (kept / "run" / "policy.pt").read_bytes() == whole
+    run.policy_file.unlink()
+    assert cli.main(["keep", str(run.root), "--into", str(kept)]) == 0
+    assert (kept / "run" / "policy.pt").read_bytes() == whole
+    run.outcome_path.unlink()  # Taken on: not finished.
+    assert cli.main(["keep", str(run.root), "--into", str(kept)]) == 0
+    assert not (kept / "run" / "policy.pt").exists()
 
 
 def test_keep_refuses_to_keep_a_run_into_itself(tmp_path):

@@ -236,3 +236,28 @@ def test_a_resume_names_the_damaged_checkpoint_file(finished, tmp_path, name, da
         cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "300",
                   "--no-progress", "--device", "cpu"])
     assert run.read_state()["steps"] == 200  # Left as it was.
+
+
+def test_evaluate_finds_a_run_with_only_a_damaged_model_before_playing_any(tmp_path, capsys,
+                                                                          monkeypatch):
+    """Every run is checked before the first is played: one whose only model is damaged
+    (no checkpoint, no policy file) is refused, by its file, before the whole ones play."""
+    import shutil
+
+    from franka_composer.training import policy_file
+
+    kept = pathlib.Path(__file__).parents[1] / "results" / "table2" / "push-ddpg-seed1"
+    damaged = tmp_path / "push-ddpg-seed2"
+    damaged.mkdir()
+    for name in ("eval.csv", "outcome.json"):
+        shutil.copy(kept / name, damaged / name)
+    config = json.loads((kept / "config.json").read_text())
+    (damaged / "config.json").write_text(json.dumps({**config, "seed": 2}))
+    (damaged / "model.zip").write_bytes(b"")
+    made = []
+    monkeypatch.setattr(policy_file, "make_env", lambda *args, **kwargs: made.append(args))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{damaged / 'model.zip'} is damaged (not a readable zip archive: ") + ".*"
+            + re.escape("and the run has no whole model to play instead")):
+        cli.main(["evaluate", str(kept), str(damaged), "--episodes", "2", "--device", "cpu"])
+    assert made == [] and "success" not in capsys.readouterr().out

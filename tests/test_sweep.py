@@ -14,6 +14,7 @@ import time
 
 import pytest
 
+from conftest import write_policy_file
 from franka_composer import cli
 from franka_composer.training import hyperparameters
 from franka_composer.training.run_config import RunConfig
@@ -168,7 +169,7 @@ def test_the_evaluations_a_resume_keeps_end_at_the_checkpoint_until_the_run_ends
 def test_sync_keeps_what_each_cell_has_kept_and_its_policy_once_finished(tmp_path, capsys):
     runs, kept = tmp_path / "runs", tmp_path / "kept"
     done = _write_run(runs, "push-sac-seed0", [(0, 1, 0.0), (2000, 2, 0.6)], (2000, False, 2))
-    done.policy_file.write_bytes(b"actor")
+    write_policy_file(done.policy_file, 10)
     going = _write_run(runs, "push-sac-seed1", [(0, 1, 0.0), (2000, 2, 0.2), (4000, 3, 0.4)],
                        seed=1)
     going.checkpoint.mkdir()
@@ -181,7 +182,7 @@ def test_sync_keeps_what_each_cell_has_kept_and_its_policy_once_finished(tmp_pat
     assert sorted(path.name for path in kept.iterdir()) == ["push-sac-seed0", "push-sac-seed1"]
     copy, unfinished = RunDir(kept / "push-sac-seed0"), RunDir(kept / "push-sac-seed1")
     assert copy.read_config() == done.read_config() and copy.read_outcome()["steps"] == 2000
-    assert copy.policy_file.read_bytes() == b"actor"
+    assert copy.policy_file.read_bytes() == done.policy_file.read_bytes()
     assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
     # Up to its checkpoint (the steps after it are redone on resume), no outcome or policy.
     assert [row["steps"] for row in read_eval_rows(unfinished.eval_csv)] == [0, 2000]
@@ -209,7 +210,7 @@ def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_pat
 
     runs, kept = tmp_path / "runs", tmp_path / "kept"
     done = write(runs, "push-seed0", 0, [(0, 1, 0.0), (2000, 2, 0.6)], (2000, False, 2))
-    done.policy_file.write_bytes(b"actor")
+    write_policy_file(done.policy_file, 10)
     going = write(runs, "push-seed1", 1, [(0, 1, 0.0), (1000, 2, 0.2), (1500, 3, 0.4)])
     going.checkpoint.mkdir()
     going.checkpoint_state.write_text(json.dumps({"steps": 1000}))
@@ -218,7 +219,7 @@ def test_keep_copies_what_each_run_has_kept_and_its_policy_once_finished(tmp_pat
     assert capsys.readouterr().out == f"{kept}: push-seed0, push-seed1\n"
     copy, unfinished = RunDir(kept / "push-seed0"), RunDir(kept / "push-seed1")
     assert copy.read_config() == done.read_config() and copy.read_outcome()["steps"] == 2000
-    assert copy.policy_file.read_bytes() == b"actor"
+    assert copy.policy_file.read_bytes() == done.policy_file.read_bytes()
     assert read_eval_rows(copy.eval_csv) == read_eval_rows(done.eval_csv)
     assert [row["steps"] for row in read_eval_rows(unfinished.eval_csv)] == [0, 1000]
     assert not unfinished.outcome_path.exists() and not unfinished.policy_file.exists()

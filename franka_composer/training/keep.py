@@ -30,9 +30,14 @@ def files_to_keep(run: RunDir, kept: RunDir, budget: int | None = None) -> KeptF
     """What `run` has kept, to be copied into `kept`: its evaluations that a resume keeps,
     and whether it has finished (`run_finished` at `budget`). A damaged config.json,
     eval.csv or outcome.json is a ValueError naming it, and so is a copy in `kept` that
-    keeping `run` would replace or cut back (`check_extends`)."""
+    keeping `run` would replace or cut back (`check_extends`), and a policy file of a
+    finished run that is not one (`read_policy_file`): it would replace a whole one kept."""
+    from franka_composer.training.policy_file import read_policy_file
+
     files = KeptFiles(run, run.kept_evaluations(), run_finished(run, budget))
     check_extends(files, kept)
+    if files.finished and run.policy_file.is_file():
+        read_policy_file(run.read_config(), run.policy_file)
     return files
 
 
@@ -92,7 +97,8 @@ def departure(kept: list[dict], ours: list[dict]) -> tuple[dict, dict | None] | 
 
 def keep_run(files: KeptFiles, kept: RunDir) -> None:
     """Copies `files` into `kept`. A run taken on to a larger budget than it finished at
-    loses its outcome and policy here until it finishes again."""
+    loses its outcome and policy here until it finishes again; a finished one that has
+    lost a file keeps the copy kept of it (the same run's, `check_extends`)."""
     run = files.run
     kept.root.mkdir(parents=True, exist_ok=True)
     _copy(run.config_path, kept.config_path)
@@ -101,7 +107,7 @@ def keep_run(files: KeptFiles, kept: RunDir) -> None:
                        (run.policy_file, kept.policy_file)):
         if files.finished and path.is_file():
             _copy(path, copy)
-        elif copy.is_file():
+        elif not files.finished and copy.is_file():
             copy.unlink()
 
 

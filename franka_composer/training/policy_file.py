@@ -22,6 +22,7 @@ import numpy as np
 from franka_composer.training.models import (algorithm_class, build_model, load_model,
                                              make_env, policy_kwargs, resolve_device)
 from franka_composer.training.run_config import RunConfig
+from franka_composer.training.run_files import model_damage
 from franka_composer.training.runs import RunDir
 
 #: Bumped when the file's layout changes; a file of another version is refused by name.
@@ -145,10 +146,17 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
 def check_trained(run: RunDir) -> None:
     """A ValueError naming `run` if it holds nothing trained to load (a run still training
     and kept without a checkpoint, say), or only a policy file that is not one
-    (`read_policy_file`): asked before an env is made for it."""
-    if any(path.is_file() for path in (run.final_model, run.checkpoint_model)):
+    (`read_policy_file`), or only damaged models (`model_damage`): asked before an env is
+    made for it, so that `evaluate` finds a damaged run among many before playing any."""
+    models = [path for path in (run.final_model, run.checkpoint_model) if path.is_file()]
+    damages = [model_damage(path) for path in models]
+    if None in damages:
         return
     if not run.policy_file.is_file():
+        if models:
+            raise ValueError(f"{models[0]} is damaged ({damages[0]}), and the run has no "
+                             "whole model to play instead (model.zip, a checkpoint, "
+                             "policy.pt)")
         raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
                          "no policy.pt)")
     read_policy_file(run.read_config(), run.policy_file)
