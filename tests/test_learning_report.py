@@ -128,6 +128,20 @@ def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     assert steps_to([stopped, going], 0.9) == 16000
 
 
+def test_a_cell_with_a_seed_too_short_to_smooth_says_so_not_never(tmp_path):
+    """A run stopped early at 100 % after three evaluations has no smoothed
+    curve: the table cannot read its steps to 80 %, and says so rather than "–" (never),
+    for the wall clock too; a cell of full seeds beside it reads as ever."""
+    _write_run(tmp_path, "push", "tqc", 0, [0.0, 1.0, 1.0], (True, 30.0))
+    _write_run(tmp_path, "slide", "sac", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))
+    runs = [read_run(root) for root in sorted(tmp_path.iterdir())]
+    lines = markdown_table(runs, wall_clock=True).splitlines()
+    too_few = f"n/a (a seed has < {SMOOTHING} evaluations)"
+    assert lines[2] == (f"| push | TQC | 0 | 4,000 | 1 of 1 | {too_few} | {too_few} | "
+                        f"{too_few} | {too_few} | 0.0 | 0.0 |")
+    assert lines[3].startswith("| slide | SAC | 0 | 18,000 | 0 of 1 | 14,000 | 16,000 | ")
+
+
 def test_a_seed_stopped_by_a_shorter_rule_holds_the_evaluations_that_met_it(tmp_path):
     """With `--stop-after 3` a run can stop after fewer evaluations than the smoothing's 5
     (the figure failed with a KeyError), and holds the mean of the 3 that met the rule, not

@@ -25,6 +25,8 @@ from franka_composer.training.runs import RunDir, success_curve
 
 #: Evaluations in the trailing mean of a seed's curve.
 SMOOTHING = 5
+#: What the steps and minutes to a threshold read for a cell with a seed too short to smooth.
+TOO_FEW = f"n/a (a seed has < {SMOOTHING} evaluations)"
 #: How far below a threshold a smoothed success rate may lie and still reach it: a mean of
 #: k/15 rates lands on a threshold such as 0.4 or 0.8 only up to rounding (6, 6, 7, 6 and 5
 #: of 15 average to 0.39999999999999997), while rates that differ do so by 1/75 or more.
@@ -181,7 +183,10 @@ def markdown_table(runs: list[RunRecord],
     """One row per cell, in the paper's order, and a line with what all of them cost. With
     the paper's curves (`read_paper_curves`), its steps to each threshold beside ours, read
     the same way off its curve ("–": never reached; blank: no curve for the cell). With
-    `wall_clock`, the median seed's minutes to each threshold too (`minutes_to`)."""
+    `wall_clock`, the median seed's minutes to each threshold too (`minutes_to`). A cell
+    with a seed of fewer than `SMOOTHING` evaluations has no smoothed curve to read:
+    `TOO_FEW`, not "–" (a run stopped early at 100 % after three is not one that never
+    reached 80 %)."""
     cells = group_by_cell(sorted(runs, key=lambda r: r.seed))
     columns = [f"steps to {t * 100:g} %" for t in thresholds]
     if wall_clock:
@@ -195,9 +200,12 @@ def markdown_table(runs: list[RunRecord],
         cell = cells[(task, variant, algo)]
         reached = ", ".join(f"{run.steps:,}" + _unfinished(run)
                             for run in cell)
-        crossings = [steps_text(steps_to(cell, t)) for t in thresholds]
-        if wall_clock:
-            crossings += [minutes_text(minutes_to(cell, t)) for t in thresholds]
+        if any(not smoothed(run.curve) for run in cell):  # Too short to tell.
+            crossings = [TOO_FEW] * len(thresholds) * (1 + wall_clock)
+        else:
+            crossings = [steps_text(steps_to(cell, t)) for t in thresholds]
+            if wall_clock:
+                crossings += [minutes_text(minutes_to(cell, t)) for t in thresholds]
         if paper is not None:
             curve = paper.get((task, algo))
             crossings += [steps_text(first_reaching(smoothed(curve), t)) if curve else ""
