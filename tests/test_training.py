@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import warnings
 import shutil
 import tempfile
 
@@ -487,6 +488,38 @@ def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, mon
     assert not RunDir(out).read_state()["exact"]
     assert _train(out, "sac", 300, "--resume") == 0
     assert RunDir(out).read_outcome()["fresh_streams"] == [130, 200]
+
+
+def test_a_resume_at_its_checkpoints_step_ends_with_the_evaluation_there(tmp_path,
+                                                                        monkeypatch):
+    """Stopped at once at step 130 and resumed with --total-steps 130: nothing is left to
+    train, and the run ends as the uninterrupted run of 130 steps does, with an evaluation
+    at its last step, the same to the digit (it ended without one), on no fresh stream and
+    without the warning that it goes on with one (it recorded one, training nothing)."""
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        on_step = LatestCheckpoint._on_step
+
+        def interrupted(self):
+            if self.num_timesteps == 130:
+                raise KeyboardInterrupt("signal 15, again")
+            return on_step(self)
+
+        patch.setattr(LatestCheckpoint, "_on_step", interrupted)
+        assert _train(out, "sac", 400) == 130
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        assert _train(out, "sac", 130, "--resume") == 0
+    assert _train(tmp_path / "whole", "sac", 130) == 0
+
+    def rows(root):
+        return [(r["steps"], r["success_rate"], r["mean_reward"])
+                for r in read_eval_rows(RunDir(root).eval_csv)]
+
+    assert [row[0] for row in rows(out)] == [0, 100, 130]
+    assert rows(out) == rows(tmp_path / "whole")
+    outcome = RunDir(out).read_outcome()
+    assert outcome["steps"] == 130 and outcome["fresh_streams"] == []
 
 
 def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_path,

@@ -57,11 +57,11 @@ def _stop_signals() -> list[int]:
     return [signal.SIGTERM]
 
 
-def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
+def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str, goes_on: bool):
     """The model and the training env's episode stream at the run's checkpoint: exactly as
     the run left them where the checkpoint allows (`exact_resume`), else with a fresh
-    episode stream, seeded by the run's seed and step, said with a warning; and whether the
-    stream is fresh."""
+    episode stream, seeded by the run's seed and step, said with a warning where the run
+    `goes_on` training from there; and whether it trains on a fresh stream."""
     exact = bool(state.get("exact")) and run.checkpoint_generators.is_file()
     model = load_model(config.algo, checked_model(run.checkpoint_model), env=env,
                        device=device, backend=config.backend, force_reset=not exact)
@@ -72,7 +72,7 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
                                 "will be truncated")
         model.load_replay_buffer(run.checkpoint_buffer)
     stream = exact_resume.restore(model, run.checkpoint_generators) if exact else None
-    fresh = stream is None
+    fresh = stream is None and goes_on
     if fresh:
         why = ("its training env did not come back as its checkpoint saw it" if exact else
                f"its checkpoint at step {state['steps']:,} was not written where a resume "
@@ -81,6 +81,7 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str):
                       "from here is not the run an uninterrupted one would be (recorded as "
                       "fresh_streams in its checkpoint's state.json and its outcome.json)",
                       RuntimeWarning, stacklevel=2)
+    if stream is None:
         model._last_obs = None  # SB3 resets the env, with the new stream's seed.
         stream = exact_resume.EpisodeStream(
             config.seed + FRESH_STREAM_SEED_OFFSET + int(state["steps"]), model._episode_num)
@@ -174,7 +175,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             return model
         # Checkpoints written before CPU time was recorded have none: the run's stays unknown.
         clock = WallClock(state["wall_time_s"], state.get("cpu_time_s"))
-        model, stream, fresh = _resume(run, config, state, env, device)
+        model, stream, fresh = _resume(run, config, state, env, device,
+                                       goes_on=hp.total_steps > state["steps"])
         if outcome:
             # A raised budget: it has not ended now. Its final model and policy go with its
             # outcome (the checkpoint it resumed from is the same model, and `evaluate`
@@ -236,9 +238,10 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     try:
         with stop_requests(lambda: setattr(checkpoint, "stop_requested", True),
                            *_stop_signals()):
-            if remaining > 0:
-                model.learn(total_timesteps=remaining, callback=callbacks,
-                            reset_num_timesteps=not resume, tb_log_name="run")
+            # Also where nothing is left to train (a resume at its checkpoint's step): the
+            # callbacks' end of training evaluates where the run ends, as it would have.
+            model.learn(total_timesteps=remaining, callback=callbacks,
+                        reset_num_timesteps=not resume, tb_log_name="run")
         if remaining > 0:
             # Where training ended: exact at an episode's end, unless the stopping rule ended
             # it inside a step (before SB3 stored the transition). Before the envs close: a
