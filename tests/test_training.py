@@ -435,20 +435,26 @@ def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
         gc.enable()
 
 
-def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, monkeypatch):
-    """A checkpoint that is not at an episode's end (a second signal, checkpoints written
-    before resumes were exact) resumes with episodes seeded by the run's seed and step."""
-    out = tmp_path / "run"
+def _stop_at_once(out, steps: int, monkeypatch) -> None:
+    """A SAC run of 400 steps into `out`, stopped at once (a second signal) at `steps`: its
+    checkpoint there is not at an episode's end."""
     with monkeypatch.context() as patch:
         on_step = LatestCheckpoint._on_step
 
         def interrupted(self):
-            if self.num_timesteps == 130:
+            if self.num_timesteps == steps:
                 raise KeyboardInterrupt("signal 15, again")
             return on_step(self)
 
         patch.setattr(LatestCheckpoint, "_on_step", interrupted)
-        assert _train(out, "sac", 400) == 130
+        assert _train(out, "sac", 400) == steps
+
+
+def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, monkeypatch):
+    """A checkpoint that is not at an episode's end (a second signal, checkpoints written
+    before resumes were exact) resumes with episodes seeded by the run's seed and step."""
+    out = tmp_path / "run"
+    _stop_at_once(out, 130, monkeypatch)
     assert RunDir(out).read_state() == {**RunDir(out).read_state(), "steps": 130,
                                         "exact": False}
     assert not RunDir(out).checkpoint_generators.exists()
@@ -497,16 +503,7 @@ def test_a_resume_at_its_checkpoints_step_ends_with_the_evaluation_there(tmp_pat
     at its last step, the same to the digit (it ended without one), on no fresh stream and
     without the warning that it goes on with one (it recorded one, training nothing)."""
     out = tmp_path / "run"
-    with monkeypatch.context() as patch:
-        on_step = LatestCheckpoint._on_step
-
-        def interrupted(self):
-            if self.num_timesteps == 130:
-                raise KeyboardInterrupt("signal 15, again")
-            return on_step(self)
-
-        patch.setattr(LatestCheckpoint, "_on_step", interrupted)
-        assert _train(out, "sac", 400) == 130
+    _stop_at_once(out, 130, monkeypatch)
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         assert _train(out, "sac", 130, "--resume") == 0
