@@ -126,11 +126,7 @@ def check_writable(path, *, folder: bool = False) -> pathlib.Path:
 
 
 def _bounds(minimum, maximum, above) -> str:
-    parts = []
-    if above is not None:
-        parts.append(f"> {above:g}")
-    if minimum is not None:
-        parts.append(f">= {minimum:g}")
-    if maximum is not None:
-        parts.append(f"<= {maximum:g}")
+    parts = [f"{sign} {bound if isinstance(bound, int) else format(bound, 'g')}"
+             for sign, bound in ((">", above), (">=", minimum), ("<=", maximum))
+             if bound is not None]  # An int whole: 2147483647, not 2.14748e+09.
     return (" " + " and ".join(parts)) if parts else ""

@@ -107,3 +107,41 @@ def test_demo_refuses_a_task_twice_and_an_empty_out(tmp_path, capsys):
     with pytest.raises(SystemExit):  # It wrote into the working folder.
         main(["demo", "--episodes", "1", "--out", ""])
     assert "argument --out: must be a folder, got ''" in capsys.readouterr().err
+
+
+def test_demo_interrupted_while_writing_a_video_leaves_none(tmp_path, monkeypatch):
+    """Ctrl-C while ffmpeg wrote push.mp4 left 48 bytes no player reads: a video is written
+    beside its place and moved there whole, or not at all."""
+    import pathlib
+    import time
+
+    import imageio as demo_imageio  # The module `demo` writes with.
+
+    write = demo_imageio.mimwrite
+
+    class Interrupted(list):
+        """Frames whose reader is interrupted once ffmpeg has begun the file."""
+
+        def __iter__(self):
+            yield from self[:2]
+            deadline = time.monotonic() + 10
+            while not self.path.exists() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            raise KeyboardInterrupt
+
+    def interrupted(path, frames, **options):
+        frames = Interrupted(frames)
+        frames.path = pathlib.Path(path)
+        return write(path, frames, **options)
+
+    out = tmp_path / "demo"
+    argv = ["demo", "--tasks", "reach", "--episodes", "1", "--out", str(out), "--width", "64",
+            "--height", "48"]
+    monkeypatch.setattr(demo_imageio, "mimwrite", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        main(argv)
+    assert [path.name for path in out.iterdir()] == ["reach.png"]
+    monkeypatch.undo()
+    assert main(argv) == 0
+    assert sorted(path.name for path in out.iterdir()) == ["reach.mp4", "reach.png"]
+    assert imageio.mimread(out / "reach.mp4")[0].shape == (48, 64, 3)

@@ -106,6 +106,19 @@ def test_an_output_file_through_a_link_is_written_through_and_the_link_kept(tmp_
     assert stat.S_ISFIFO(fifo.lstat().st_mode)
 
 
+def test_plot_refuses_a_format_that_cannot_be_written_here_as_parsed(tmp_path, monkeypatch,
+                                                                     capsys):
+    """pgf passed the extension check and, with no TeX to measure its text, failed with a
+    RuntimeError once the figure was drawn."""
+    monkeypatch.setenv("PATH", str(tmp_path / "no-tex"))
+    run, out = _run(tmp_path / "run"), tmp_path / "curves.pgf"
+    error = _parse_error(["plot", str(run.root), "--out", str(out)], capsys)
+    assert error.endswith(f"error: argument --out: cannot write pgf files here, got "
+                          f"'{out}': 'xelatex' not found; install it or change "
+                          "rcParams['pgf.texsystem'] to an available TeX implementation")
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["run"]
+
+
 def test_a_writable_output_path_is_taken_and_its_folder_left_as_it_was(tmp_path):
     """Not even the folder's modification time changes (`sweep` parses each cell's `train`
     --out, and a look must not touch a run)."""
@@ -307,6 +320,43 @@ def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path
     assert not kept.exists()
 
 
+@pytest.mark.parametrize("edit, message", [
+    ({"total_steps": None}, "total_steps must be a whole number >= 1, got None"),
+    ({"eval_every": None}, "eval_every must be a whole number >= 1, got None"),
+    ({"demos": 5}, "demos must be a dataset's path or None, got 5"),
+    ({"demos": ["push.npz"]}, "demos must be a dataset's path or None, got ['push.npz']"),
+    ({"terminate_on_success": "false"}, "terminate_on_success must be True or False, got "
+                                        "'false'"),
+    ({"seed": 7.9}, "seed must be a whole number >= 0 and <= 2147483647, got 7.9"),
+    ({"seed": -3}, "seed must be >= 0 and <= 2147483647, got -3"),
+    ({"demo_episodes": "abc"}, "demo_episodes must be a whole number >= 1, got 'abc'"),
+])
+def test_a_config_json_value_of_the_wrong_type_or_null_is_refused_by_name(edit, message,
+                                                                          tmp_path):
+    """A null total_steps was read as 500,000 steps, "false" as True and seed 7.9 as 7;
+    demos 5 raised a TypeError from `report`, `evaluate` and `keep`. The nulls that some
+    runs record (SAC's n_critics, no stopping rule) stay readable."""
+    run = _run(tmp_path / "run")
+    config = json.loads(run.config_path.read_text())
+    assert config["hyperparameters"]["n_critics"] is None
+    assert config["hyperparameters"]["stop_success_rate"] is None
+    assert run.read_config().hyperparameters.n_critics is None
+    name, value = next(iter(edit.items()))
+    if name in config["hyperparameters"]:
+        config["hyperparameters"][name] = value
+    else:
+        config[name] = value
+    run.config_path.write_text(json.dumps(config))
+    refused = "^" + re.escape(f"{run.config_path} is not a run's config: {message}") + "$"
+    with pytest.raises(ValueError, match=refused):
+        run.read_config()
+    for command in (["report", str(run.root)], ["evaluate", str(run.root)],
+                    ["keep", str(run.root), "--into", str(tmp_path / "kept")]):
+        with pytest.raises(ValueError, match=refused):
+            cli.main(command)
+    assert not (tmp_path / "kept").exists()
+
+
 def test_keep_refuses_a_file_where_a_run_would_go_before_copying_anything(tmp_path):
     """It raised FileExistsError (exit status 1) after the runs before it were copied."""
     good, other = _run(tmp_path / "runs" / "a"), _run(tmp_path / "runs" / "b", seed=1)
@@ -383,6 +433,23 @@ def test_keep_refuses_to_keep_a_run_into_itself(tmp_path):
                                          "the runs$"):
         cli.main(["keep", str(run.root), "--into", str(inside)])
     assert sorted(os.listdir(run.root)) == before
+
+
+def test_a_resume_of_a_kept_copy_says_it_is_one(tmp_path):
+    """It said the copy had stopped before its first checkpoint, and to delete it: the
+    kept results."""
+    run = _run(tmp_path / "runs" / "run")
+    write_policy_file(run.policy_file, 10)
+    assert cli.main(["keep", str(run.root), "--into", str(tmp_path / "kept")]) == 0
+    kept = tmp_path / "kept" / "run"
+    files = {path.name: path.read_bytes() for path in kept.iterdir()}
+    assert sorted(files) == ["config.json", "eval.csv", "outcome.json", "policy.pt"]
+    for budget in ([], ["--total-steps", "4000"]):
+        with pytest.raises(ValueError, match="^" + re.escape(
+                f"{kept} is a kept copy of a finished run (its policy.pt kept, no checkpoint "
+                "to resume from): resume the run it was kept from, or start a new one") + "$"):
+            cli.main(["train", "--resume", "--out", str(kept), *budget])
+    assert {path.name: path.read_bytes() for path in kept.iterdir()} == files
 
 
 def _sweep(out: pathlib.Path, *more: str) -> list[str]:

@@ -50,7 +50,9 @@ def test_each_task_page_lays_the_docstring_out_as_markdown(task):
     # The observation table is a table (unindented), not a code block.
     assert f"\n\n{layout_for(config).markdown_table()}\n\n" in page
     options = page.split("\n## Arguments\n", 1)[1].split("```python\n", 1)[1].split("\n```")[0]
-    assert options.splitlines() == [f"timing = {config.timing_name!r}"] + [
+    lines = options.splitlines()
+    assert lines[0] == f"timing = {config.timing_name!r}"
+    assert [line for line in lines[1:] if "  # read with " not in line] == [
         f"{name} = {value!r}" for name, value in config.options.items()
         if name != "reward_type"]
     assert page.startswith(f"# {gen_task_pages.title(task)}\n\n```{{image}} "
@@ -104,3 +106,25 @@ def test_the_animation_script_takes_the_shared_tasks_syntax():
                           capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 2
     assert "unknown task(s) fly; valid tasks: push, slide" in done.stderr
+
+
+@pytest.mark.parametrize("task", franka_composer.ALL_TASKS)
+def test_a_task_page_gives_the_options_it_reads_and_marks_those_read_otherwise(task):
+    """Each option the page gives with the task's value is taken back at that value (the
+    page listed options every task refuses, reach's object_range, flip's goal_range,
+    stack's goal_max_height); one read only under another setting says which, and is
+    taken there."""
+    from franka_composer.adapters.pages import option_lines
+
+    config = TASK_CONFIGS[task]
+    assert config.replace(**config.options) == config
+    unread = {"reach": "object_range", "flip": "goal_range", "stack": "goal_max_height"}
+    lines = option_lines(config)
+    if task in unread:
+        assert not [line for line in lines if line.startswith(f"{unread[task]} = ")]
+    marked = {line.split(" = ")[0]: line.split("  # read with ")[1] for line in lines
+              if "  # read with " in line}
+    assert marked["max_joint_step"] == "control='joints'"
+    assert marked["cameras"] == "observation_mode='pixels' or 'state+pixels'"
+    config.replace(control="joints", max_joint_step=0.1)
+    config.replace(observation_mode="pixels", cameras=("workspace",))

@@ -231,7 +231,7 @@ def test_bad_render_arguments_raise_clear_errors():
     with pytest.raises(ValueError, match="unknown render_mode 'video'"):
         gym.make("FrankaPushSparse-v0", render_mode="video").unwrapped
     with pytest.raises(ValueError, match=r"width must be an int in \[1, 1024\]"):
-        gym.make("FrankaPushSparse-v0", width=4096)
+        gym.make("FrankaPushSparse-v0", render_mode="rgb_array", width=4096)
 
 
 def test_bad_actions_and_options_raise_clear_errors():

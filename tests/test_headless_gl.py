@@ -15,7 +15,8 @@ _PROBE = """
 import json, os
 import gymnasium as gym
 import franka_composer
-env = gym.make("FrankaPushSparse-v0", render_mode={render_mode!r}, width=64, height=64)
+size = {{}} if {render_mode!r} is None else {{"width": 64, "height": 64}}
+env = gym.make("FrankaPushSparse-v0", render_mode={render_mode!r}, **size)
 env.reset(seed=0)
 env.step(env.action_space.sample())
 frame = env.render()
@@ -50,8 +51,9 @@ _RENDER_TWICE = """
 import gymnasium as gym
 import franka_composer
 from franka_composer.headless_gl import HeadlessGLError
-for options in ({"render_mode": "rgb_array"}, {"observation_mode": "pixels"}):
-    env = gym.make("FrankaPushSparse-v0", width=64, height=64, **options)
+for options in ({"render_mode": "rgb_array", "width": 64, "height": 64},
+                {"observation_mode": "pixels"}):
+    env = gym.make("FrankaPushSparse-v0", **options)
     try:
         env.reset(seed=0)
         env.render()

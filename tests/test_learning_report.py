@@ -120,6 +120,89 @@ def test_plot_over_wall_clock_writes_the_figure(tmp_path, capsys):
     assert capsys.readouterr().out == f"1 curve(s) -> {out}\n" and out.stat().st_size > 0
 
 
+def _plotted(runs, out, monkeypatch):
+    """The figure `plot` draws of `runs` into `out`, laid out at its own size."""
+    import matplotlib.pyplot as plt
+
+    figures, close = [], plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: figures.append(fig) or close(fig))
+    assert cli.main(["plot", *map(str, runs), "--out", str(out)]) == 0
+    figures[0].draw_without_rendering()  # Closed, its canvas no longer draws.
+    return figures[0]
+
+
+def test_a_cell_whose_seeds_share_one_evaluation_is_a_point_that_shows(tmp_path, monkeypatch):
+    """A seed evaluated once cuts its cell's line to one point, which a line without a
+    marker does not draw, on an axis matplotlib ticked at "-4e-05k"."""
+    from franka_composer.training.curves import seed_curves, summarise
+
+    runs = [_write_run(tmp_path, "push", "sac", 0, [0.6]),
+            _write_run(tmp_path, "push", "sac", 1, [0.0, 0.2, 0.6, 1.0])]
+    steps, median, _ = summarise(seed_curves(runs)[("push", "sac", "")])
+    assert steps.tolist() == [0] and median.tolist() == [0.3]
+    for drawn in (runs, runs[:1]):  # A run evaluated once alone is a point too.
+        (axes,) = _plotted(drawn, tmp_path / "curves.png", monkeypatch).axes
+        (line,) = axes.get_lines()
+        assert line.get_xdata().tolist() == [0] and line.get_marker() == "o"
+        assert [label.get_text() for label in axes.get_xticklabels()] == ["0"]
+        left, right = axes.get_xlim()
+        assert left < 0 < right and right - left >= 2
+
+
+def test_long_setups_are_wrapped_and_nothing_is_cut_off(tmp_path, monkeypatch):
+    """A legend of long variants ran off the figure's right edge, and one of many off its
+    bottom; the title of one long variant was cut on both sides."""
+    long = {"control_timestep": 0.1, "weld_time_constant": 0.02, "object_damping": 0.01}
+    runs = [_write_run(tmp_path, "push", "sac", 0, [0.0, 0.5]),
+            _write_run(tmp_path, "push", "sac", 0, [0.0, 0.5], name="a", **long),
+            _write_run(tmp_path, "push", "sac", 0, [0.0, 0.5], name="b",
+                       terminate_on_success=False, **long),
+            _write_run(tmp_path, "slide", "sac", 0, [0.0, 0.5], terminate_on_success=False,
+                       **long)]
+    runs += [_write_run(tmp_path, "pick_and_place", algo, 0, [0.0, 0.5], name=f"{weld}",
+                        control_timestep=0.1, weld_time_constant=weld, object_damping=damping)
+             for algo in ("ddpg", "sac", "tqc")
+             for weld, damping in ((0.02, 0.01), (0.03, 0.02), (0.04, 0.03))]
+    fig = _plotted(runs, tmp_path / "curves.png", monkeypatch)
+    push, slide, many = fig.axes
+    assert "no termination on success" in slide.get_title()
+    for artist in (a for ax in fig.axes for a in (ax.title, ax.xaxis.label, ax.yaxis.label,
+                                                   ax.get_legend())):
+        extent = artist.get_window_extent()
+        assert fig.bbox.contains(extent.x0, extent.y0), artist
+        assert fig.bbox.contains(extent.x1, extent.y1), artist
+    # Three entries fit inside their panel; nine go below its x label.
+    inside, below = (ax.get_legend().get_window_extent() for ax in (push, many))
+    assert push.bbox.y0 < inside.y0 and inside.y1 < push.bbox.y1
+    assert len(many.get_legend().get_texts()) == 9
+    assert below.y1 < many.xaxis.label.get_window_extent().y0
+
+
+def test_plot_writes_its_figure_whole_or_not_at_all(tmp_path, monkeypatch):
+    """An interrupted save left a broken image where the figure was to be."""
+    import io
+
+    from matplotlib.figure import Figure
+
+    save = Figure.savefig
+
+    def interrupted(fig, path, **options):
+        if isinstance(path, io.BytesIO):  # --out's check that png can be written here.
+            return save(fig, path, **options)
+        pathlib.Path(path).write_bytes(b"\x89PNG half")
+        raise KeyboardInterrupt
+
+    run = _write_run(tmp_path / "runs", "push", "sac", 0, [0.0, 0.5])
+    out = tmp_path / "figures" / "curves.png"
+    out.parent.mkdir()
+    out.write_text("kept")
+    monkeypatch.setattr(Figure, "savefig", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        cli.main(["plot", str(run), "--out", str(out)])
+    assert [path.name for path in out.parent.iterdir()] == ["curves.png"]
+    assert out.read_bytes() == b"kept"
+
+
 def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     stopped = read_run(_write_run(tmp_path, "push", "tqc", 0, [1.0] * 5, (True, 50.0)))
     going = read_run(_write_run(tmp_path, "push", "tqc", 1, [0.0] * 5 + [1.0] * 5))

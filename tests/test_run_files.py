@@ -261,3 +261,39 @@ def test_evaluate_finds_a_run_with_only_a_damaged_model_before_playing_any(tmp_p
             + re.escape("and the run has no whole model to play instead")):
         cli.main(["evaluate", str(kept), str(damaged), "--episodes", "2", "--device", "cpu"])
     assert made == [] and "success" not in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_a_resume_names_a_missing_replay_buffer(finished, tmp_path):
+    """SB3 raised an OSError naming replay_buffer.pkl.pkl."""
+    run = _copy_run(finished, tmp_path / "run")
+    run.checkpoint_buffer.unlink()
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{run.checkpoint_buffer} is missing: a checkpoint cannot be resumed without it")
+            + "$"):
+        cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "300",
+                  "--no-progress", "--device", "cpu"])
+    assert run.read_state()["steps"] == 200 and run.final_model.is_file()  # As it was.
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("edit, says", [
+    ({"algo": "ddpg"}, "algo ddpg, backend sb3 (a model of stable_baselines3.td3)"),
+    ({"backend": "sbx"}, "algo sac, backend sbx (a model of sbx.sac)"),
+])
+def test_a_model_of_another_algorithm_or_library_than_config_json_says_is_named(
+        finished, tmp_path, monkeypatch, edit, says):
+    """A config.json edited to another algo or backend than the run's model was trained
+    with met an AttributeError from inside SB3's load, after the env was built."""
+    from franka_composer.training import policy_file
+
+    run = _copy_run(finished, tmp_path / "run")
+    config = json.loads(run.config_path.read_text())
+    run.config_path.write_text(json.dumps({**config, **edit}))
+    made = []
+    monkeypatch.setattr(policy_file, "make_env", lambda *args, **kwargs: made.append(args))
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{run.final_model} holds a model of stable_baselines3.sac, and its run's "
+            f"config.json says {says}: put them back as the run was trained") + "$"):
+        cli.main(["evaluate", str(run.root), "--episodes", "1", "--device", "cpu"])
+    assert made == []  # Before an env was built.

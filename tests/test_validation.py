@@ -185,9 +185,15 @@ def test_good_options_are_normalised_to_floats_and_tuples():
      "changed; use 'FrankaSlideDense-v0'"),
     (dict(reward_type="dense"), "use 'FrankaPushDense-v0'"),
     (dict(task="lift"), "its task and reward_type cannot be changed$"),
-    (dict(camera="nope"), "unknown camera 'nope'; valid cameras: workspace, top"),
-    (dict(width=True), r"width must be an int in \[1, 1024\], got True"),
-    (dict(height=0), r"height must be an int in \[1, 1024\], got 0"),
+    (dict(camera="nope", render_mode="rgb_array"),
+     "unknown camera 'nope'; valid cameras: workspace, top"),
+    (dict(width=True, render_mode="rgb_array"), r"width must be an int in \[1, 1024\], got True"),
+    (dict(height=0, render_mode="rgb_array"), r"height must be an int in \[1, 1024\], got 0"),
+    # Without a render mode nothing is rendered: they would do nothing.
+    (dict(width=64), "width sets the rendered frames, and render_mode=None renders none: "
+                     "give render_mode='rgb_array' or 'human', or leave it out"),
+    (dict(height=64, camera="top"), "height, camera set the rendered frames, and "
+                                    "render_mode=None renders none: .* or leave them out"),
     (dict(render_mode="video"), "unknown render_mode 'video'; valid render_modes: None, "
                                 "human, rgb_array"),
     # load's own parameters, which the adapter sets: a seed was taken and had no effect,
@@ -376,6 +382,24 @@ def test_bad_hyperparameters_are_refused_by_name(override, message):
         table_i.replace(**override)
     with pytest.raises(ValueError, match=message):
         Hyperparameters.from_dict({**table_i.to_dict(), **override})
+
+
+def test_a_recorded_null_is_refused_where_the_hyperparameter_takes_none():
+    """`"total_steps": null` in a config.json was read as the default 500,000 steps (and
+    a resumed run trained past its budget): `replace` reads None as "not given"."""
+    import dataclasses
+
+    from franka_composer.training import hyperparameters
+    from franka_composer.training.hyperparams import Hyperparameters
+
+    recorded = hyperparameters("push", "tqc").to_dict()
+    for field in dataclasses.fields(Hyperparameters):
+        if "None" in field.type:  # Unset for some algorithms, or by default (no early stop).
+            assert getattr(Hyperparameters.from_dict({**recorded, field.name: None}),
+                           field.name) is None
+        else:
+            with pytest.raises(ValueError, match=rf"\b{field.name}\b.*None"):
+                Hyperparameters.from_dict({**recorded, field.name: None})
 
 
 def test_good_hyperparameters_are_kept_as_given():

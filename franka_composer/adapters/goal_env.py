@@ -45,8 +45,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
       task: a name from `franka_composer.ALL_TASKS`.
       reward_type: "sparse" or "dense".
       render_mode: None, "rgb_array" (headless frames) or "human" (a viewer window).
-      width, height: size (pixels) of `rgb_array` frames, at most 1024.
-      camera: the arena camera to render from ("workspace" or "top").
+      width, height: size (pixels) of `rgb_array` frames, at most 1024 (480 if not given).
+      camera: the arena camera to render from ("workspace", the default, or "top").
+      An env without a render mode renders nothing: width, height or camera given to one is
+      refused, not ignored.
       **task_kwargs: overrides of the task's configuration (e.g. terminate_on_success=False).
 
     Episodes end with `terminated=True` on success when the task's `terminate_on_success`
@@ -78,8 +80,9 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self.spec = spec
 
     def __init__(self, task: str = "push", reward_type: str = "sparse",
-                 render_mode: str | None = None, width: int = 480, height: int = 480,
-                 camera: str = "workspace", **task_kwargs: Any) -> None:
+                 render_mode: str | None = None, width: int | None = None,
+                 height: int | None = None, camera: str | None = None,
+                 **task_kwargs: Any) -> None:
         EzPickle.__init__(self, task, reward_type, render_mode, width, height, camera,
                           **task_kwargs)
         _check_not_loads_own(task_kwargs)
@@ -89,6 +92,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
                          also="None")
         if render_mode == "human":
             _check_display()
+        _check_rendering_asked(render_mode, width=width, height=height, camera=camera)
+        width = RENDER_SIZE if width is None else width
+        height = RENDER_SIZE if height is None else height
+        camera = CAMERAS[0] if camera is None else camera
         _check_render_size(width, height)
         check_choice("camera", camera, CAMERAS)
         # An env that never renders leaves the Panda's visual meshes out (~50 MB per env),
@@ -278,6 +285,21 @@ def state_box(layout) -> spaces.Box:
     """The space of the state vector of `layout` (an `ObservationLayout`), the goal dict's
     "observation" in the state modes."""
     return spaces.Box(-np.inf, np.inf, shape=(layout.size,), dtype=OBSERVATION_DTYPE)
+
+
+#: The rendered frames' width and height (pixels) where none is given.
+RENDER_SIZE = 480
+
+
+def _check_rendering_asked(render_mode: str | None, **given) -> None:
+    """A ValueError for rendering arguments given to an env that renders nothing: they
+    would do nothing, silently (the pixel options are refused in state mode alike)."""
+    named = [name for name, value in given.items() if value is not None]
+    if render_mode is None and named:
+        raise ValueError(f"{', '.join(named)} set{'s' * (len(named) == 1)} the rendered "
+                         "frames, and render_mode=None renders none: give render_mode="
+                         f"'rgb_array' or 'human', or leave {'it' if len(named) == 1 else 'them'}"
+                         " out")
 
 
 def _check_render_size(width: int, height: int) -> None:

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import textwrap
 
-from franka_composer.tasks.config import (REFERENCE_CODE_OBJECT_DAMPING,
-                                          REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig)
+from franka_composer.tasks.config import (OPTIONS, REFERENCE_CODE_OBJECT_DAMPING,
+                                          REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig,
+                                          read_with, unread_option)
 from franka_composer.tasks.layout import layout_for
 
 #: Line width of the page.
@@ -78,8 +79,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     timing = (f"timing = {config.timing_name!r}" if config.timing_name else
               "# timing: none of its names (control_timestep, velocity_timestep and "
               "weld_time_constant, below, were set otherwise)")
-    options = [timing] + [f"{name} = {value!r}" for name, value in config.options.items()
-                          if name != "reward_type"]  # The id fixes it.
+    options = [timing] + option_lines(config)
     default, reference = TIMINGS["default"], TIMINGS["reference"]
     sections = [
         ("Action space", [
@@ -135,7 +135,8 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             + _reference_differences(config)]),
         ("Arguments", [
             'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
-            'camera="workspace" | "top", **options); the options, with this task\'s values:',
+            'camera="workspace" | "top", **options) (width, height and camera with a render '
+            'mode only); the options, with this task\'s values:',
             "\n".join(options)]),
         ("Version history", [*VERSION_HISTORY, *config.version_history,
                              *CONTROL_VERSION_HISTORY]),
@@ -212,3 +213,19 @@ def _starts_solved(config) -> float:
 def _square(box) -> str:
     return (f"{box.size[0]:g} x {box.size[1]:g} m square centred at "
             f"({box.centre[0]:g}, {box.centre[1]:g})")
+
+
+def option_lines(config: TaskConfig) -> list[str]:
+    """`name = value` for each option the task reads as configured (`TaskConfig.options`;
+    not reward_type: the id fixes it), and, marked, those it reads under another setting
+    (`read_with`); those no setting of the task reads are left out (reach's object_range)."""
+    lines = []
+    for name, option in OPTIONS.items():
+        if name == "reward_type" or not option.applies_to(config):
+            continue
+        line = f"{name} = {option.get(config)!r}"
+        if unread_option(config, name) is None:
+            lines.append(line)
+        elif read_with(config, name) is not None:
+            lines.append(f"{line}  # read with {read_with(config, name)}")
+    return lines

@@ -19,6 +19,7 @@ import gymnasium as gym
 import franka_composer
 from franka_composer import headless_gl
 from franka_composer.adapters.registration import env_id
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.controllers.settings import TCP_CONTROLS
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
                                          frame_size, given_timing, output_folder,
@@ -137,8 +138,8 @@ def _adopt_the_runs_task(args: argparse.Namespace):
 def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> tuple:
     """Runs the expert (or, given the --policy run's config `trained`, its policy, in that
     run's environment) on `task`; writes its video and first frame; returns a table row."""
-    render = dict(render_mode=None if args.no_video else "rgb_array", width=args.width,
-                  height=args.height)
+    render = {} if args.no_video else dict(render_mode="rgb_array", width=args.width,
+                                           height=args.height)
     timing = given_timing(args)
     if trained is None:
         env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render, **timing)
@@ -164,8 +165,12 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
         import imageio
 
         args.out.mkdir(parents=True, exist_ok=True)  # Here: a demo that fails leaves none.
-        imageio.imwrite(args.out / f"{task}.png", frames[0])
-        imageio.mimwrite(args.out / f"{task}.mp4", frames, fps=fps, macro_block_size=1)
+        # Whole or not at all: a video interrupted while ffmpeg wrote it was 48 bytes no
+        # player reads.
+        replace_atomically(args.out / f"{task}.png",
+                           lambda partial: imageio.imwrite(partial, frames[0]))
+        replace_atomically(args.out / f"{task}.mp4", lambda partial: imageio.mimwrite(
+            partial, frames, fps=fps, macro_block_size=1))
     steps = int(trajectories.lengths.sum())
     return (task, len(trajectories), trajectories.success_rate,
             float(trajectories.lengths.mean()), steps / trajectories.env_seconds)

@@ -7,6 +7,7 @@ import math
 import pathlib
 import sys
 
+from franka_composer.training.run_config import MAX_TRAINING_SEED
 from franka_composer.validation import check_writable
 
 
@@ -38,11 +39,6 @@ def _whole_number(text: str, minimum: int, what: str) -> int:
 def positive_int(text: str) -> int:
     """An integer >= 1; a whole number in scientific notation (5e5) is accepted too."""
     return _whole_number(text, 1, "a positive integer")
-
-
-#: Training seeds stay below 2**31: SB3 seeds NumPy's legacy generator (at most 2**32 - 1)
-#: with the seed plus the evaluation offset, and with the seed plus the steps on a resume.
-MAX_TRAINING_SEED = 2**31 - 1
 
 
 def non_negative_int(text: str) -> int:
@@ -97,15 +93,27 @@ def _writable(path: pathlib.Path, folder: bool) -> pathlib.Path:
 
 
 def figure_file(text: str) -> pathlib.Path:
-    """An image file whose extension names a format matplotlib writes (png, pdf, svg, ...)."""
+    """An image file in a format matplotlib writes here (png, pdf, svg, ...): pgf needs a
+    TeX on the PATH, and failed without one once the figure was drawn."""
+    import io
+
     from matplotlib.backend_bases import FigureCanvasBase
+    from matplotlib.figure import Figure
 
     path = output_file(text)
     formats = FigureCanvasBase.get_supported_filetypes()
-    if path.suffix[1:].lower() not in formats:
+    extension = path.suffix[1:].lower()
+    if extension not in formats:
         raise argparse.ArgumentTypeError(
             f"must end in an image format's extension ({', '.join(sorted(formats))}), "
             f"got {text!r}")
+    probe = Figure(figsize=(1, 1))
+    probe.text(0.5, 0.5, "1")  # Text: what pgf asks TeX to measure.
+    try:
+        probe.savefig(io.BytesIO(), format=extension)
+    except Exception as error:  # Whatever stops a format stops it for the figure too.
+        raise argparse.ArgumentTypeError(
+            f"cannot write {extension} files here, got {text!r}: {error}") from None
     return path
 
 

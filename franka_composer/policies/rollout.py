@@ -10,7 +10,7 @@ import numpy as np
 
 from franka_composer.episodes import STEP_KEYS, Trajectories
 from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.tasks.config import readable_options
+from franka_composer.tasks.config import OPTIONS, readable_options
 from franka_composer.validation import check_number
 
 def check_episodes_end(env) -> None:
@@ -87,9 +87,9 @@ def recorded_with(env) -> dict:
     task = getattr(getattr(env, "unwrapped", env), "task", None)
     if task is None or getattr(task, "config", None) is None:
         return {}
-    config, own = task.config, TASK_CONFIGS[task.config.name].options
+    config, own = task.config, TASK_CONFIGS[task.config.name]
     options = {name: value for name, value in config.options.items()
-               if name not in ("control", "reward_type") and value != own.get(name)}
+               if name not in ("control", "reward_type") and value != OPTIONS[name].get(own)}
     return {"id": env_id(config.name, config.reward_type, config.control.kind),
             "task": config.name, "control": config.control.kind,
             "reward_type": config.reward_type, "options": readable_options(options)}

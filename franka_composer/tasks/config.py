@@ -14,7 +14,7 @@ accepts, raised before anything is built.
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, Callable, Union
+from typing import Any, Callable, NamedTuple, Union
 
 import numpy as np
 
@@ -307,8 +307,9 @@ class TaskConfig:
             option = OPTIONS[name]
             config = option.set(config, option.check(name, value, config))
         for name in options:
-            if name in _READ_ONLY_WHERE and not _READ_ONLY_WHERE[name][0](config):
-                raise ValueError(f"{name} does nothing here: {_READ_ONLY_WHERE[name][1](config)}")
+            if name in _READ_ONLY_WHERE and not _READ_ONLY_WHERE[name].reads(config):
+                raise ValueError(f"{name} does nothing here: "
+                                 f"{_READ_ONLY_WHERE[name].instead(config)}")
         images = [name for name in IMAGE_OPTIONS if name in options]
         if images and not config.observations.pixels:
             raise ValueError(f"{', '.join(images)} set the camera observations, and "
@@ -366,9 +367,11 @@ class TaskConfig:
 
     @property
     def options(self) -> dict[str, Any]:
-        """Every option's current value, by name (those that apply to this task)."""
+        """Every option this configuration reads, with its value, by name: those that do
+        not apply to its task, or that it would refuse as doing nothing here
+        (`unread_option`), left out, so that `replace(**config.options)` holds."""
         return {name: option.get(self) for name, option in OPTIONS.items()
-                if option.applies_to(self)}
+                if option.applies_to(self) and unread_option(self, name) is None}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -432,37 +435,79 @@ def _lift_unread(config: TaskConfig, name: str, other: str) -> str:
     return f"{other}={value:g} lifts no goal: give {other} as well, or leave {name} out"
 
 
+class ReadOnlyWhere(NamedTuple):
+    """Where an option that only some configurations read is read: `reads(config)`; what
+    such a configuration does instead (`instead`, the refusal's reason), and which other
+    setting of the task would read it (`read_with`; None: none, e.g. reach's object
+    options), for its page."""
+
+    reads: Callable[[TaskConfig], bool]
+    instead: Callable[[TaskConfig], str]
+    read_with: Callable[[TaskConfig], str | None]
+
+
 #: Options that only some configurations read, with the test that one does and what it
 #: does instead: given where nothing reads them, they are refused rather than ignored.
 #: (Not weld_time_constant: a named timing sets it under every controller, and those
 #: without a weld ignore it by design, `ControlSettings`.)
-_READ_ONLY_WHERE: dict[str, tuple[Callable[[TaskConfig], bool], Callable[[TaskConfig], str]]] = {
-    "max_tcp_step": (lambda c: c.control.moves_the_tcp,
-                     lambda c: f"control={c.control.kind!r} moves joint targets "
-                               "(max_joint_step): leave it out"),
-    "max_joint_step": (lambda c: not c.control.moves_the_tcp,
-                       lambda c: f"control={c.control.kind!r} moves the hand's target "
-                                 "(max_tcp_step): leave it out"),
-    "max_finger_step": (lambda c: c.control.actuated_gripper,
-                        lambda c: "actuated_gripper=False holds the fingers closed: give "
-                                  "actuated_gripper=True as well, or leave it out"),
-    **{name: (lambda c: bool(c.objects),
-              lambda c: f"{c.name} has no object to place: leave it out")
+_READ_ONLY_WHERE: dict[str, ReadOnlyWhere] = {
+    "max_tcp_step": ReadOnlyWhere(
+        lambda c: c.control.moves_the_tcp,
+        lambda c: f"control={c.control.kind!r} moves joint targets (max_joint_step): leave "
+                  "it out",
+        lambda c: "control='mocap' or 'osc'"),
+    "max_joint_step": ReadOnlyWhere(
+        lambda c: not c.control.moves_the_tcp,
+        lambda c: f"control={c.control.kind!r} moves the hand's target (max_tcp_step): "
+                  "leave it out",
+        lambda c: "control='joints'"),
+    "max_finger_step": ReadOnlyWhere(
+        lambda c: c.control.actuated_gripper,
+        lambda c: "actuated_gripper=False holds the fingers closed: give "
+                  "actuated_gripper=True as well, or leave it out",
+        lambda c: "actuated_gripper=True"),
+    **{name: ReadOnlyWhere(lambda c: bool(c.objects),
+                           lambda c: f"{c.name} has no object to place: leave it out",
+                           lambda c: None)
        for name in ("object_centre", "object_range")},
-    **{name: (lambda c: c.goal in GOAL_SQUARE_GOALS,
-              lambda c: f"{c.name}'s goals ({c.goal}) are not drawn in the goal square: "
-                        "leave it out")
+    **{name: ReadOnlyWhere(lambda c: c.goal in GOAL_SQUARE_GOALS,
+                           lambda c: f"{c.name}'s goals ({c.goal}) are not drawn in the goal "
+                                     "square: leave it out",
+                           lambda c: None)
        for name in ("goal_centre", "goal_range")},
-    "goal_yaw_range": (lambda c: c.orientation_goal.kind == "face_up",
-                       lambda c: f"orientation_goal={c.orientation_goal.kind!r} draws "
-                                 "every orientation, not a yaw about face up: leave it out"),
-    "goal_max_height": (
+    "goal_yaw_range": ReadOnlyWhere(
+        lambda c: c.orientation_goal.kind == "face_up",
+        lambda c: f"orientation_goal={c.orientation_goal.kind!r} draws every orientation, "
+                  "not a yaw about face up: leave it out",
+        lambda c: "orientation_goal='face_up'"),
+    "goal_max_height": ReadOnlyWhere(
         lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_in_air_probability > 0,
-        lambda c: _lift_unread(c, "goal_max_height", "goal_in_air_probability")),
-    "goal_in_air_probability": (
+        lambda c: _lift_unread(c, "goal_max_height", "goal_in_air_probability"),
+        lambda c: "goal_in_air_probability > 0" if c.goal in LIFTED_GOALS else None),
+    "goal_in_air_probability": ReadOnlyWhere(
         lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_max_height > 0,
-        lambda c: _lift_unread(c, "goal_in_air_probability", "goal_max_height")),
+        lambda c: _lift_unread(c, "goal_in_air_probability", "goal_max_height"),
+        lambda c: "goal_max_height > 0" if c.goal in LIFTED_GOALS else None),
 }
+
+
+def unread_option(config: TaskConfig, name: str) -> str | None:
+    """Why `config` would not read the option `name` (one that applies to its task), or
+    None if it does."""
+    if name in _READ_ONLY_WHERE and not _READ_ONLY_WHERE[name].reads(config):
+        return _READ_ONLY_WHERE[name].instead(config)
+    if name in IMAGE_OPTIONS and not config.observations.pixels:
+        return (f"observation_mode={config.observations.mode!r} has no camera "
+                "observations")
+    return None
+
+
+def read_with(config: TaskConfig, name: str) -> str | None:
+    """The other setting of `config`'s task under which it reads the option `name`, which
+    it does not read now (`unread_option`); None if none does."""
+    if name in _READ_ONLY_WHERE:
+        return _READ_ONLY_WHERE[name].read_with(config)
+    return "observation_mode='pixels' or 'state+pixels'" if name in IMAGE_OPTIONS else None
 
 
 def _replace_path(record, path: tuple[str, ...], value):

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import dataclasses
 import pathlib
+import textwrap
 
 import numpy as np
 
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.training.hyperparams import ALGOS
 from franka_composer.training.learning_report import RunRecord, held, read_run
 from franka_composer.training.report import TASK_ORDER, TASK_TITLES
@@ -17,6 +19,10 @@ from franka_composer.training.report import TASK_ORDER, TASK_TITLES
 COLOURS = {"ddpg": "tab:green", "sac": "tab:blue", "tqc": "tab:red"}
 #: A panel's variants of one algorithm, in order ("" first): solid, dashed, dotted, ...
 LINESTYLES = ("-", "--", ":", "-.")
+
+#: Characters in a line of a panel's title or legend: a longer setup is wrapped, not cut off
+#: at the figure's edge (a line of the 12-point title fills the 4.5-inch panel at about 47).
+LINE_CHARACTERS = 40
 
 Curves = dict[tuple[str, str, str], list[dict[int, float]]]
 
@@ -41,10 +47,11 @@ def seed_curves(run_dirs: list[pathlib.Path], wall_clock: bool = False) -> Curve
 
 
 def summarise(seeds: list[dict[float, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Steps evaluated in every seed, and the median and std of success there. Seeds keyed
-    by wall-clock minutes, evaluated at other moments each, are read at every moment any
-    of them was evaluated, from its first evaluation to the earliest last one, each at its
-    latest evaluation by then."""
+    """The steps (or minutes) at which any seed was evaluated, from the seeds' latest first
+    evaluation to their earliest last one, and the median and std of success there, each
+    seed read at its latest evaluation by then (seeds keyed by wall-clock minutes were
+    evaluated at other moments each). A cell's line goes only as far as all its seeds: a
+    seed evaluated once makes it one point."""
     start, end = max(min(s) for s in seeds), min(max(s) for s in seeds)
     steps = sorted(t for t in set().union(*seeds) if start <= t <= end)
     values = np.array([[_latest(s, step) for step in steps] for s in seeds])
@@ -79,7 +86,8 @@ def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path,
 
     curves = seed_curves(run_dirs, wall_clock)
     tasks = [t for t in TASK_ORDER if any(t == task for task, _, _ in curves)]
-    fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.5 * len(tasks), 3.6), squeeze=False,
+                             layout="constrained")
     drawn = []
     for ax, task in zip(axes[0], tasks):
         shared, own = split_setups(sorted({v for t, _, v in curves if t == task}))
@@ -90,27 +98,55 @@ def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path,
                 steps, median, std = summarise(seeds)
                 setup = f", {own[variant]}" if own[variant] else ""
                 ax.plot(steps, median, color=COLOURS[algo],
+                        marker="o" if len(steps) == 1 else "",  # Else a point draws nothing.
                         linestyle=LINESTYLES[variants.index(variant) % len(LINESTYLES)],
-                        label=f"{algo.upper()} ({len(seeds)} seed{'s' * (len(seeds) > 1)}"
-                              f"{setup})")
+                        label=textwrap.fill(f"{algo.upper()} ({len(seeds)} "
+                                            f"seed{'s' * (len(seeds) > 1)}{setup})",
+                                            LINE_CHARACTERS))
                 ax.fill_between(steps, np.clip(median - std, 0, 1),
                                 np.clip(median + std, 0, 1), color=COLOURS[algo], alpha=0.2,
                                 linewidth=0)
                 drawn.append((task, algo, variant))
         title = f"Franka{TASK_TITLES[task].replace(' & ', 'And').replace(' ', '')}"
-        ax.set_title(f"{title}\n({shared})" if shared else title)
+        ax.set_title(f"{title}\n{textwrap.fill(f'({shared})', LINE_CHARACTERS)}" if shared
+                     else title)
         if wall_clock:
             ax.set_xlabel("wall-clock minutes")
         else:
             ax.set_xlabel("environment steps")
             # "20k" rather than "20000": full numbers run into each other on a narrow panel.
             ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k" if x else "0")
+        at = {x for line in ax.get_lines() for x in line.get_xdata()}
+        if len(at) == 1:  # Matplotlib widens one step by a thousandth of it: "-4e-05k" ticks.
+            (x,) = at
+            ax.set_xlim(x - 1, x + 1)
+            ax.set_xticks([x])
         ax.set_ylim(-0.02, 1.02)
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper left")
+        # Within its axes it needs no room of its own; where it does not fit, room is made
+        # below (`_move_tall_legends_below`).
+        ax.legend(loc="upper left").set_in_layout(False)
     axes[0][0].set_ylabel("success rate")
-    fig.tight_layout()
+    _move_tall_legends_below(fig, axes[0])
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
+    replace_atomically(out, lambda partial: fig.savefig(partial, dpi=120))
     plt.close(fig)
     return drawn
+
+
+def _move_tall_legends_below(fig, axes) -> None:
+    """A legend taller than its panel (many setups) goes below the panel's x label, and the
+    figure grows by the room it takes there: inside, it ran off the figure's bottom."""
+    from matplotlib.transforms import ScaledTranslation
+
+    fig.canvas.draw()  # Lays the panels out: the legends' sizes are known.
+    renderer, grown = fig.canvas.get_renderer(), 0.0
+    for ax in axes:
+        if ax.get_legend().get_window_extent(renderer).y0 >= ax.bbox.y0:
+            continue
+        # Inches from the axes' bottom to the x label's: these stay as the figure grows.
+        drop = (ax.bbox.y0 - ax.xaxis.label.get_window_extent(renderer).y0) / fig.dpi
+        below = ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0), bbox_transform=(
+            ax.transAxes + ScaledTranslation(0, -drop, fig.dpi_scale_trans)))
+        grown = max(grown, drop + below.get_window_extent(renderer).height / fig.dpi)
+    fig.set_figheight(fig.get_figheight() + grown)

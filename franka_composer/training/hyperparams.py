@@ -151,11 +151,15 @@ class Hyperparameters:
     def replace(self, **overrides) -> "Hyperparameters":
         """A copy with `overrides` (None values are ignored); unknown names and bad values
         are a ValueError."""
-        overrides = {k: v for k, v in overrides.items() if v is not None}
-        check_names("hyperparameter", overrides, (f.name for f in dataclasses.fields(self)))
-        if isinstance(overrides.get("net_arch"), list):  # As config.json holds it.
-            overrides["net_arch"] = tuple(overrides["net_arch"])
-        return dataclasses.replace(self, **overrides)
+        return self._with({k: v for k, v in overrides.items() if v is not None})
+
+    def _with(self, values: dict) -> "Hyperparameters":
+        """A copy with `values`, None ones included; unknown names and bad values are a
+        ValueError."""
+        check_names("hyperparameter", values, (f.name for f in dataclasses.fields(self)))
+        if isinstance(values.get("net_arch"), list):  # As config.json holds it.
+            values = {**values, "net_arch": tuple(values["net_arch"])}
+        return dataclasses.replace(self, **values)
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -165,11 +169,12 @@ class Hyperparameters:
         """A run's recorded hyperparameters; a KeyError names one every run has recorded
         but `data` lacks (a damaged or hand-edited file: defaulted, a run missing its
         total_steps read as 500,000 steps). Runs recorded before the stopping rule or
-        clip_q_targets existed lack those, and had neither."""
+        clip_q_targets existed lack those, and had neither. A null is read as one, not as
+        "not given" (`replace`'s): refused where the field takes none (total_steps)."""
         for field in dataclasses.fields(cls):
             if field.name not in data and field.name not in _ADDED_SINCE_THE_FIRST_RUNS:
                 raise KeyError(f"hyperparameters.{field.name}")
-        return cls().replace(**data)
+        return cls()._with(data)
 
 
 #: Hyperparameters that the first runs' config.json files do not record.

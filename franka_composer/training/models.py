@@ -11,6 +11,7 @@ import numpy as np
 
 from franka_composer.adapters.registration import env_id
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, Hyperparameters
+from franka_composer.training.run_files import saved_policy_module
 from franka_composer.validation import check_choice
 
 DEVICES = ("auto", "cpu", "cuda")
@@ -200,9 +201,25 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
     return algo_class(_policy(algo_class, backend), env, **kwargs)
 
 
+def check_saved_by(path, algo: str, backend: str) -> None:
+    """A ValueError where the model at `path` was saved by another algorithm or library than
+    `algo` in `backend` (its run's config.json edited by hand): SB3 would load it partway
+    and fail inside with an AttributeError."""
+    algo_class = algorithm_class(algo, backend)
+    policy = _policy(algo_class, backend)
+    expected = (algo_class.policy_aliases[policy] if isinstance(policy, str)
+                else policy).__module__.rsplit(".", 1)[0]
+    saved = saved_policy_module(path)
+    if saved is not None and saved.rsplit(".", 1)[0] != expected:
+        raise ValueError(f"{path} holds a model of {saved.rsplit('.', 1)[0]}, and its run's "
+                         f"config.json says algo {algo}, backend {backend} (a model of "
+                         f"{expected}): put them back as the run was trained")
+
+
 def load_model(algo: str, path, *, env: gym.Env, device: str = "auto", backend: str = "sb3",
                force_reset: bool = True):
     """A saved model on `env` (HER models cannot be loaded without their env). Without
     `force_reset` it keeps its last observation: `env` must be brought to it."""
+    check_saved_by(path, algo, backend)
     return algorithm_class(algo, backend).load(path, env=env, device=resolve_device(device),
                                                force_reset=force_reset)

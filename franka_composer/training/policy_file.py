@@ -19,8 +19,9 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
-from franka_composer.training.models import (algorithm_class, build_model, load_model,
-                                             make_env, policy_kwargs, resolve_device)
+from franka_composer.training.models import (algorithm_class, build_model, check_saved_by,
+                                             load_model, make_env, policy_kwargs,
+                                             resolve_device)
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import model_damage
 from franka_composer.training.runs import RunDir
@@ -146,20 +147,26 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
 def check_trained(run: RunDir) -> None:
     """A ValueError naming `run` if it holds nothing trained to load (a run still training
     and kept without a checkpoint, say), or only a policy file that is not one
-    (`read_policy_file`), or only damaged models (`model_damage`): asked before an env is
-    made for it, so that `evaluate` finds a damaged run among many before playing any."""
+    (`read_policy_file`), only damaged models (`model_damage`), or a model another
+    algorithm or library saved than its config.json says (`check_saved_by`): asked before
+    an env is made for it, so that `evaluate` finds a bad run among many before playing any."""
+    config = run.read_config()
     models = [path for path in (run.final_model, run.checkpoint_model) if path.is_file()]
     damages = [model_damage(path) for path in models]
+    for path, damage in zip(models, damages):
+        if damage is None:
+            check_saved_by(path, config.algo, config.backend)
     if None in damages:
         return
     if not run.policy_file.is_file():
         if models:
-            raise ValueError(f"{models[0]} is damaged ({damages[0]}), and the run has no "
-                             "whole model to play instead (model.zip, a checkpoint, "
-                             "policy.pt)")
+            damaged = "; ".join(f"{path} is damaged ({damage})"
+                                for path, damage in zip(models, damages))
+            raise ValueError(f"{damaged}, and the run has no whole model to play instead "
+                             "(model.zip, a checkpoint, policy.pt)")
         raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
                          "no policy.pt)")
-    read_policy_file(run.read_config(), run.policy_file)
+    read_policy_file(config, run.policy_file)
 
 
 def split_trained(roots) -> tuple[list[pathlib.Path], list[pathlib.Path]]:

@@ -16,7 +16,11 @@ from franka_composer.training.hyperparams import (ALGORITHM_SETTINGS, ALGOS, BAC
                                                   PRECISIONS, Hyperparameters,
                                                   hyperparameters)
 from franka_composer.training.presets import TRAINING_PRESETS
-from franka_composer.validation import check_choice, check_number
+from franka_composer.validation import check_bool, check_choice, check_number
+
+#: Training seeds stay below 2**31: SB3 seeds NumPy's legacy generator (at most 2**32 - 1)
+#: with the seed plus the evaluation offset, and with the seed plus the steps on a resume.
+MAX_TRAINING_SEED = 2**31 - 1
 
 #: The reset seed of seed 0's first expert demonstration (`RunConfig.expert_demo_seed`).
 EXPERT_DEMO_SEED = 1_000_000
@@ -83,6 +87,17 @@ class RunConfig:
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, tuple(TASK_CONFIGS))
+        # A hand-edited config.json's types are checked too (7.9 read as seed 7, "false"
+        # as True, a number as demos failing later inside `setup`).
+        object.__setattr__(self, "seed", check_number("seed", self.seed, minimum=0,
+                                                      maximum=MAX_TRAINING_SEED,
+                                                      integer=True))
+        object.__setattr__(self, "terminate_on_success",
+                           check_bool("terminate_on_success", self.terminate_on_success))
+        if self.demos is not None and not isinstance(self.demos, str):
+            raise ValueError(f"demos must be a dataset's path or None, got {self.demos!r}")
+        if self.demo_episodes is not None:
+            check_number("demo_episodes", self.demo_episodes, minimum=1, integer=True)
         # Checked as the task checks it (a whole number of physics steps), and kept as a
         # number, the task's where none is given, so that the two are one run.
         task = TASK_CONFIGS[self.task]
@@ -291,8 +306,8 @@ class RunConfig:
         # weld's time constant, the default weld (the reference timing's runs included);
         # those before other suites' envs, this package's; those before object damping,
         # undamped objects.
-        return cls(task=data["task"], algo=data["algo"], seed=int(data["seed"]),
-                   terminate_on_success=bool(data["terminate_on_success"]),
+        return cls(task=data["task"], algo=data["algo"], seed=data["seed"],
+                   terminate_on_success=data["terminate_on_success"],
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
                    precision=data.get("precision", "fp32"),
                    randomization=data.get("randomization"), demos=data.get("demos"),

@@ -26,6 +26,18 @@ def model_damage(path: pathlib.Path) -> str | None:
     return None if bad is None else f"{bad} fails its checksum"
 
 
+def saved_policy_module(path: pathlib.Path) -> str | None:
+    """The module of the policy class the SB3 (or sbx) model at `path` was saved with
+    ("stable_baselines3.sac.policies"), as its "data" records it; None where it does not
+    say (a damaged file is `model_damage`'s to name)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            return json.loads(archive.read("data"))["policy_class"]["__module__"]
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error, KeyError, TypeError,
+            ValueError):
+        return None
+
+
 def checked_model(path: pathlib.Path) -> pathlib.Path:
     """`path`, if `model_damage` finds nothing wrong; else a ValueError naming it."""
     damage = model_damage(path)
@@ -60,7 +72,10 @@ def steps_of(state_path: pathlib.Path) -> int | None:
 @contextlib.contextmanager
 def unpickling(path: pathlib.Path):
     """Reading the pickle at `path` (a replay buffer, the generators' states) inside the
-    block: one that is truncated, garbage or of something else is a ValueError naming it."""
+    block: one that is missing, truncated, garbage or of something else is a ValueError
+    naming it (SB3 names a missing buffer as its path with another .pkl added)."""
+    if not path.is_file():
+        raise ValueError(f"{path} is missing: a checkpoint cannot be resumed without it")
     try:
         yield
     except (pickle.UnpicklingError, EOFError, AssertionError, KeyError, TypeError) as error:

@@ -271,8 +271,9 @@ class RunDir:
 
     def check_resumable(self) -> None:
         """Refuses (ValueError) to resume a run with no complete checkpoint (counting one a
-        stop left unlinked, which `recover_checkpoint` links), without its eval.csv, or whose
-        config.json was edited since its checkpoint (`check_config_checkpointed`)."""
+        stop left unlinked, which `recover_checkpoint` links; a finished run's kept copy is
+        named as one, not as a run to delete), without its eval.csv, or whose config.json was
+        edited since its checkpoint (`check_config_checkpointed`)."""
         recoverable = not self.checkpoint.exists() and self._complete_checkpoints()
         if not self.checkpoint_state.is_file() and not recoverable:
             trainer = self.trainer()
@@ -280,6 +281,11 @@ class RunDir:
                 raise ValueError(f"{self.root} is being trained by {trainer} (no checkpoint "
                                  "yet): let it end, or stop it (SIGTERM checkpoints it) "
                                  "before resuming")
+            if (self.policy_file.is_file() and not self.final_model.is_file()
+                    and self.read_outcome()):  # What `keep` copies of a finished run.
+                raise ValueError(f"{self.root} is a kept copy of a finished run (its "
+                                 "policy.pt kept, no checkpoint to resume from): resume the "
+                                 "run it was kept from, or start a new one")
             raise ValueError(f"{self.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
         if not self.eval_csv.is_file():
