@@ -36,6 +36,16 @@ def test_expert_reaches_its_success_rate(task):
         assert np.all(np.abs(episode["action"]) <= 1.0)
 
 
+@pytest.mark.parametrize("options", [dict(block_half_size=0.03), dict(max_finger_step=0.02),
+                                     dict(block_half_size=0.015, max_finger_step=0.04)])
+def test_the_pick_and_place_expert_grasps_blocks_of_any_size_with_slow_fingers(options):
+    """Its holding widths were the 4 cm block's, and it took fingers that closed short of
+    the block in a step for a miss and opened again (1 of 20 with fingers moving 2 cm a
+    step)."""
+    env = gym.make("FrankaPickAndPlaceSparse-v0", **options)
+    assert rollout(env, make_expert(env), EPISODES, seed=0).success_rate == 1.0
+
+
 @pytest.mark.parametrize("control", ["mocap", "osc"])
 def test_the_slide_expert_stops_the_puck_at_the_goal_at_the_reference_timing(control):
     # 0.5 s steps: the puck moves up to half a metre between observations, so passing

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from franka_composer.entities.panda import MAX_FINGER_WIDTH
 from franka_composer.policies.base import Expert
 
 #: Height (m) above the block's centre at which the open hand lines up before descending.
@@ -11,10 +12,11 @@ HOVER_HEIGHT = 0.08
 #: TCP height (m) relative to the block's centre when grasping: the fingertips reach below
 #: the centre so the pads hold the block squarely.
 GRASP_DEPTH = -0.005
-#: Finger widths (m, as observed): fully open, and the range that means "holding the 4 cm
-#: block" (a held block reads about 0.04 once the squeeze settles, 0.03 just after closing).
+#: Finger width (m, as observed) the hand opens to before it descends.
 OPEN_WIDTH = 0.075
-HOLDING_WIDTHS = (0.02, 0.045)
+#: The finger widths (m) that mean "holding the block", about its width: a held 4 cm block
+#: reads about 0.04 once the squeeze settles, 0.03 just after closing.
+HOLDING_BELOW, HOLDING_ABOVE = 0.02, 0.005
 #: Control steps the gripper keeps closing at the block before lifting.
 CLOSING_STEPS = 3
 #: Lowest height (m) of the block's centre while it is carried towards the goal.
@@ -23,6 +25,8 @@ CARRY_HEIGHT = 0.05
 CARRY_SPEED = 0.7
 #: How far (m) the block may sit from where the hand holds it and still count as held.
 HOLD_TOLERANCE = 0.025
+#: How much (m) the fingers must have closed in a step to count as still closing.
+STILL_CLOSING = 0.002
 
 
 class PickAndPlaceExpert(Expert):
@@ -31,6 +35,9 @@ class PickAndPlaceExpert(Expert):
 
     def reset(self) -> None:
         self._closing_steps = 0
+        #: The finger width when the fingers were last told to close on the block; None
+        #: when they are not closing on it.
+        self._closing_from = None
 
     def act(self, obs: dict) -> np.ndarray:
         scene = self.scene(obs)
@@ -41,7 +48,8 @@ class PickAndPlaceExpert(Expert):
         """The action that grasps `block` (or carries it, once held) to `goal`, its centre
         no lower than `carry_height` on the way (m, world frame)."""
         block_in_hand = np.linalg.norm(block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE
-        if block_in_hand and HOLDING_WIDTHS[0] < width < HOLDING_WIDTHS[1]:
+        across = 2 * self.config.objects[0].half_size  # Every block's: one option sets them.
+        if block_in_hand and across - HOLDING_BELOW < width < across + HOLDING_ABOVE:
             if self._closing_steps >= CLOSING_STEPS:
                 return np.array([*self._carry(tcp, block, goal, carry_height), -1.0])
             self._closing_steps += 1
@@ -49,6 +57,14 @@ class PickAndPlaceExpert(Expert):
         self._closing_steps = 0
         grasp = block + [0, 0, GRASP_DEPTH]
         hover = block + [0, 0, HOVER_HEIGHT]
+        closing, self._closing_from = self._closing_from, None
+        if (closing is not None and across + HOLDING_ABOVE <= width < closing - STILL_CLOSING
+                and np.linalg.norm(tcp[:2] - block[:2]) <= 0.01):
+            # Fingers whose target closes by less than the open hand's width a step (a
+            # max_finger_step below 0.08 m) may still be on their way to the block: not a
+            # miss to open again for.
+            self._closing_from = width
+            return np.array([*self.move_towards(tcp, grasp), -1.0])
         if np.linalg.norm(tcp[:2] - block[:2]) > 0.01:
             # Rise before moving sideways if the hand is low, so it does not hit the block.
             target = hover if tcp[2] > block[2] + 0.03 else [*tcp[:2], hover[2]]
@@ -57,6 +73,8 @@ class PickAndPlaceExpert(Expert):
             return np.array([*self.move_towards(tcp, [*block[:2], max(tcp[2], hover[2])]), 1.0])
         if tcp[2] - grasp[2] > 0.005:
             return np.array([*self.move_towards(tcp, grasp), 1.0])
+        if self.config.control.max_finger_step < MAX_FINGER_WIDTH:  # It may take some.
+            self._closing_from = width
         return np.array([*self.move_towards(tcp, grasp), -1.0])
 
     def _carry(self, tcp: np.ndarray, block: np.ndarray, goal: np.ndarray,
