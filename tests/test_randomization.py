@@ -476,3 +476,26 @@ def test_bad_randomisations_are_refused_before_anything_is_built(value, message,
     with pytest.raises(ValueError) as error:
         _make(randomization=value)
     assert message in str(error.value)
+
+
+@pytest.mark.parametrize("task, options, message", [
+    ("reach", dict(randomization={"object_mass": 2.0}),
+     "randomization 'object_mass' does nothing here: reach has no object: leave it out"),
+    ("reach", dict(randomization={"object_rgb": (1.0, 0.0, 0.0)}),
+     "randomization 'object_rgb' does nothing here: reach has no object"),
+    ("push", dict(randomization={"camera_position": (0.01, 0.0, 0.0)}),
+     "randomization 'camera_position' does nothing here: no camera's images are observed "
+     "(observation_mode 'state'): leave it out"),
+    ("push", dict(randomization={"camera_rotation": 0.05}),
+     "randomization 'camera_rotation' does nothing here: no camera's images are observed"),
+])
+def test_a_custom_randomisation_of_what_the_env_does_not_have_is_refused(task, options,
+                                                                        message):
+    """It was taken and reported as drawn (reach's object_mass as ()), and did nothing. The
+    same mapping where it applies is taken, and a preset gives what applies where it is
+    used."""
+    with pytest.raises(ValueError, match=re.escape(message)):
+        franka_composer.load(task, **options)
+    where = dict(observation_mode="pixels") if task == "push" else {}
+    franka_composer.load("push" if task == "reach" else task, **options, **where).close()
+    franka_composer.load(task, randomization="default").close()

@@ -53,6 +53,7 @@ class Parameter:
       meaning: what it changes, for the guide's table.
       unit: of a sample.
       per_object: drawn once per object (each object its own), else once per episode.
+      observed_cameras: it moves the cameras whose images are observed.
     """
 
     group: str
@@ -60,6 +61,7 @@ class Parameter:
     meaning: str
     unit: str = "–"
     per_object: bool = False
+    observed_cameras: bool = False
 
     @property
     def episode(self) -> bool:
@@ -169,10 +171,10 @@ PARAMETERS: dict[str, Parameter] = {
     "light_intensity": Parameter("visual", "factor", "the lights' diffuse intensity"),
     "camera_position": Parameter("visual", "offset",
                                  "added to each observed camera's position (its body's frame)",
-                                 "m"),
+                                 "m", observed_cameras=True),
     "camera_rotation": Parameter("visual", "angle",
                                  "each observed camera turned by this about a random axis",
-                                 "rad"),
+                                 "rad", observed_cameras=True),
     # Sensing: what the policy reads of the robot and the objects (not the goals).
     "position_noise": Parameter("sensing", "noise",
                                 "added to every position reading (TCP, objects, fingers)", "m"),
@@ -197,3 +199,15 @@ def noise_parameter(field) -> str:
     if field.per_control_step:
         return "velocity_noise"
     return "position_noise" if field.unit == "m" else "angle_noise"
+
+
+def unread_parameter(name: str, task: str, objects: bool, cameras: bool) -> str | None:
+    """Why the parameter `name` would do nothing on `task` (with `objects` to move, and
+    `cameras` whose images are observed), or None: a custom mapping naming it is refused
+    (a preset gives what applies where it is used)."""
+    parameter = PARAMETERS[name]
+    if parameter.per_object and not objects:
+        return f"{task} has no object"
+    if parameter.observed_cameras and not cameras:
+        return "no camera's images are observed (observation_mode 'state')"
+    return None

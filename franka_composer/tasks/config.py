@@ -25,6 +25,7 @@ from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
+from franka_composer.randomization.parameters import unread_parameter
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -310,6 +311,13 @@ class TaskConfig:
             if name in _READ_ONLY_WHERE and not _READ_ONLY_WHERE[name].reads(config):
                 raise ValueError(f"{name} does nothing here: "
                                  f"{_READ_ONLY_WHERE[name].instead(config)}")
+        randomized = config.randomization
+        for parameter in randomized.parameters if randomized.name == "custom" else ():
+            why = unread_parameter(parameter, config.name, bool(config.objects),
+                                   config.observations.pixels)
+            if why is not None:
+                raise ValueError(f"randomization {parameter!r} does nothing here: {why}: "
+                                 "leave it out")
         images = [name for name in IMAGE_OPTIONS if name in options]
         if images and not config.observations.pixels:
             raise ValueError(f"{', '.join(images)} set the camera observations, and "
