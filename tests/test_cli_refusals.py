@@ -258,6 +258,13 @@ def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, mon
         with pytest.raises(ValueError, match=re.escape(
                 f"{committed} acts every 0.05 s, not every 0.5 s")):
             cli.main([*argv, "--control-timestep", "0.5"])
+    # Into the run's own files: its expert's demonstrations, written over.
+    with pytest.raises(ValueError, match=re.escape(
+            f"--out {committed / 'expert-demos.npz'} is one of the run {committed}'s own "
+            "files: give another file")):
+        cli.main(["rollout", "--task", "push", "--episodes", "1", "--policy", str(committed),
+                  "--out", str(committed / "expert-demos.npz")])
+    assert sorted(path.name for path in committed.iterdir()) == ["config.json", "policy.pt"]
     elsewhere = tmp_path / "elsewhere"  # Trained in another suite's env.
     shutil.copytree(committed, elsewhere)
     config = json.loads((elsewhere / "config.json").read_text())
@@ -273,6 +280,8 @@ def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, mon
 
 @pytest.mark.parametrize("row, problem", [
     ("2000,2,7.0,-1", "success_rate must be within [0, 1], got 7.0"),
+    ("2000,2,0.5,nan", "mean_reward must be a finite number, got nan"),
+    ("2000,2,0.5,-inf", "mean_reward must be a finite number, got -inf"),
     ("2000,2,-2,-1", "success_rate must be within [0, 1], got -2.0"),
     ("2000,2,inf,-1", "success_rate must be within [0, 1], got inf"),
     ("2000,2,nan,-1", "success_rate must be within [0, 1], got nan"),

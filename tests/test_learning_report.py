@@ -324,6 +324,14 @@ def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
     assert rows[3] == "| reach | SAC | 0 | 8,000 | 1 of 1 | 8,000 | 8,000 |  |  | 0.0 | 0.0 |"
     with pytest.raises(ValueError, match="--paper-curves: .*nowhere.csv is not a file"):
         cli.main(["report", str(runs), "--paper-curves", str(tmp_path / "nowhere.csv")])
+    # Written over, the curves were the table, and the next report could not read them.
+    before = paper.read_bytes()
+    with pytest.raises(ValueError, match="--out .*curves.csv is the --paper-curves file"
+                                         ": the table would replace the "
+                                         "curves it read; give another file"):
+        cli.main(["report", str(runs), "--paper-curves", str(paper), "--out",
+                  str(tmp_path / "." / "curves.csv")])
+    assert paper.read_bytes() == before
     other = tmp_path / "other.csv"
     other.write_text("task,algorithm,steps,rate\npush,tqc,0,0.5\n")
     with pytest.raises(ValueError, match="other.csv is not a CSV of curves: it has no algo, "

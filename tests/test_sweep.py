@@ -490,6 +490,16 @@ def test_status_and_sync_check_the_sweep_they_are_given(tmp_path, capsys):
     # A grid's cells listed before any sweep is there, as its help says.
     assert cli.main(["sweep", *grid, "--out", str(tmp_path / "nosuch"), "--status"]) == 0
     assert "| push-sac-seed0 | waiting |" in capsys.readouterr().out
+    # --status shows such a cell as the other run it holds, not as the cell's state ("done"
+    # once that run had finished).
+    other_run = RunDir(other / "push-sac-seed0")
+    write_eval_rows(other_run.eval_csv, [dict(zip(EVAL_COLUMNS, row)) for row in (
+        (0, 1, 0.0, -1.0), (5000, 2, 1.0, -1.0))])
+    other_run.write_outcome(5000, False, 2.0)
+    assert cli.main(["sweep", *grid, "--out", str(other), "--status"]) == 0
+    assert capsys.readouterr().out.splitlines()[2] == (
+        "| push-sac-seed0 | another run (batch_size: 512, not 7) | 5,000 | 5,000 | 5000.0 | "
+        "100 % |")
 
 
 @pytest.mark.slow

@@ -678,12 +678,14 @@ def test_a_new_run_that_fails_before_its_first_checkpoint_leaves_nothing(tmp_pat
         raise RuntimeError("the model could not be built")
 
     monkeypatch.setattr(loop, "build_model", failing)
-    made, given = tmp_path / "made", tmp_path / "given"
+    made, given, nested = tmp_path / "made", tmp_path / "given", tmp_path / "new" / "a" / "b"
     given.mkdir()
-    for out in (made, given):
+    for out in (made, given, nested):
         with pytest.raises(RuntimeError, match="the model could not be built"):
             _train(out, "sac", 100)
     assert not made.exists() and list(given.iterdir()) == []  # The folder given stays.
+    # The folders made on the way go with it (an empty new/a stayed).
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["given"]
 
 
 def test_a_new_run_stopped_before_its_first_checkpoint_leaves_nothing_and_says_so(

@@ -47,6 +47,10 @@ def run(args: argparse.Namespace) -> int:
 
     if args.paper_curves is not None and not args.paper_curves.is_file():
         raise ValueError(f"--paper-curves: {args.paper_curves} is not a file")
+    if args.out is not None and args.paper_curves is not None and (
+            args.out.resolve() == args.paper_curves.resolve()):
+        raise ValueError(f"--out {args.out} is the --paper-curves file: the table would "
+                         "replace the curves it read; give another file")
     paper = read_paper_curves(args.paper_curves) if args.paper_curves else None
     thresholds = tuple(sorted(set(args.thresholds))) if args.thresholds else THRESHOLDS
     roots = run_directories(args.runs)

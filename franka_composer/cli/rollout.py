@@ -65,11 +65,12 @@ def run(args: argparse.Namespace) -> int:
     run_timing, damping = None, args.object_damping
     if args.policy is not None:  # In the run's env unless told otherwise.
         from franka_composer.training.policy_file import check_trained
-        from franka_composer.training.runs import RunDir
+        from franka_composer.training.runs import RunDir, check_out_apart
 
         policy_run = RunDir(args.policy)
         trained = policy_run.read_config()
         check_trained(policy_run)  # Before a dataset is begun.
+        check_out_apart(args.out, [args.policy])  # Its expert-demos.npz, say.
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
     task_options = {**given_timing(args, run_timing),

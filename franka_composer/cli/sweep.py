@@ -4,6 +4,7 @@ table (`franka_composer/training/sweep.py`)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import fnmatch
 import pathlib
 
@@ -233,12 +234,20 @@ def run(args: argparse.Namespace) -> int:
         # The cells as the sweep would train them: its options after -- checked, and a cell
         # holding another run not copied under the sweep's name (these only read --out: a
         # read-only mount may be looked at).
+        others = {}
         for cell in cells:
             config = cell_config(cell, args.out, train_args, reading=True)
+            run = RunDir(args.out / cell.name)
             if args.sync:
-                _check_trained_as(RunDir(args.out / cell.name), config, started=False)
+                _check_trained_as(run, config, started=False)
+            elif run.config_path.is_file():
+                others[cell] = config.differences(run.read_config())
     if args.status:
-        print(status_table([cell_status(cell, args.out) for cell in cells]))
+        # A cell holding another run is that run's state, not the cell's: said so.
+        print(status_table([
+            dataclasses.replace(status, state=f"another run ({'; '.join(others[cell])})")
+            if others.get(cell) else status
+            for cell, status in ((cell, cell_status(cell, args.out)) for cell in cells)]))
         return 0
     if args.sync:
         synced = sync_cells(cells, args.out, args.sync)

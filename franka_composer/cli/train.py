@@ -391,7 +391,10 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     from franka_composer.training import loop
     from franka_composer.training.runs import RunDir
 
-    made_folder = not out.exists()
+    # The highest folder on the way to --out that is not there yet: made here, and removed
+    # with the run if it fails before its first checkpoint.
+    missing = [folder for folder in (out, *out.parents) if not folder.exists()]
+    made = missing[-1] if missing else None
     try:  # The checks (seconds where they load --demos): stopped here, nothing is written.
         if args.resume:
             run_dir = RunDir(out)
@@ -418,7 +421,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         # The removal outermost: a stop while the threads are limited (sbx starts JAX's
         # runtime there, seconds) leaves nothing of a new run either.
         with loop.removed_if_it_fails_before_a_checkpoint(
-                run_dir, new=not args.resume, made_folder=made_folder), \
+                run_dir, new=not args.resume, made=made), \
                 _limit_threads(threads, run_dir.read_config().backend):
             model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
                                device=args.device, checkpoint_every=args.checkpoint_every,

@@ -104,11 +104,13 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
 
 
 @contextlib.contextmanager
-def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool, made_folder: bool):
+def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool,
+                                             made: pathlib.Path | None):
     """Where a `new` run fails or is stopped before its first checkpoint (while it records
-    its expert's demonstrations, say), what it wrote is removed, and its folder if `start`
-    made it: a second try with the same --out then starts afresh instead of being refused
-    as a run without a checkpoint. A run stopped once training began has checkpointed."""
+    its expert's demonstrations, say), what it wrote is removed, and the folders `start`
+    made for it (its own and those above it, up to `made`, the highest; None: none): a
+    second try with the same --out then starts afresh instead of being refused as a run
+    without a checkpoint. A run stopped once training began has checkpointed."""
     try:
         yield
     except BaseException:
@@ -118,8 +120,10 @@ def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool, made_fold
                     shutil.rmtree(path)
                 else:
                     path.unlink()
-            if made_folder:
-                run.root.rmdir()
+            if made is not None:
+                chain = [run.root, *run.root.parents]
+                for folder in chain[:chain.index(made) + 1]:
+                    folder.rmdir()
         raise
 
 

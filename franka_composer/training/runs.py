@@ -452,6 +452,8 @@ def _eval_row_problem(row: dict[str, float], previous_steps: int | None) -> str 
         return f"wall_time_s must be a finite number >= 0, got {wall_time}"
     if not 0.0 <= success_rate <= 1.0:
         return f"success_rate must be within [0, 1], got {success_rate}"
+    if not math.isfinite(row["mean_reward"]):
+        return f"mean_reward must be a finite number, got {row['mean_reward']}"
     return None
 
 
