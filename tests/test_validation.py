@@ -135,6 +135,20 @@ def test_the_object_box_check_simulates_the_placement_episodes_use():
     env.close()
 
 
+def test_a_box_that_just_passes_resets_without_composer_logging_errors(caplog):
+    """Its placement gives up now and then (about 1 in 115 resets); begun again by
+    Composer, the reset succeeded but logged `ERROR ... Error during episode reset` (26 in
+    3,000). The placement begins again itself, silently."""
+    import logging
+
+    env = franka_composer.load("stack", object_range=(0.1001, 0.1001), seed=0)
+    with caplog.at_level(logging.WARNING):
+        for _ in range(1000):
+            env.reset()
+    assert [record.getMessage() for record in caplog.records] == []
+    env.close()
+
+
 @pytest.mark.parametrize("env_id, options", [
     ("FrankaPushSparse-v0", dict(max_finger_step=0.1, actuated_gripper=True)),
     ("FrankaPushSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5)),

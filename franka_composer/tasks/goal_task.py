@@ -25,7 +25,7 @@ from franka_composer.tasks.config import (ObservationSettings, PhysicsSettings, 
                                          Workspace)
 from franka_composer.tasks.goals import GOALS, Goal
 from franka_composer.tasks.layout import ObservationLayout, layout_for
-from franka_composer.tasks.placement import MAX_ATTEMPTS, place_apart
+from franka_composer.tasks.placement import MAX_ATTEMPTS, PLACEMENT_RESTARTS, place_apart
 
 
 class GoalTask(composer.Task):
@@ -336,20 +336,24 @@ class GoalTask(composer.Task):
 
 class ApartPlacer(composer.Initializer):
     """Places several objects resting, upright, at uniform points of a box, their footprints
-    (circles of `radii`) apart (`placement.place_apart`; Composer retries the episode if it
-    finds no room). `PropPlacer` would count the floor the objects rest on as a
-    collision."""
+    (circles of `radii`) apart (`placement.place_apart`, begun again up to
+    `PLACEMENT_RESTARTS` times where it finds no room, and only then Composer's retry of
+    the episode, which logs an ERROR line for a reset that goes on to succeed).
+    `PropPlacer` would count the floor the objects rest on as a collision."""
 
     def __init__(self, props: list[Prop], radii, low, high, surface_height: float) -> None:
         self._props, self._radii, self._surface = props, tuple(radii), surface_height
         self._xy = distributions.Uniform(low=low, high=high)
 
     def __call__(self, physics, random_state: np.random.RandomState) -> None:
-        placed = place_apart(lambda: self._xy(random_state=random_state), self._radii)
-        if isinstance(placed, int):
+        for _ in range(PLACEMENT_RESTARTS):
+            placed = place_apart(lambda: self._xy(random_state=random_state), self._radii)
+            if not isinstance(placed, int):
+                break
+        else:
             raise composer.EpisodeInitializationError(
                 f"no room for {self._props[placed].mjcf_model.model} after {MAX_ATTEMPTS} "
-                "draws")
+                f"draws, {PLACEMENT_RESTARTS} times")
         for prop, xy in zip(self._props, placed):
             prop.set_pose(physics, position=[xy[0], xy[1], prop.resting_height + self._surface],
                           quaternion=[1.0, 0.0, 0.0, 0.0])
