@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import pathlib
+import stat
 
 
 def replace_atomically(path: pathlib.Path, write) -> None:
@@ -13,9 +14,10 @@ def replace_atomically(path: pathlib.Path, write) -> None:
     or none, never half of one; a write that fails takes its partial file with it. A link
     is written through (the file it points to replaced, the link kept); a device, FIFO or
     socket is refused (`validation.check_writable`), not replaced by a file."""
+    problem = irregular_file(path)
+    if problem is not None:
+        raise ValueError(f"cannot write to {path}: {problem}")
     path = pathlib.Path(os.path.realpath(path))
-    if path.exists() and not path.is_file():
-        raise ValueError(f"cannot write to {path}: it is not a regular file")
     # Hidden and named after the whole file name, so that it is no file of the user's
     # (keep.npz's partial file is not keep.partial.npz).
     partial = path.with_name(f".{path.name}.partial{path.suffix}")
@@ -26,6 +28,24 @@ def replace_atomically(path: pathlib.Path, write) -> None:
         partial.unlink(missing_ok=True)
         raise
     os.replace(partial, path)
+
+
+def irregular_file(path) -> str | None:
+    """What keeps a file from being written whole at `path` (a link followed), or None: a
+    device, FIFO or socket there, which the file moved into its place would replace (as
+    root, /dev/null), or a link into a folder that does not exist."""
+    try:
+        mode = os.stat(path).st_mode
+    except NotADirectoryError:  # Under a file: `check_writable` says so.
+        return None
+    except FileNotFoundError:
+        if os.path.islink(path) and not os.path.isdir(os.path.dirname(os.path.realpath(path))):
+            return f"it is a link to {os.readlink(path)}, in a folder that does not exist"
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    return ("it is not a regular file (a device, FIFO or socket), which a file written in "
+            "its place would replace; give a file's path")
 
 
 def sync_to_disk(path: pathlib.Path) -> None:

@@ -101,13 +101,14 @@ def check_writable(path, *, folder: bool = False) -> pathlib.Path:
     folder's modification time stays as it was. A link is followed (the file written is the
     one it points to, `atomic_files.replace_atomically`); a device, FIFO or socket is
     refused: a file put in its place would break what uses it (root may replace /dev/null)."""
+    from franka_composer.atomic_files import irregular_file
+
     path = pathlib.Path(path)
+    problem = None if folder else irregular_file(path)
+    if problem is not None:
+        raise ValueError(f"cannot write to {path}: {problem}")
     real = pathlib.Path(os.path.realpath(path))
     if not folder and real.exists() and not real.is_dir():
-        if not real.is_file():
-            raise ValueError(f"cannot write to {path}: it is not a regular file (a device, "
-                             "FIFO or socket), which a file written in its place would "
-                             "replace; give a file's path")
         if not os.access(real, os.W_OK):
             raise ValueError(f"cannot write to {path}: it is read-only")
         return path

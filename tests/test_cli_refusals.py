@@ -104,6 +104,17 @@ def test_an_output_file_through_a_link_is_written_through_and_the_link_kept(tmp_
     with pytest.raises(ValueError, match=f"cannot write to {fifo}: it is not a regular file"):
         replace_atomically(fifo, lambda path: path.write_text("new"))
     assert stat.S_ISFIFO(fifo.lstat().st_mode)
+    # A link to a FIFO is one; a link into a folder that is not there is refused before the
+    # work whose file would then find no place.
+    to_fifo, dangling = tmp_path / "to-fifo", tmp_path / "dangling.md"
+    to_fifo.symlink_to(fifo)
+    dangling.symlink_to(tmp_path / "missing" / "table.md")
+    with pytest.raises(ValueError, match=f"cannot write to {to_fifo}: it is not a regular"):
+        check_writable(to_fifo)
+    with pytest.raises(ValueError, match=re.escape(
+            f"cannot write to {dangling}: it is a link to {tmp_path / 'missing' / 'table.md'}, "
+            "in a folder that does not exist")):
+        check_writable(dangling)
 
 
 def test_plot_refuses_a_format_that_cannot_be_written_here_as_parsed(tmp_path, monkeypatch,

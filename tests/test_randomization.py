@@ -499,3 +499,10 @@ def test_a_custom_randomisation_of_what_the_env_does_not_have_is_refused(task, o
     where = dict(observation_mode="pixels") if task == "push" else {}
     franka_composer.load("push" if task == "reach" else task, **options, **where).close()
     franka_composer.load(task, randomization="default").close()
+    # A mapping built on the preset (the guide's first example) applies its entries where
+    # it can, as the preset does; the ones the user gives are checked.
+    from franka_composer.randomization import PRESETS
+
+    franka_composer.load(task, randomization={**PRESETS["default"], "observation_delay": 2})
+    with pytest.raises(ValueError, match=re.escape(message)):
+        franka_composer.load(task, randomization={**PRESETS["default"], **options["randomization"]})

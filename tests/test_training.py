@@ -519,6 +519,29 @@ def test_a_resume_at_its_checkpoints_step_ends_with_the_evaluation_there(tmp_pat
     assert outcome["steps"] == 130 and outcome["fresh_streams"] == []
 
 
+def test_an_interrupt_in_the_evaluation_at_a_resumes_end_leaves_its_exact_checkpoint(
+        tmp_path, monkeypatch):
+    """Resumed at its checkpoint's step, a run only evaluates: stopped at once there, its
+    exact checkpoint was written over as one that is not (and its generators lost)."""
+    from franka_composer.training.callbacks import Evaluation
+
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        _stop_asked_at(patch, 110)  # Off the evaluations' grid: its end is evaluated.
+        assert _train(out, "sac", 400) == 130
+    steps = RunDir(out).read_state()["steps"]
+    assert RunDir(out).read_state()["exact"] and steps % 100
+
+    def interrupted(self):
+        raise KeyboardInterrupt("signal 2, again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(Evaluation, "_evaluate_now", interrupted)
+        assert _train(out, "sac", steps, "--resume") == 130
+    assert RunDir(out).read_state()["exact"] and RunDir(out).read_state()["steps"] == steps
+    assert RunDir(out).checkpoint_generators.is_file()
+
+
 def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_path,
                                                                           monkeypatch):
     """An exact checkpoint whose rebuilt env differs from the one it saw (here: its episode
@@ -686,6 +709,12 @@ def test_a_new_run_that_fails_before_its_first_checkpoint_leaves_nothing(tmp_pat
     assert not made.exists() and list(given.iterdir()) == []  # The folder given stays.
     # The folders made on the way go with it (an empty new/a stayed).
     assert sorted(path.name for path in tmp_path.iterdir()) == ["given"]
+    # Through `..`: the folder given stays, and none is made on the way (by the path's
+    # text, `x/..` was taken for a folder made, and given removed).
+    with pytest.raises(RuntimeError, match="the model could not be built"):
+        _train(tmp_path / "x" / ".." / "given" / "run", "sac", 100)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["given"]
+    assert list(given.iterdir()) == []
 
 
 def test_a_new_run_stopped_before_its_first_checkpoint_leaves_nothing_and_says_so(

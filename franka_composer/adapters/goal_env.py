@@ -22,7 +22,7 @@ from gymnasium.utils import EzPickle
 
 from franka_composer import render_owner, seeding, suite
 from franka_composer.headless_gl import has_display
-from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE
+from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_choice
 
@@ -285,10 +285,6 @@ def state_box(layout) -> spaces.Box:
     """The space of the state vector of `layout` (an `ObservationLayout`), the goal dict's
     "observation" in the state modes."""
     return spaces.Box(-np.inf, np.inf, shape=(layout.size,), dtype=OBSERVATION_DTYPE)
-
-
-#: The rendered frames' width and height (pixels) where none is given.
-RENDER_SIZE = 480
 
 
 def _check_rendering_asked(render_mode: str | None, **given) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import textwrap
 
+from franka_composer.arenas.floor import CAMERAS, RENDER_SIZE
 from franka_composer.tasks.config import (OPTIONS, REFERENCE_CODE_OBJECT_DAMPING,
                                           REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig,
                                           read_with, unread_option)
@@ -80,6 +81,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
               "# timing: none of its names (control_timestep, velocity_timestep and "
               "weld_time_constant, below, were set otherwise)")
     options = [timing] + option_lines(config)
+    cameras = " | ".join(f'"{name}"' for name in CAMERAS)
     default, reference = TIMINGS["default"], TIMINGS["reference"]
     sections = [
         ("Action space", [
@@ -134,9 +136,10 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             "law and the observation layout are those above at either timing; "
             + _reference_differences(config)]),
         ("Arguments", [
-            'gym.make(id, render_mode=None | "rgb_array" | "human", width=480, height=480, '
-            'camera="workspace" | "top", **options) (width, height and camera with a render '
-            'mode only); the options, with this task\'s values:',
+            f'gym.make(id, render_mode=None | "rgb_array" | "human", width={RENDER_SIZE}, '
+            f'height={RENDER_SIZE}, camera={cameras}, **options) '
+            "(width, height and camera with a render mode only); the options, with this "
+            "task's values:",
             "\n".join(options)]),
         ("Version history", [*VERSION_HISTORY, *config.version_history,
                              *CONTROL_VERSION_HISTORY]),

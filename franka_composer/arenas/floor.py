@@ -22,6 +22,8 @@ CAMERAS = ("workspace", "top")
 
 #: Largest frame `physics.render` can return (offscreen buffer), pixels.
 MAX_RENDER_SIZE = 1024
+#: The rendered frames' width and height (pixels) where none is given.
+RENDER_SIZE = 480
 
 
 class FloorArena(composer.Arena):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import pathlib
 import sys
 
@@ -78,7 +79,9 @@ def folder_path(text: str) -> pathlib.Path:
     --status and --sync, written by a run, which checks it then): not a file."""
     if not text:  # pathlib reads it as ".": the working folder, unasked.
         raise argparse.ArgumentTypeError("must be a folder, got ''")
-    path = pathlib.Path(text)
+    # `..` taken out: "x/../runs" would make x on the way (and a run that fails remove
+    # what it made by the path's text).
+    path = pathlib.Path(os.path.normpath(text))
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
     return path

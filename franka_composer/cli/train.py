@@ -391,10 +391,9 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     from franka_composer.training import loop
     from franka_composer.training.runs import RunDir
 
-    # The highest folder on the way to --out that is not there yet: made here, and removed
-    # with the run if it fails before its first checkpoint.
-    missing = [folder for folder in (out, *out.parents) if not folder.exists()]
-    made = missing[-1] if missing else None
+    # The folders on the way to --out (`..` taken out as parsed) that are not there yet:
+    # made here, and removed with the run if it fails before its first checkpoint.
+    made = [folder for folder in (out, *out.parents) if not folder.exists()]
     try:  # The checks (seconds where they load --demos): stopped here, nothing is written.
         if args.resume:
             run_dir = RunDir(out)

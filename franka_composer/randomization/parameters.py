@@ -204,7 +204,8 @@ def noise_parameter(field) -> str:
 def unread_parameter(name: str, task: str, objects: bool, cameras: bool) -> str | None:
     """Why the parameter `name` would do nothing on `task` (with `objects` to move, and
     `cameras` whose images are observed), or None: a custom mapping naming it is refused
-    (a preset gives what applies where it is used)."""
+    (a preset, and a mapping's entries taken from one, give what applies where they are
+    used)."""
     parameter = PARAMETERS[name]
     if parameter.per_object and not objects:
         return f"{task} has no object"

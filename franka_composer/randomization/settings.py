@@ -66,6 +66,13 @@ PRESETS: dict[str, dict[str, Any]] = {
     name: {parameter: kind(*arguments) for parameter, (kind, arguments, _) in reasons.items()}
     for name, reasons in PRESET_REASONS.items()}
 
+def from_a_preset(parameter: str, distribution) -> bool:
+    """Whether `distribution` is a preset's own for `parameter` (a mapping built on a preset,
+    `{**PRESETS["default"], ...}`): such an entry applies where it can, as the preset does,
+    rather than being refused where the env does not have what it varies."""
+    return any(preset.get(parameter) is distribution for preset in PRESETS.values())
+
+
 #: Draws taken from each distribution when the option is set, to refuse a range that can
 #: leave its parameter's domain (e.g. a negative mass factor) before any episode.
 PROBE_DRAWS = 64

@@ -26,6 +26,7 @@ from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.randomization.parameters import unread_parameter
+from franka_composer.randomization.settings import from_a_preset
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -308,14 +309,14 @@ class TaskConfig:
             option = OPTIONS[name]
             config = option.set(config, option.check(name, value, config))
         for name in options:
-            if name in _READ_ONLY_WHERE and not _READ_ONLY_WHERE[name].reads(config):
-                raise ValueError(f"{name} does nothing here: "
-                                 f"{_READ_ONLY_WHERE[name].instead(config)}")
+            why = unread_option(config, name) if name in _READ_ONLY_WHERE else None
+            if why is not None:  # (The image options are refused together, below.)
+                raise ValueError(f"{name} does nothing here: {why}")
         randomized = config.randomization
-        for parameter in randomized.parameters if randomized.name == "custom" else ():
+        for parameter, distribution in randomized.ranges if randomized.name == "custom" else ():
             why = unread_parameter(parameter, config.name, bool(config.objects),
                                    config.observations.pixels)
-            if why is not None:
+            if why is not None and not from_a_preset(parameter, distribution):
                 raise ValueError(f"randomization {parameter!r} does nothing here: {why}: "
                                  "leave it out")
         images = [name for name in IMAGE_OPTIONS if name in options]

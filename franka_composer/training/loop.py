@@ -105,10 +105,10 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
 
 @contextlib.contextmanager
 def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool,
-                                             made: pathlib.Path | None):
+                                             made: list[pathlib.Path]):
     """Where a `new` run fails or is stopped before its first checkpoint (while it records
     its expert's demonstrations, say), what it wrote is removed, and the folders `start`
-    made for it (its own and those above it, up to `made`, the highest; None: none): a
+    made for it (`made`: its own and those above it that were not there, deepest first): a
     second try with the same --out then starts afresh instead of being refused as a run
     without a checkpoint. A run stopped once training began has checkpointed."""
     try:
@@ -120,9 +120,8 @@ def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool,
                     shutil.rmtree(path)
                 else:
                     path.unlink()
-            if made is not None:
-                chain = [run.root, *run.root.parents]
-                for folder in chain[:chain.index(made) + 1]:
+            for folder in made:  # Deepest first; one not empty now is left as it is.
+                with contextlib.suppress(OSError):
                     folder.rmdir()
         raise
 
@@ -253,7 +252,9 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
             checkpoint.save(exact=checkpoint.episode_ended and not evaluation.stopped_early)
     except KeyboardInterrupt as interrupt:
         precision.close()
-        trained = getattr(checkpoint, "model", None) is not None
+        # Nothing trained where nothing was left to (the evaluation at the end of a resume
+        # at its checkpoint's step): the exact checkpoint there stays as it is.
+        trained = getattr(checkpoint, "model", None) is not None and remaining > 0
         if trained and not isinstance(interrupt, StoppedAtCheckpoint):  # Stopped at once.
             checkpoint.save(exact=False)
         raise
