@@ -168,6 +168,47 @@ def test_non_finite_numbers_and_flags_neither_true_nor_false_are_refused(recorde
     assert not (tmp_path / "run").exists()
 
 
+def test_numbers_of_other_types_shapes_or_past_float32_and_false_terminations_are_refused(
+        recorded, push_env, tmp_path):
+    """Strings and complex numbers were taken as observations (a NaN inside them failing
+    the run a hundred steps in, naming no file), 1e300 went into the float32 buffer as inf,
+    a column of rewards ended in a TypeError traceback, and a termination where the goal
+    was not reached taught the critic that the state was worth nothing more."""
+    source = recorded / "push.npz"
+    with np.load(source) as data:
+        observation, reward = data["observation"].copy(), data["reward"].copy()
+        first = int(data["episode_length"][0])
+    huge = observation.copy()
+    huge[5, 2] = 1e300
+    for name, arrays, message in (
+            ("strings", dict(observation=observation.astype(str)),
+             "episode 0 has observation of type <U"),
+            ("complex", dict(observation=observation.astype(complex)),
+             "episode 0 has observation of type complex128, not real numbers"),
+            ("huge", dict(observation=huge), "episode 0 has a non-finite observation in row 5"),
+            ("column", dict(reward=reward[:, None]),
+             f"episode 0 has reward of shape ({first}, 1), not one value per step")):
+        _refused(_rewrite(source, tmp_path / f"{name}.npz", **arrays), push_env, message)
+    # An episode of a still hand cut by its time limit, said to have ended on the goal.
+    import gymnasium as gym
+
+    from franka_composer.policies import rollout
+
+    env = gym.make("FrankaPushSparse-v0", max_episode_steps=5)
+    try:
+        timed_out = rollout(env, lambda obs: np.zeros(env.action_space.shape, np.float32), 1,
+                            seed=0)
+    finally:
+        env.close()
+    timed_out.save(tmp_path / "timed-out.npz", timed_out.metadata)
+    episode = timed_out.episodes[0]
+    assert episode["truncated"][-1] and not episode["is_success"][-1]
+    _refused(_rewrite(tmp_path / "timed-out.npz", tmp_path / "false-end.npz",
+                      terminated=~episode["terminated"] & episode["truncated"],
+                      truncated=np.zeros_like(episode["truncated"])), push_env,
+             "holds a termination where the goal was not reached (episode 0, step 4)")
+
+
 def test_a_dataset_that_is_not_there_or_whose_options_are_no_mapping_is_refused(
         recorded, push_env, tmp_path):
     _refused(tmp_path / "missing.npz", push_env, "missing.npz does not exist")

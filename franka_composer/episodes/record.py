@@ -55,11 +55,21 @@ def check_episodes(path, episodes: list[dict]) -> None:
 
 
 def _check_values(path, index: int, episode: dict) -> None:
-    """Every number in the episode a real one and every flag true or false: a NaN
-    observation or reward would reach a critic's targets, and a NaN flag would count as
-    true (`bool(nan)`)."""
+    """Every number in the episode a real one, finite as the float32 a buffer keeps it in,
+    and every flag true or false, one per step: a NaN observation or reward would reach a
+    critic's targets, a NaN flag would count as true (`bool(nan)`), and strings, complex
+    numbers or a column of rewards were taken (or failed deep inside training)."""
     for key, values in episode.items():
         values = np.asarray(values)
+        if key in STEP_KEYS[1:] and values.ndim != 1:
+            raise ValueError(f"{path}: episode {index} has {key} of shape {values.shape}, not "
+                             "one value per step")
+        if key not in FLAG_KEYS and values.dtype.kind not in "fiu":
+            raise ValueError(f"{path}: episode {index} has {key} of type {values.dtype}, not "
+                             "real numbers")
+        if values.dtype.kind == "f" and values.dtype.itemsize > 4:
+            with np.errstate(over="ignore"):  # Past float32's range: inf, refused below.
+                values = values.astype(np.float32)
         if key in FLAG_KEYS:
             if values.dtype != bool and not np.isin(values, (0, 1)).all():
                 step = int(np.flatnonzero(~np.isin(values, (0, 1)))[0])

@@ -229,6 +229,12 @@ def _check_rewards_are_the_tasks(path, episodes: list[dict], env) -> None:
                 f"{path} holds is_success flags its goals do not give (episode {index}, step "
                 f"{step}: {bool(episode['is_success'][step])} stored, "
                 f"{bool(rewards[step] == 0.0)} from the goals): edited?")
+        wrong = np.flatnonzero(np.asarray(episode["terminated"], dtype=bool) & (rewards != 0.0))
+        if wrong.size:  # The task's episodes end before their time only at the goal.
+            raise ValueError(
+                f"{path} holds a termination where the goal was not reached (episode {index}, "
+                f"step {int(wrong[0])}): only the goal ends an episode before its time limit, "
+                "and the critic would learn that the state is worth nothing more: edited?")
 
 
 def _npz_episodes(path: pathlib.Path, env) -> list[dict]:
