@@ -299,7 +299,10 @@ def test_an_rlds_episode_cut_at_the_time_limit_is_a_truncation_not_a_termination
                                                                                  push_env):
     """Its LAST step's discount is 1: the buffer bootstraps there (it read every LAST step
     as a termination, teaching the critic that the time limit is the end), as from npz
-    and Minari."""
+    and Minari. (Recorded without termination on success, for a run that trains so; a run
+    that ends its episodes there refuses them: `_check_same_transitions`.)"""
+    push_env.close()
+    push_env = make_env("push", terminate_on_success=False)
     for format, name in (("rlds", "rlds"), ("npz", "push.npz"), ("minari", "minari")):
         out = tmp_path / name
         record("push", 2, out, format=format, seed=7, action_noise=0.5,
@@ -312,6 +315,7 @@ def test_an_rlds_episode_cut_at_the_time_limit_is_a_truncation_not_a_termination
         for episode in episodes:
             assert not episode["terminated"].any(), format
             assert episode["truncated"].tolist() == [False] * 49 + [True], format
+    push_env.close()
 
 
 def test_an_npz_recording_interrupted_while_writing_leaves_the_old_file(recorded, tmp_path,
@@ -346,8 +350,15 @@ def test_demonstrations_whose_rewards_the_task_does_not_give_are_refused(tmp_pat
     task's, and went into the buffer as they were."""
     out = tmp_path / "wide.npz"
     record("push", 2, out, seed=0, distance_threshold=0.3)
-    _refused(out, push_env, "holds rewards this task does not give its goals (episode 0, "
-                            "step 0: 0 stored, -1 from the goals)")
+    _refused(out, push_env, "was recorded with distance_threshold=0.3, and this run trains "
+                            "with distance_threshold=0.05: its transitions are of another task")
+    # Its metadata edited to say nothing of it: the rewards still tell.
+    wide = Trajectories.load(out)
+    metadata = dict(wide.metadata, options={})
+    wide.save(tmp_path / "edited.npz", metadata)
+    _refused(tmp_path / "edited.npz", push_env, "holds rewards this task does not give its "
+                                                "goals (episode 0, step 0: 0 stored, -1 from "
+                                                "the goals)")
 
 
 def test_demonstrations_whose_success_flags_the_goals_do_not_give_are_refused(recorded,
@@ -520,7 +531,8 @@ def test_numpy_options_are_recorded_as_the_numbers_they_hold(push_env, tmp_path)
     assert recorded == {"object_damping": float(np.float32(0.01)),
                         "terminate_on_success": False}
     assert type(recorded["terminate_on_success"]) is bool
-    damped = make_env("push", object_damping=float(np.float32(0.01)))
+    damped = make_env("push", object_damping=float(np.float32(0.01)),
+                      terminate_on_success=False)
     try:
         assert len(demos.load_episodes(tmp_path / "numpy.npz", damped)) == 1
     finally:
@@ -768,3 +780,30 @@ def test_a_minari_recording_that_fails_leaves_nothing_behind(tmp_path, monkeypat
                             "franka_composer/push/expert-v0", "a test")
     env.close()
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # "out" too, which it made.
+
+
+@pytest.mark.parametrize("recorded_with, message", [
+    (dict(max_tcp_step=0.2), "was recorded with max_tcp_step=0.2, and this run trains with "
+                             "max_tcp_step=0.05: its transitions are of another task (other "
+                             "motions, rewards or ends)"),
+    (dict(object_mass=5.0), "was recorded with object_mass=5.0, and this run trains with "
+                            "object_mass=1.0"),
+    (dict(floor_friction=0.05), "was recorded with floor_friction=0.05"),
+    (dict(terminate_on_success=False), "was recorded with terminate_on_success=False, and "
+                                       "this run trains with terminate_on_success=True"),
+    (dict(randomization="default"), "was recorded with randomization='default', and this "
+                                    "run trains with randomization=None"),
+])
+def test_demonstrations_of_another_task_setting_are_refused(recorded_with, message, push_env,
+                                                            tmp_path):
+    """Their metadata said so and they trained: actions of another scale (other motions),
+    another block's mass or the floor's friction, episodes that go on past the goal, or
+    randomised ones, put into the buffer of a run whose task is not theirs."""
+    out = tmp_path / "other.npz"
+    record("push", 1, out, seed=70, action_noise=0.5, **recorded_with)
+    _refused(out, push_env, message)
+    same = make_env("push", **recorded_with)
+    try:
+        assert len(demos.load_episodes(out, same)) == 1  # Taken by a run of that setting.
+    finally:
+        same.close()

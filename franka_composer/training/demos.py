@@ -21,6 +21,7 @@ from franka_composer.adapters.registration import ENV_IDS, other_version, split_
 from franka_composer.controllers import CONTROL_VERSIONS
 from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
 from franka_composer.tasks import TASK_CONFIGS
+from franka_composer.tasks.config import OPTIONS, readable_options
 from franka_composer.tasks.rewards import reward_from_distance
 
 
@@ -108,6 +109,7 @@ def _check_recorded_as_trained(path, recorded: dict, env, format: str) -> None:
     if recorded_dynamics != _dynamics(config):
         raise ValueError(f"{path} was recorded at {recorded_dynamics}, and this run trains at "
                          f"{_dynamics(config)}: its transitions are of other dynamics")
+    _check_same_transitions(path, recorded, config)
 
 
 def _check_id_agrees(path, recorded: dict) -> None:
@@ -129,6 +131,34 @@ def _check_id_agrees(path, recorded: dict) -> None:
                          f"{fixed.task!r}, control={fixed.control!r} and reward_type="
                          f"{fixed.reward_type!r}, but says it was recorded with "
                          f"{', '.join(contradicted)}: its metadata contradicts itself")
+
+
+#: The task options, besides the timing's and damping's (`_dynamics`), that change what a
+#: step does, what it is rewarded or whether it ends: a dataset recorded with others holds
+#: transitions of another MDP (its actions other motions, its successes others).
+_TRANSITION_OPTIONS = ("object_mass", "object_friction", "block_half_size", "puck_radius",
+                       "puck_half_height", "floor_friction", "actuated_gripper",
+                       "max_tcp_step", "max_joint_step", "max_finger_step", "physics",
+                       "distance_threshold", "terminate_on_success", "randomization")
+
+
+def _check_same_transitions(path, recorded: dict, config) -> None:
+    """A ValueError naming the first of `_TRANSITION_OPTIONS` the dataset was recorded with
+    otherwise than this run's `config` sets it (compared as the metadata keeps options,
+    `readable_options`; one it does not name was the task's own)."""
+    given = _recorded_options(path, recorded)
+    own = TASK_CONFIGS[config.name]
+    for name in _TRANSITION_OPTIONS:
+        option = OPTIONS[name]
+        if not option.applies_to(config):
+            continue
+        ours = readable_options({name: option.get(config)})[name]
+        # (A Minari env spec keeps them as given: read the same way.)
+        theirs = readable_options({name: given.get(name, option.get(own))})[name]
+        if theirs != ours:
+            raise ValueError(f"{path} was recorded with {name}={theirs!r}, and this run "
+                             f"trains with {name}={ours!r}: its transitions are of another "
+                             "task (other motions, rewards or ends)")
 
 
 #: Why a dataset of each format may not say what it was recorded with.
