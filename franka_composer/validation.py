@@ -56,8 +56,10 @@ def check_number(name: str, value, *, minimum: float | None = None,
         real = real and isinstance(value, numbers.Integral)
     if not real or not (integer or _finite(value)):  # An int of any size is finite.
         kind = "a whole number" if integer else "a finite number"
+        too_large = real and isinstance(value, numbers.Integral)  # An int past a float.
         raise ValueError(f"{name} must be {kind}{_bounds(minimum, maximum, above)}"
-                         f"{' that a 64-bit float holds' if real and isinstance(value, numbers.Integral) else ''}, got {_shown(value)}")
+                         f"{' that a 64-bit float holds' if too_large else ''}, "
+                         f"got {_shown(value)}")
     if ((minimum is not None and value < minimum) or (maximum is not None and value > maximum)
             or (above is not None and value <= above)):
         raise ValueError(f"{name} must be{_bounds(minimum, maximum, above)}, "
