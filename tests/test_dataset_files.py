@@ -318,6 +318,48 @@ def test_an_rlds_episode_cut_at_the_time_limit_is_a_truncation_not_a_termination
     push_env.close()
 
 
+def test_every_format_says_where_its_episodes_were_cut(tmp_path, push_env):
+    """The steps at which episodes were cut (`gym.make`'s max_episode_steps, or the env's
+    own time limit where that is sooner) are kept as a Minari env spec keeps them: npz and
+    RLDS metadata dropped them, and a dataset of 20-step episodes read as one of the
+    task's 50."""
+    from franka_composer.datasets import rlds_format
+
+    record("push", 2, tmp_path / "push.npz", seed=0, max_episode_steps=20)
+    assert Trajectories.load(tmp_path / "push.npz").metadata["max_episode_steps"] == 20
+    record("push", 1, tmp_path / "timed.npz", seed=0, time_limit=0.5)  # 10 steps of 0.05 s.
+    timed = Trajectories.load(tmp_path / "timed.npz")
+    assert timed.metadata["max_episode_steps"] == 10
+    assert timed.lengths.tolist() == [10] and timed.episodes[0]["truncated"][-1]
+    record("push", 2, tmp_path / "rlds", format="rlds", seed=0, max_episode_steps=20)
+    assert rlds_format.read(tmp_path / "rlds")["metadata"]["max_episode_steps"] == 20
+    record("push", 2, tmp_path / "minari", format="minari", seed=0, max_episode_steps=20)
+    minari_dataset = tmp_path / "minari" / "franka_composer" / "push" / "expert-v0"
+    for path in (tmp_path / "push.npz", tmp_path / "rlds", minari_dataset):
+        lengths = [len(episode["action"]) for episode in demos.load_episodes(path, push_env)]
+        assert lengths == [11, 20], path  # The second cut at 20: the rule below holds.
+
+
+def test_episodes_that_disagree_with_where_the_dataset_says_they_were_cut_are_refused(
+        tmp_path, push_env):
+    record("push", 2, tmp_path / "push.npz", seed=0, max_episode_steps=20)
+    metadata = Trajectories.load(tmp_path / "push.npz").metadata
+
+    def said(limit, name):
+        return _rewrite(tmp_path / "push.npz", tmp_path / name, metadata=np.array(
+            json.dumps(dict(metadata, max_episode_steps=limit))))
+
+    said_fewer = "the dataset says its episodes were cut at max_episode_steps=15: edited"
+    _refused(said(15, "fewer.npz"), push_env, f"episode 1 has 20 steps, and {said_fewer}")
+    _refused(said(30, "more.npz"), push_env, "episode 1 is truncated after 20 steps, and the "
+                                             "dataset says its episodes were cut at "
+                                             "max_episode_steps=30")
+    _refused(said("20", "text.npz"), push_env, "says its episodes were cut at "
+                                               "max_episode_steps='20', which is not a number "
+                                               "of steps (damaged metadata?)")
+    assert len(demos.load_episodes(said(None, "unsaid.npz"), push_env)) == 2  # From before.
+
+
 def test_an_npz_recording_interrupted_while_writing_leaves_the_old_file(recorded, tmp_path,
                                                                         monkeypatch):
     import shutil
@@ -489,7 +531,7 @@ def test_the_documented_recipe_writes_demonstrations_training_takes(push_env, tm
         env.close()
     assert Trajectories.load(tmp_path / "push.npz").metadata == {
         "id": "FrankaPushSparse-v0", "task": "push", "control": "mocap",
-        "reward_type": "sparse", "options": {}}
+        "reward_type": "sparse", "max_episode_steps": 50, "options": {}}
     assert len(demos.load_episodes(tmp_path / "push.npz", push_env)) == 2
     # What differs from the task's own is recorded, and checked against the run's env.
     env = gym.make("FrankaPushSparse-v0", timing="reference", object_damping=0.01)

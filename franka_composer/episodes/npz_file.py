@@ -5,8 +5,9 @@
     action, reward, is_success, terminated,    one row per step
     truncated
     episode_length                             steps of each episode, in order
-    metadata                                   JSON: what it was recorded with (task,
-                                               control, reward_type, source, seed,
+    metadata                                   JSON: what it was recorded with (id,
+                                               task, control, reward_type,
+                                               max_episode_steps, source, seed,
                                                action_noise, options); absent in files
                                                written before it was recorded
 

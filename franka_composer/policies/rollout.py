@@ -13,14 +13,12 @@ from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import OPTIONS, readable_options
 from franka_composer.validation import check_number
 
+
 def check_episodes_end(env) -> None:
     """A ValueError if episodes of the Gymnasium `env` end only on success (no `TimeLimit`:
     gym.make(id, max_episode_steps=-1), and no time limit of its own: time_limit=None):
     running one to its end could then never return."""
-    spec = getattr(env, "spec", None)
-    composer_env = getattr(getattr(env, "unwrapped", env), "composer_env", None)
-    if ((spec is None or spec.max_episode_steps is None)
-            and (composer_env is None or composer_env.episode_steps is None)):
+    if episode_limit(env) is None:
         raise ValueError("episodes of this env end only on success (no max_episode_steps and "
                          "time_limit=None): give gym.make a max_episode_steps to run whole "
                          "episodes")
@@ -80,7 +78,8 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
 def recorded_with(env) -> dict:
     """What episodes of the Gymnasium `env` were recorded with, as a dataset says it
     (`episodes.npz_file`): the id of its task, controller and reward (whose version says
-    which dynamics), them, and the task options whose values differ from the task's own;
+    which dynamics), them, the steps at which an episode is cut (`max_episode_steps`, as a
+    Minari env spec keeps it) and the task options whose values differ from the task's own;
     {} for an env of another package."""
     from franka_composer.adapters.registration import env_id
 
@@ -92,4 +91,16 @@ def recorded_with(env) -> dict:
                if name not in ("control", "reward_type") and value != OPTIONS[name].get(own)}
     return {"id": env_id(config.name, config.reward_type, config.control.kind),
             "task": config.name, "control": config.control.kind,
-            "reward_type": config.reward_type, "options": readable_options(options)}
+            "reward_type": config.reward_type, "max_episode_steps": episode_limit(env),
+            "options": readable_options(options)}
+
+
+def episode_limit(env) -> int | None:
+    """The steps after which an episode of the Gymnasium `env` is cut (truncated): its
+    `TimeLimit`'s or its own time limit's, the fewer; None where it has neither."""
+    spec = getattr(env, "spec", None)
+    composer_env = getattr(getattr(env, "unwrapped", env), "composer_env", None)
+    limits = [limit for limit in (getattr(spec, "max_episode_steps", None),
+                                  getattr(composer_env, "episode_steps", None))
+              if limit is not None]
+    return min(limits, default=None)

@@ -40,11 +40,11 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     if not path.exists():
         raise ValueError(f"{path} does not exist")
     if path.is_file() and path.suffix == ".npz":
-        episodes = _npz_episodes(path, env)
+        episodes, recorded = _npz_episodes(path, env)
     elif (path / "metadata.riegeli").is_file():
-        episodes = _rlds_episodes(path, env)
+        episodes, recorded = _rlds_episodes(path, env)
     elif (path / "data").is_dir() or (path / "metadata.json").is_file():
-        episodes = _minari_episodes(path, env)
+        episodes, recorded = _minari_episodes(path, env)
     else:
         inside = sorted(found.parent.parent for found in path.glob("**/data/metadata.json"))
         hint = (f"; it holds the Minari dataset(s) {', '.join(map(str, inside))}: give one "
@@ -53,6 +53,7 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
                          f"folder (holding data/) or an RLDS folder (holding "
                          f"metadata.riegeli){hint}")
     check_episodes(path, episodes)
+    _check_episode_limit(path, recorded, episodes)
     spaces = env.observation_space.spaces
     for key in OBSERVATION_KEYS:
         if key not in episodes[0]:
@@ -131,6 +132,29 @@ def _check_id_agrees(path, recorded: dict) -> None:
                          f"{fixed.task!r}, control={fixed.control!r} and reward_type="
                          f"{fixed.reward_type!r}, but says it was recorded with "
                          f"{', '.join(contradicted)}: its metadata contradicts itself")
+
+
+def _check_episode_limit(path, recorded: dict, episodes: list[dict]) -> None:
+    """No episode runs past the steps at which the dataset says its episodes were cut
+    (`max_episode_steps`; datasets from before it was kept say nothing), and one that was
+    cut (truncated) was cut there: a truncation elsewhere would have the critic bootstrap
+    where the recording did not stop."""
+    limit = recorded.get("max_episode_steps")
+    if limit is None:
+        return
+    if (isinstance(limit, (bool, np.bool_)) or not isinstance(limit, (int, np.integer))
+            or limit < 1):
+        raise ValueError(f"{path} says its episodes were cut at max_episode_steps="
+                         f"{limit!r}, which is not a number of steps (damaged metadata?)")
+    said = f"the dataset says its episodes were cut at max_episode_steps={limit}"
+    for index, episode in enumerate(episodes):
+        steps = len(episode["action"])
+        if steps > limit:
+            raise ValueError(f"{path}: episode {index} has {steps} steps, and {said}: "
+                             "edited, or its metadata damaged?")
+        if bool(episode["truncated"][-1]) and steps != limit:
+            raise ValueError(f"{path}: episode {index} is truncated after {steps} steps, "
+                             f"and {said}: edited, or its metadata damaged?")
 
 
 #: The task options, besides the timing's and damping's (`_dynamics`), that change what a
@@ -267,14 +291,16 @@ def _check_rewards_are_the_tasks(path, episodes: list[dict], env) -> None:
                 "and the critic would learn that the state is worth nothing more: edited?")
 
 
-def _npz_episodes(path: pathlib.Path, env) -> list[dict]:
+def _npz_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
+    """The episodes and what the file says they were recorded with."""
     trajectories = Trajectories.load(path)
     _check_recorded_as_trained(path, trajectories.metadata, env, "npz")
-    return trajectories.episodes
+    return trajectories.episodes, trajectories.metadata
 
 
-def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
-    """The episodes, once the dataset's env spec says they are of this task."""
+def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
+    """The episodes, once the dataset's env spec says they are of this task, and what it
+    says."""
     import minari
 
     data = path / "data" if (path / "data").is_dir() else path
@@ -285,7 +311,8 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
         raise _unreadable_minari(path, error) from None
     if env_spec is not None and env_spec.id not in ENV_IDS:
         raise _not_registered(path, env_spec.id)
-    _check_recorded_as_trained(path, _recorded_by_spec(env_spec), env, "minari")
+    recorded = _recorded_by_spec(env_spec)
+    _check_recorded_as_trained(path, recorded, env, "minari")
     try:
         episodes = [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
                      "action": np.asarray(episode.actions, dtype=np.float32),
@@ -305,7 +332,7 @@ def _minari_episodes(path: pathlib.Path, env) -> list[dict]:
                          f"of {dataset.total_steps} steps in all, and its data holds {stored} "
                          f"(the first {len(episodes)}: {steps} steps): an append cut "
                          "short, or hand-edited?")
-    return episodes
+    return episodes, recorded
 
 
 def _stored_minari_episodes(data: pathlib.Path) -> int:
@@ -322,12 +349,16 @@ def _stored_minari_episodes(data: pathlib.Path) -> int:
 
 def _recorded_by_spec(env_spec) -> dict:
     """What a Minari dataset's env spec says its env was: its id, what the id fixes (the
-    plain ids' mocap control among it), and the options it was made with."""
+    plain ids' mocap control among it), the options it was made with, and its
+    `max_episode_steps` where that alone cut episodes (an env made with a `time_limit` of
+    its own may have cut them sooner)."""
     if env_spec is None:
         return {}
     registered = ENV_IDS.get(env_spec.id)
+    limit = (env_spec.max_episode_steps if env_spec.kwargs.get("time_limit") is None
+             else None)
     return {"id": env_spec.id, **(registered._asdict() if registered else {}),
-            **env_spec.kwargs}
+            **env_spec.kwargs, "max_episode_steps": limit}
 
 
 def _not_registered(path, recorded_id: str) -> ValueError:
@@ -351,15 +382,16 @@ def _unreadable_minari(path, error: Exception) -> ValueError:
                       f"{type(error).__name__}: {first_line}")
 
 
-def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
+def _rlds_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
     """The episodes, once the dataset's metadata says they are of this task (its
-    observations are read as this task's)."""
+    observations are read as this task's), and what it says."""
     from franka_composer.datasets import rlds_format
 
     adapter = env.unwrapped
     task, episodes = adapter.task, []
     dataset = rlds_format.read(path)
-    _check_recorded_as_trained(path, dict(dataset["metadata"] or {}), env, "rlds")
+    recorded = dict(dataset["metadata"] or {})
+    _check_recorded_as_trained(path, recorded, env, "rlds")
     for episode in dataset["episodes"]:
         observations = [adapter.goal_observation(o) for o in episode["observations"]]
         steps = len(episode["actions"])
@@ -373,7 +405,7 @@ def _rlds_episodes(path: pathlib.Path, env) -> list[dict]:
                          "terminated": end & episode["terminated"],
                          "truncated": end & (not episode["terminated"]),
                          "is_success": np.asarray(success, dtype=bool)})
-    return episodes
+    return episodes, recorded
 
 
 def record_expert(path: pathlib.Path, config) -> pathlib.Path:
