@@ -20,6 +20,11 @@ tau_max_i / |J_z,i| (114-136 N over the object square: joint 6's 12 N m, 136 N, 
 it, joint 2's 87 N m, 114-116 N, at its far edge, x = 0.75 m),
 over the spring's vertical stiffness, which the controller supplies (`guard(tcp, target,
 stiffness)`: about 1.3 mm for the weld, 8 mm for the operational-space law).
+
+A block the hand carries (both fingers touch it, nothing else does) is part of the hand, not
+a surface beneath it, where the task says so (`ControlSettings.guard_ignores_carried`): the
+rays from the fingertips' inner corners start inside a block held low in the grip and meet
+its underside, and without it the hand is held up by what it carries.
 """
 
 from __future__ import annotations
@@ -59,8 +64,8 @@ class SurfaceGuard:
     runs each control step, reading the data it was bound to.
     """
 
-    def __init__(self, panda) -> None:
-        self._panda = panda
+    def __init__(self, panda, ignore_carried: bool = False) -> None:
+        self._panda, self._ignore_carried = panda, ignore_carried
         self._torque_limits = np.asarray(panda.arm_torque_limits, dtype=np.float64)
 
     def bind(self, physics) -> "BoundSurfaceGuard":
@@ -76,15 +81,16 @@ class SurfaceGuard:
             model, physics.data.ptr, bodies, _footprints(model, physics.data.ptr, bodies),
             tcp_site=int(physics.bind(self._panda.tcp_site).element_id),
             arm_dofs=np.array(physics.bind(self._panda.joints).dofadr),
-            torque_limits=self._torque_limits)
+            torque_limits=self._torque_limits, ignore_carried=self._ignore_carried)
 
 
 class BoundSurfaceGuard:
     """A `SurfaceGuard` reading one MjData (valid while that data lives)."""
 
     def __init__(self, model, data, bodies, footprints, *, tcp_site, arm_dofs,
-                 torque_limits) -> None:
+                 torque_limits, ignore_carried: bool = False) -> None:
         self._model, self._data = model, data
+        self._ignore_carried = ignore_carried
         self._bodies, self._footprints = bodies, footprints
         self._tcp_site, self._arm_dofs = tcp_site, arm_dofs
         self._torque_limits = torque_limits
@@ -105,7 +111,8 @@ class BoundSurfaceGuard:
         """The same guard reading another MjData of the same model."""
         return BoundSurfaceGuard(model, data, self._bodies, self._footprints,
                                  tcp_site=self._tcp_site, arm_dofs=self._arm_dofs,
-                                 torque_limits=self._torque_limits)
+                                 torque_limits=self._torque_limits,
+                                 ignore_carried=self._ignore_carried)
 
     def footprint(self) -> np.ndarray:
         """The hand's lowest points, world frame, shape (n, 3)."""
@@ -185,14 +192,38 @@ class BoundSurfaceGuard:
                     touching.setdefault(other, set()).add(finger)
         return {body for body, fingers in touching.items() if fingers == self._fingers}
 
+    def _carried_bodies(self) -> set:
+        """Held bodies (`_held_bodies`) that touch nothing but the hand: off the floor and
+        off every other object. A block pushed or turned over on the floor, or set down on
+        another, is held but not carried."""
+        model, data = self._model, self._data
+        hand = self._fingers | {self._palm}
+        carried = self._held_bodies()
+        for index in range(data.ncon):
+            contact = data.contact[index]
+            first = int(model.geom_bodyid[contact.geom1])
+            second = int(model.geom_bodyid[contact.geom2])
+            if first in carried and second not in hand:
+                carried.discard(first)
+            if second in carried and first not in hand:
+                carried.discard(second)
+        return carried
+
     def _lowest_hit(self, points: np.ndarray, start_above: float) -> float:
-        """The smallest clearance below `points` of a surface at or under them."""
+        """The smallest clearance below `points` of a surface at or under them (a ray that
+        meets a carried body cast again past it, where the guard ignores those)."""
         model, data, geom = self._model, self._data, self._geom
-        lowest = np.inf
+        lowest, carried = np.inf, None
         for point in points:
             start = point.copy()
             start[2] += start_above
             distance = mujoco.mj_ray(model, data, start, _DOWN, VISIBLE_GROUPS, 1, -1, geom)
+            if self._ignore_carried and distance >= 0.0 and model.geom_bodyid[geom[0]]:
+                body = int(model.geom_bodyid[geom[0]])
+                carried = self._carried_bodies() if carried is None else carried
+                if body in carried:
+                    distance = mujoco.mj_ray(model, data, start, _DOWN, VISIBLE_GROUPS, 1,
+                                             body, geom)
             if distance >= 0.0 and distance - start_above >= -BENEATH_TOLERANCE:
                 lowest = min(lowest, distance - start_above)
         return lowest

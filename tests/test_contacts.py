@@ -234,3 +234,40 @@ def test_a_hand_holding_a_block_goes_down_when_commanded_down():
         timestep = env.step(np.array([0, 0, -1, -1], np.float32))
     assert start - timestep.observation["panda/tcp_position"][2] > 0.08  # ~2 x 5 cm down.
     assert timestep.observation["panda/finger_width"][0] == pytest.approx(0.04, abs=0.003)
+
+
+@pytest.mark.parametrize("control, first_two_steps", [("mocap", 0.09), ("osc", 0.08)])
+def test_a_hand_carrying_a_block_low_in_its_grip_goes_down_at_the_commanded_speed(
+        control, first_two_steps):
+    """Stack's v1: a block the hand carries is part of the hand, not a surface beneath it.
+    Grasped 12 mm above its centre, block 1 reaches down past the fingertips' inner corners,
+    whose rays started inside it and met its underside: v0's guard (still
+    `guard_ignores_carried=False`) held the hand up by what it carried, 0.3-1 mm a step
+    under mocap for a full downward command. Set down, the block is no longer carried, and
+    the guard stops the hand on it: it rests at its height, not pressed into the floor."""
+    moved = {}
+    for ignores in (True, False):
+        env = franka_composer.load("stack", seed=0, terminate_on_success=False,
+                                   control=control, guard_ignores_carried=ignores)
+        timestep = env.reset()
+        block = timestep.observation["block1/position"].copy()
+        timestep = move_tcp_to(env, timestep, block + [0, 0, 0.08], gripper=1)
+        timestep = move_tcp_to(env, timestep, block - [0, 0, 0.012], gripper=1)
+        for _ in range(5):
+            timestep = env.step(cartesian_action(env, np.zeros(3), gripper=-1))
+        timestep = move_tcp_to(env, timestep, block + [0, 0, 0.12], gripper=-1)
+        lifted = timestep.observation["block1/position"][2] - block[2]
+        assert lifted > 0.1, (control, ignores)  # Carried, the floor 12 cm below it.
+        start = timestep.observation["panda/tcp_position"][2]
+        heights = []
+        for _ in range(10):
+            timestep = env.step(np.array([0, 0, -1, -1], np.float32))
+            heights.append(timestep.observation["panda/tcp_position"][2])
+        moved[ignores] = start - heights[1]
+        if ignores:
+            assert timestep.observation["block1/position"][2] == pytest.approx(block[2],
+                                                                                abs=0.002)
+            assert np.linalg.norm(timestep.observation["block1/linear_velocity"]) < 0.3 * 0.05
+            assert heights[-1] == pytest.approx(heights[-2], abs=0.001)  # Stopped on it.
+    assert moved[True] > first_two_steps
+    assert moved[False] < 0.01

@@ -48,7 +48,8 @@ def test_every_task_is_registered_under_every_controller_with_its_episode_length
         env = gym.make(id_)
         assert env.unwrapped.task.config.control.kind == registered.control
     assert env_id("pick_and_place", "dense") == "FrankaPickAndPlaceDense-v0"
-    assert env_id("stack", "sparse", "osc") == "FrankaStackOscSparse-v0"
+    assert env_id("stack", "sparse", "osc") == "FrankaStackOscSparse-v1"
+    assert env_id("stack", "dense", "joints") == "FrankaStackJointsDense-v2"
     assert env_id("flip", "dense", "osc") == "FrankaFlipOscDense-v1"
     assert env_id("push", "sparse", "joints") == "FrankaPushJointsSparse-v1"
     assert env_id("flip", "sparse", "joints") == "FrankaFlipJointsSparse-v2"
@@ -58,6 +59,8 @@ def test_every_task_is_registered_under_every_controller_with_its_episode_length
     ("FrankaFlipSparse-v0", "FrankaFlipSparse-v1"),  # Flip's goals changed in v1.
     ("FrankaPushJointsSparse-v0", "FrankaPushJointsSparse-v1"),  # The guard under joints.
     ("FrankaFlipJointsDense-v1", "FrankaFlipJointsDense-v2"),
+    ("FrankaStackSparse-v0", "FrankaStackSparse-v1"),  # The guard and carried blocks.
+    ("FrankaStackJointsSparse-v1", "FrankaStackJointsSparse-v2"),
 ])
 def test_replaced_ids_point_to_their_successor(old, new):
     """Gymnasium names the new id for the old one."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import pathlib
 import re
 import warnings
 import shutil
@@ -1631,6 +1632,48 @@ def test_the_weld_counts_only_under_mocap_control():
     # differs, and only it (not a KeyError on the weld only one of them has).
     for ours, theirs in (("mocap", "osc"), ("osc", "mocap")):
         assert config(ours, 0.02).differing(config(theirs, 0.02)) == {"control": (ours, theirs)}
+
+
+def test_a_run_keeps_the_surface_guard_it_trained_under():
+    """Stack's v1 guard counts a carried block as part of the hand; a stack run from before
+    it (its config.json names no guard setting, as issue 40's kept run) trained under v0's,
+    and is remade, labelled and checked as such: played on v1's guard it would act in
+    dynamics it never saw."""
+    from franka_composer.datasets.sources import check_acts_in
+    from franka_composer.tasks import task_config
+    from franka_composer.training.run_config import RunConfig
+
+    new = RunConfig("stack", "tqc", 0, hyperparameters("stack", "tqc"), backend="sbx")
+    assert new.guard_ignores_carried is True and new.setup == ""
+    assert "guard_ignores_carried" not in new.env_options
+    saved = new.to_dict()
+    assert saved["guard_ignores_carried"] is True
+    del saved["guard_ignores_carried"]
+    older = RunConfig.from_dict(saved)
+    assert older.guard_ignores_carried is False
+    assert older.setup == "guard_ignores_carried=False"
+    assert older.differing(new) == {"guard_ignores_carried": (False, True)}
+    env = make_env("stack", **older.env_options)
+    try:
+        assert env.unwrapped.task.config.control.guard_ignores_carried is False
+    finally:
+        env.close()
+    kept = RunDir(pathlib.Path(__file__).resolve().parents[1] / "results" / "learnability"
+                  / "stack-tqc-seed0").read_config()
+    assert kept.guard_ignores_carried is False
+    with pytest.raises(ValueError, match=re.escape(
+            "run trained with guard_ignores_carried=False, not True: the surface guard held "
+            "the hand differently wherever it carried a block")):
+        check_acts_in("run", older, task_config("stack"))
+    check_acts_in("run", older, task_config("stack", guard_ignores_carried=False))
+    # Push's own is v0's: a push run from before names none and is the same run.
+    push = RunConfig("push", "sac", 0, hyperparameters("push", "sac"))
+    assert RunConfig.from_dict({k: v for k, v in push.to_dict().items()
+                                if k != "guard_ignores_carried"}).differing(push) == {}
+    with pytest.raises(ValueError, match=re.escape(
+            "guard_ignores_carried does nothing here: reach has no object to carry")):
+        RunConfig("reach", "sac", 0, hyperparameters("reach", "sac"),
+                  guard_ignores_carried=True)
 
 
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])

@@ -84,12 +84,14 @@ def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, messa
      "leave goal_max_height out"),
     ("FrankaPushSparse-v0", dict(goal_in_air_probability=0.5), "goal_in_air_probability "
      "does nothing here: goal_max_height=0 lifts no goal: give goal_max_height as well"),
-    ("FrankaStackSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5),
+    ("FrankaStackSparse-v1", dict(goal_max_height=0.2, goal_in_air_probability=0.5),
      "goal_max_height does nothing here: stack's goals (stacked) are never lifted: leave it "
      "out"),
     ("FrankaReachSparse-v0", dict(object_centre=(0.2, 0.3)), "object_centre does nothing "
      "here: reach has no object to place: leave it out"),
     ("FrankaReachSparse-v0", dict(object_range=(0.5, 0.5)), "object_range does nothing"),
+    ("FrankaReachSparse-v0", dict(guard_ignores_carried=True), "guard_ignores_carried does "
+     "nothing here: reach has no object to carry: leave it out"),
     ("FrankaFlipSparse-v1", dict(goal_range=(0.1, 0.1)), "goal_range does nothing here: "
      "flip's goals (orientation) are not drawn in the goal square: leave it out"),
     ("FrankaFlipSparse-v1", dict(goal_centre=(0.5, 0.1)), "goal_centre does nothing here"),
@@ -112,7 +114,7 @@ def test_an_object_box_too_small_for_its_objects_is_refused_when_made(options):
     with pytest.raises(ValueError, match=re.escape(
             "is too small to place stack's objects apart at every episode's start "
             "(footprints across: block1 ")):
-        gym.make("FrankaStackSparse-v0", **options)
+        gym.make("FrankaStackSparse-v1", **options)
 
 
 def test_the_object_box_check_simulates_the_placement_episodes_use():
@@ -125,7 +127,7 @@ def test_the_object_box_check_simulates_the_placement_episodes_use():
     assert not room_to_place_apart((0.5, 0.0), (0.5667, 0.0), radii)
     assert room_to_place_apart((0.5, 0.0), (0.64, 0.0), radii)
     assert place_apart(lambda: np.zeros(2), radii) == 1  # The second found no room.
-    env = gym.make("FrankaStackSparse-v0", object_range=(0.14, 0.0))
+    env = gym.make("FrankaStackSparse-v1", object_range=(0.14, 0.0))
     layout = env.unwrapped.task.observation_layout
     for seed in range(5):
         obs, _ = env.reset(seed=seed)
@@ -155,7 +157,7 @@ def test_a_box_that_just_passes_resets_without_composer_logging_errors(caplog):
     ("FrankaPickAndPlaceSparse-v0", dict(goal_in_air_probability=0.0, max_finger_step=0.1)),
     ("FrankaReachJointsSparse-v1", dict(max_joint_step=0.1, goal_max_height=0.1)),
     ("FrankaPushOscSparse-v0", dict(timing="reference")),  # Its weld: unread by design.
-    ("FrankaStackSparse-v0", dict(goal_range=(0.1, 0.1), object_centre=(0.6, 0.05))),
+    ("FrankaStackSparse-v1", dict(goal_range=(0.1, 0.1), object_centre=(0.6, 0.05))),
     ("FrankaFlipSparse-v1", dict(goal_yaw_range=0.2, object_range=(0.1, 0.1))),
 ])
 def test_options_the_env_reads_are_taken(env_id, options):

@@ -30,10 +30,10 @@ VERSION_HISTORY = (
 #: What each controller's version bump changed (`controllers.CONTROL_VERSIONS`), newest last,
 #: after the task's own history on its page.
 CONTROL_VERSION_HISTORY = (
-    "Joints ids one version up (v1; flip's v2), 0.4.0: the surface guard acts under joints "
-    "as well, raising the servo targets near surfaces and braking a descending hand (a "
-    "press in joint space had lifted objects 13 mm and shoved them up to 38 cm: "
-    "docs/guide/controllers.md).",
+    "Joints ids one version up (v1; flip's and stack's v2), 0.4.0: the surface guard acts "
+    "under joints as well, raising the servo targets near surfaces and braking a "
+    "descending hand (a press in joint space had lifted objects 13 mm and shoved them up "
+    "to 38 cm: docs/guide/controllers.md).",
 )
 
 

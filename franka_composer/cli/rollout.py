@@ -62,7 +62,7 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
 
-    run_timing, damping = None, args.object_damping
+    run_timing, damping, guard = None, args.object_damping, {}
     if args.policy is not None:  # In the run's env unless told otherwise.
         from franka_composer.training.policy_file import check_trained
         from franka_composer.training.runs import RunDir, check_out_apart
@@ -73,8 +73,10 @@ def run(args: argparse.Namespace) -> int:
         check_out_apart(args.out, [args.policy])  # Its expert-demos.npz, say.
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
+        guard = {name: value for name, value in trained.dynamics_options.items()
+                 if name == "guard_ignores_carried"}  # A stack run from before v1.
     task_options = {**given_timing(args, run_timing),
-                    **({"object_damping": damping} if damping else {})}
+                    **({"object_damping": damping} if damping else {}), **guard}
     if args.policy is not None:  # Acts there as it learned: found before a dataset is begun.
         from franka_composer.datasets.sources import check_acts_in
         from franka_composer.tasks import task_config

@@ -98,7 +98,7 @@ class Controller:
                              f"arm_actuation={self.ARM_ACTUATION!r}, got "
                              f"{panda.arm_actuation!r}")
         self._panda, self._settings = panda, settings
-        self._surface_guard = SurfaceGuard(panda)
+        self._surface_guard = SurfaceGuard(panda, settings.guard_ignores_carried)
         # Bounds of the action's own shape, as dm_control's suites give them: an agent may
         # take spec.minimum as an action (scalar bounds are dm_env-legal but are no action).
         shape = (settings.action_size,)

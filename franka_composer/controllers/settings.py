@@ -53,6 +53,12 @@ class ControlSettings:
         target: how fast a full action moves the hand, hence how hard it jerks a held block
         (`WELD_TIME_CONSTANT`, `REFERENCE_WELD_TIME_CONSTANT`). Mocap only: the other
         controllers have no weld and ignore it, and nothing compares it for them.
+      guard_ignores_carried: whether the surface guard takes a block the hand carries (both
+        fingers touch it, nothing else does) for part of the hand rather than a surface
+        beneath it. Without it, the rays from the fingertips' inner corners meet the
+        underside of a block held low in the grip, and a downward command is held up by
+        what the hand carries (`docs/guide/physics.md`). Stack's v1 sets it; the paper's
+        tasks keep v0's guard, as their ids do.
     """
 
     kind: str = "mocap"
@@ -61,6 +67,7 @@ class ControlSettings:
     max_finger_step: float = 0.2
     actuated_gripper: bool = False
     weld_time_constant: float = WELD_TIME_CONSTANT
+    guard_ignores_carried: bool = False
 
     @property
     def arm_action_size(self) -> int:

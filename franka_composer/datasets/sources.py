@@ -87,8 +87,8 @@ class StateView(gym.ObservationWrapper):
 def check_acts_in(run_dir, config, env_config) -> None:
     """A ValueError naming `run_dir` unless its run (`config`) acts in an env of
     `env_config` (a `TaskConfig`) as it learned: the same task, this suite's env, the same
-    controller, timing, velocity scale and weld. Asked before the env is made where it can
-    be (`demo --policy`), and by `TrainedPolicy`."""
+    controller, timing, velocity scale, weld and surface guard. Asked before the env is
+    made where it can be (`demo --policy`), and by `TrainedPolicy`."""
     task = env_config.name
     if config.task != task:
         raise ValueError(f"{run_dir} trained {config.task}, not {task}")
@@ -111,6 +111,11 @@ def check_acts_in(run_dir, config, env_config) -> None:
         raise ValueError(f"{run_dir} moved a hand welded with a time constant of "
                          f"{config.weld_time_constant} s, not "
                          f"{env_config.control.weld_time_constant} s")
+    if config.guard_ignores_carried != env_config.control.guard_ignores_carried:
+        raise ValueError(f"{run_dir} trained with guard_ignores_carried="
+                         f"{config.guard_ignores_carried}, not "
+                         f"{env_config.control.guard_ignores_carried}: the surface guard "
+                         "held the hand differently wherever it carried a block")
 
 
 def make_policy(env, *, policy_dir=None, action_noise: float = 0.0, seed: int = 0):

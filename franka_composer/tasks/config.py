@@ -479,6 +479,10 @@ _READ_ONLY_WHERE: dict[str, ReadOnlyWhere] = {
                            lambda c: f"{c.name} has no object to place: leave it out",
                            lambda c: None)
        for name in ("object_centre", "object_range")},
+    "guard_ignores_carried": ReadOnlyWhere(
+        lambda c: bool(c.objects),
+        lambda c: f"{c.name} has no object to carry: leave it out",
+        lambda c: None),
     **{name: ReadOnlyWhere(lambda c: c.goal in GOAL_SQUARE_GOALS,
                            lambda c: f"{c.name}'s goals ({c.goal}) are not drawn in the goal "
                                      "square: leave it out",
@@ -658,6 +662,7 @@ OPTIONS: dict[str, Option] = {
     "max_joint_step": Option(("control", "max_joint_step"), _positive),
     "max_finger_step": Option(("control", "max_finger_step"), _positive),
     "weld_time_constant": Option(("control", "weld_time_constant"), _positive),
+    "guard_ignores_carried": Option(("control", "guard_ignores_carried"), check_bool),
     "physics": Option(("physics",), _physics),
     "reward_type": Option(("reward_type",),
                           lambda name, value: check_choice(name, value, REWARD_TYPES)),

@@ -162,7 +162,8 @@ def _check_episode_limit(path, recorded: dict, episodes: list[dict]) -> None:
 #: transitions of another MDP (its actions other motions, its successes others).
 _TRANSITION_OPTIONS = ("object_mass", "object_friction", "block_half_size", "puck_radius",
                        "puck_half_height", "floor_friction", "actuated_gripper",
-                       "max_tcp_step", "max_joint_step", "max_finger_step", "physics",
+                       "max_tcp_step", "max_joint_step", "max_finger_step",
+                       "guard_ignores_carried", "physics",
                        "distance_threshold", "terminate_on_success", "randomization")
 
 

@@ -51,7 +51,8 @@ def make_env(task: str, *, terminate_on_success: bool = True,
              control: str = "mocap", randomization: str | None = None,
              control_timestep: float | None = None, velocity_timestep: float | None = None,
              weld_time_constant: float | None = None, object_damping: float = 0.0,
-             environment: str | None = None, **render_options) -> gym.Env:
+             guard_ignores_carried: bool | None = None, environment: str | None = None,
+             **render_options) -> gym.Env:
     """The sparse-reward Gymnasium env of `task` (`FrankaPushSparse-v0`, ...), or, with
     `environment`, that suite's (`ENVIRONMENTS`).
 
@@ -62,7 +63,8 @@ def make_env(task: str, *, terminate_on_success: bool = True,
     `control_timestep`: seconds per step, or None for the task's; `velocity_timestep`: the
     seconds velocities are multiplied by, or None for the control period;
     `weld_time_constant`: the mocap weld's, or None for the task's; `object_damping`: the
-    objects' free joints' (0: undamped, the task's). `render_options`
+    objects' free joints' (0: undamped, the task's); `guard_ignores_carried`: the surface
+    guard's, or None for the task's (other suites' envs have no such guard). `render_options`
     (`render_mode`, `width`, `height`) go to `gym.make` as they are.
     """
     if environment is not None:
@@ -78,7 +80,8 @@ def make_env(task: str, *, terminate_on_success: bool = True,
     options = _task_options(randomization=randomization, control_timestep=control_timestep,
                             velocity_timestep=velocity_timestep,
                             weld_time_constant=weld_time_constant,
-                            object_damping=object_damping)
+                            object_damping=object_damping,
+                            guard_ignores_carried=guard_ignores_carried)
     return gym.make(env_id(task, "sparse", control), terminate_on_success=terminate_on_success,
                     **options, **render_options)
 
@@ -97,13 +100,15 @@ def env_task_config(task: str, *, terminate_on_success: bool = True, control: st
 def _task_options(*, randomization: str | None = None, control_timestep: float | None = None,
                   velocity_timestep: float | None = None,
                   weld_time_constant: float | None = None,
-                  object_damping: float = 0.0) -> dict:
+                  object_damping: float = 0.0,
+                  guard_ignores_carried: bool | None = None) -> dict:
     """`make_env`'s options as the task takes them: those left to the task omitted."""
     return {name: value for name, value in (("randomization", randomization),
                                             ("control_timestep", control_timestep),
                                             ("velocity_timestep", velocity_timestep),
                                             ("weld_time_constant", weld_time_constant),
-                                            ("object_damping", object_damping or None))
+                                            ("object_damping", object_damping or None),
+                                            ("guard_ignores_carried", guard_ignores_carried))
             if value is not None}
 
 

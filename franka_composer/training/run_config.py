@@ -54,6 +54,10 @@ class RunConfig:
     `object_damping` damps the objects' free joints (the task option; 0: undamped, this
     suite's default; 0.01 the reference code's block, `tasks.config.REFERENCE_OBJECT_DAMPING`).
 
+    `guard_ignores_carried` is the surface guard's setting the run trained under (the task
+    option; None: the task's own, kept as that value): stack's v1 leaves a carried block out
+    of the hand's rays, and a run from before it (no such field) trained under v0's guard.
+
     `backend` is one of `BACKENDS`: a checkpoint can only be loaded by the library that
     wrote it, so resume and evaluate read it from here. `precision` (one of `PRECISIONS`)
     is how the networks' passes are computed while training; the weights are fp32 either
@@ -84,6 +88,7 @@ class RunConfig:
     weld_time_constant: float | None = None
     object_damping: float = 0.0
     environment: str | None = None
+    guard_ignores_carried: bool | None = None
 
     def __post_init__(self) -> None:
         check_choice("task", self.task, tuple(TASK_CONFIGS))
@@ -113,6 +118,12 @@ class RunConfig:
         if isinstance(damping, bool) or damping != 0:  # (False == 0: the task refuses it.)
             damping = task.replace(object_damping=damping).objects[0].joint_damping
         object.__setattr__(self, "object_damping", float(damping))
+        ignores = self.guard_ignores_carried  # Checked as the task checks it (reach: none).
+        if ignores is None:
+            ignores = task.control.guard_ignores_carried
+        elif ignores is not task.control.guard_ignores_carried:
+            ignores = task.replace(guard_ignores_carried=ignores).control.guard_ignores_carried
+        object.__setattr__(self, "guard_ignores_carried", ignores)
         check_choice("algorithm", self.algo, ALGOS)
         unset = [name for name in ALGORITHM_SETTINGS[self.algo]
                  if getattr(self.hyperparameters, name) is None]
@@ -171,6 +182,7 @@ class RunConfig:
                 "weld_time_constant": self.weld_time_constant,
                 "object_damping": self.object_damping,
                 "environment": self.environment,
+                "guard_ignores_carried": self.guard_ignores_carried,
                 "hyperparameters": self.hyperparameters.to_dict()}
 
     @property
@@ -200,6 +212,8 @@ class RunConfig:
             (self.control != "mocap", f"{self.control} control"),
             (self.timing_label != "", self.timing_label),
             (self.object_damping != 0.0, f"object damping {self.object_damping:g}"),
+            (self.guard_ignores_carried != self._own_guard,
+             f"guard_ignores_carried={self.guard_ignores_carried}"),
             (self.randomization is not None, f"randomization {self.randomization}"),
             (self.demos is not None, f"demos {pathlib.Path(self.demos or '').name}"
              + (f"[:{self.demo_episodes}]" if self.demo_episodes else "")),
@@ -284,11 +298,19 @@ class RunConfig:
         return EXPERT_DEMO_SEED + 100_000 * self.seed
 
     @property
+    def _own_guard(self) -> bool:
+        """The task's own `guard_ignores_carried` in this version."""
+        return TASK_CONFIGS[self.task].control.guard_ignores_carried
+
+    @property
     def dynamics_options(self) -> dict:
-        """The task options its dynamics were set with: its timing's, and the objects'
-        damping where they are damped (the task's own where not given)."""
+        """The task options its dynamics were set with: its timing's, the objects' damping
+        where they are damped, and the guard's setting where it is not the task's own (a
+        stack run from before v1)."""
         damping = {"object_damping": self.object_damping} if self.object_damping else {}
-        return {**self.timing_options, **damping}
+        guard = ({"guard_ignores_carried": self.guard_ignores_carried}
+                 if self.guard_ignores_carried != self._own_guard else {})
+        return {**self.timing_options, **damping, **guard}
 
     @property
     def env_options(self) -> dict:
@@ -305,7 +327,8 @@ class RunConfig:
         # those before the velocity timestep, velocities per control period; those before the
         # weld's time constant, the default weld (the reference timing's runs included);
         # those before other suites' envs, this package's; those before object damping,
-        # undamped objects.
+        # undamped objects; those before the guard could leave carried blocks out, v0's
+        # guard, which counted them as surfaces.
         return cls(task=data["task"], algo=data["algo"], seed=data["seed"],
                    terminate_on_success=data["terminate_on_success"],
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
@@ -318,4 +341,5 @@ class RunConfig:
                    weld_time_constant=data.get("weld_time_constant"),
                    object_damping=data.get("object_damping", 0.0),
                    environment=data.get("environment"),
+                   guard_ignores_carried=data.get("guard_ignores_carried", False),
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
