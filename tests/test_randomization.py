@@ -66,6 +66,31 @@ def test_every_task_controller_and_mode_keeps_the_goal_contract_under_the_defaul
     env.close()
 
 
+def test_a_mapping_built_on_a_preset_survives_copies_and_pickles():
+    """The guide's idiom, `{**PRESETS["default"], ...}`: its camera entries apply where images
+    are observed, and a state env takes them. A pickled or copied env (a spawned or
+    forkserver vector env's worker, SB3's SubprocVecEnv) holds copies of them, which were
+    told from the preset's by identity and refused there ("camera_position does nothing
+    here"); so was `load(task, randomization=copy.deepcopy(PRESETS["default"]))`."""
+    import copy
+
+    mapping = {**PRESETS["default"], "object_mass": distributions.Uniform(0.2, 2.0)}
+    env = _make(randomization=mapping)
+    first = env.reset(seed=0)[0]
+    for clone in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
+        for key, value in clone.reset(seed=0)[0].items():
+            np.testing.assert_array_equal(value, first[key])
+        clone.close()
+    env.close()
+    for task in ("push", "reach"):  # Reach: the preset's object entries, copied.
+        franka_composer.load(task, randomization=copy.deepcopy(PRESETS["default"])).reset()
+    # A camera entry of one's own is still refused in a state env.
+    with pytest.raises(ValueError, match=re.escape(
+            "randomization 'camera_position' does nothing here: no camera's images are "
+            "observed")):
+        _make(randomization={"camera_position": distributions.Uniform(-0.02, 0.02)})
+
+
 def test_numpy_constants_are_taken_as_the_numbers_they_hold():
     """np.float32 and np.int64 constants were refused as "not a distribution or a constant"
     (np.float64, a float subclass, was taken); numpy's bools for the bool options too."""
@@ -334,6 +359,12 @@ def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():
             "randomization 'object_rgb' is a colour and must draw numbers in [0, 1]")):
         _make(randomization={"object_rgb": noises.Multiplicative(
             distributions.Uniform(0.9, 1.5))})
+    # Its range is known from the colour: one that leaves [0, 1] by 0.0005 (blue 0.9 x 1.1117)
+    # is refused as well, though 64 probe draws miss it (a reset ~1,658 in met it).
+    with pytest.raises(ValueError, match=re.escape(
+            "draws in [0.05, 1.00053]: refused now, not at the first reset that draws outside")):
+        _make(randomization={"object_rgb": noises.Multiplicative(
+            distributions.Uniform(0.5, 1.1117))})
 
 
 def test_a_light_direction_offset_that_cancels_a_light_is_refused_by_name():
@@ -342,6 +373,43 @@ def test_a_light_direction_offset_that_cancels_a_light_is_refused_by_name():
             "randomization 'light_direction' drew [0.0, 0.0, 1.0], which cancels a light's "
             "direction [0.0, 0.0, -1.0]: offsets must leave every direction some length")):
         env.reset(seed=0)
+
+
+@pytest.mark.parametrize("interface", ["dm_env", "gym"])
+def test_a_reset_whose_draw_is_refused_is_not_drawn_again_by_the_next(interface):
+    """A draw is refused at the reset that makes it (a light offset that can cancel a light,
+    drawn 0 or 1 per axis). The draws were keyed by the episode's random state, which the
+    refused reset left where it was: every reset after it drew the same and failed the
+    same, forever (a vector env's worker could not go on). Now it moves on."""
+    light = {"light_direction": distributions.UniformInteger(0, 2)}
+    if interface == "dm_env":
+        reset = franka_composer.load("push", seed=0, randomization=light).reset
+    else:
+        env = _make(randomization=light)
+        env.reset(seed=0)
+        reset = env.reset  # Unseeded: each continues the stream.
+    outcomes = []
+    for _ in range(40):
+        try:
+            reset()
+            outcomes.append(None)
+        except ValueError as error:
+            assert "randomization 'light_direction' drew" in str(error)
+            outcomes.append(str(error))
+    refused = [i for i, outcome in enumerate(outcomes) if outcome is not None]
+    assert 0 < len(refused) < 20, outcomes
+    assert [i for i in refused[:-1] if outcomes[i + 1] == outcomes[i]] == []
+
+
+def test_a_mass_factor_too_small_for_mujoco_is_a_value_error_naming_it():
+    """A factor of 1e-11 left the block's inertia below what MuJoCo simulates, and the reset
+    raised dm_control's PhysicsError from inside the block's placer."""
+    env = franka_composer.load("pick_and_place", seed=0, randomization={"object_mass": 1e-11})
+    with pytest.raises(ValueError, match=re.escape(
+            "randomization 'object_mass' drew a factor of 1e-11, which leaves an object's "
+            "inertia (2.66667e-16 kg m^2) below the least MuJoCo simulates (1e-15): bound the "
+            "factor away from 0")):
+        env.reset()
 
 
 def test_action_noise_moves_the_target_by_the_noise():
@@ -506,3 +574,13 @@ def test_a_custom_randomisation_of_what_the_env_does_not_have_is_refused(task, o
     franka_composer.load(task, randomization={**PRESETS["default"], "observation_delay": 2})
     with pytest.raises(ValueError, match=re.escape(message)):
         franka_composer.load(task, randomization={**PRESETS["default"], **options["randomization"]})
+
+
+def test_a_light_intensity_past_float32_is_a_value_error_naming_it():
+    """MuJoCo keeps a light's colour in float32: a factor of 1e39 wrote inf there (numpy's
+    overflow warning the only sign)."""
+    env = _make(randomization={"light_intensity": 1e39})
+    with pytest.raises(ValueError, match=re.escape(
+            "randomization 'light_intensity' drew a factor of 1e+39, which makes a light's "
+            "colour infinite in MuJoCo's float32: bound it")):
+        env.reset(seed=0)

@@ -24,6 +24,7 @@ import numpy as np
 from dm_control.composer.variation import variation_values
 
 from franka_composer.randomization.parameters import GROUPS, PARAMETERS, noise, noisy
+from franka_composer.randomization.ranges import draw_range
 from franka_composer.randomization.settings import PROBE_DRAWS, RandomizationSettings
 
 
@@ -60,11 +61,14 @@ class Randomizer:
     def _probe_object_colours(self) -> None:
         """`object_rgb` drawn from each object's own colour (`noises.Multiplicative` jitter
         about it) is checked here, where the colours are known, as the option checks the
-        other parameters: a draw outside [0, 1] is refused before anything is built."""
+        other parameters: a range that can leave [0, 1] is refused before anything is built
+        (where the range is known; else `PROBE_DRAWS` draws are)."""
         colour = self._ranges.get("object_rgb")
         probe = np.random.RandomState(0)
         for prop in self._props if colour is not None else ():
             nominal = PARAMETERS["object_rgb"].nominal(prop.rgba)
+            PARAMETERS["object_rgb"].check_range("object_rgb", colour,
+                                                 draw_range(colour, nominal))
             for _ in range(PROBE_DRAWS):
                 self._draw("object_rgb", colour, nominal, probe)
 
@@ -115,7 +119,17 @@ class Randomizer:
 
     def start_episode(self, physics, random_state: np.random.RandomState) -> None:
         """Draws the episode's parameters (from streams keyed by `random_state`'s present
-        state, which is not advanced), checks them, and writes them."""
+        state, which is not advanced), checks them, and writes them. A draw refused (a
+        ValueError) moves `random_state` on by one draw before it is raised: else the next
+        reset, keyed by the same state, drew the same values and failed again, and every
+        one after it."""
+        try:
+            self._start_episode(physics, random_state)
+        except ValueError:
+            random_state.randint(2**31)
+            raise
+
+    def _start_episode(self, physics, random_state: np.random.RandomState) -> None:
         self._split_streams(random_state)
         self._tick += 1
         values = {}
@@ -171,8 +185,15 @@ class Randomizer:
         ptr = model.ptr
         if values.get("object_mass"):
             factors = np.asarray(values["object_mass"])
+            inertia = nominal["inertia"] * factors[:, None]
+            if inertia.min() < mujoco.mjMINVAL:  # MuJoCo's invalid inertia: a PhysicsError.
+                raise ValueError(
+                    f"randomization 'object_mass' drew a factor of "
+                    f"{factors[np.argmin(inertia.min(axis=1))]:g}, which leaves an object's "
+                    f"inertia ({inertia.min():g} kg m^2) below the least MuJoCo simulates "
+                    f"({mujoco.mjMINVAL:g}): bound the factor away from 0")
             ptr.body_mass[nominal["bodies"]] = nominal["mass"] * factors
-            ptr.body_inertia[nominal["bodies"]] = nominal["inertia"] * factors[:, None]
+            ptr.body_inertia[nominal["bodies"]] = inertia
         if values.get("object_friction"):
             ptr.geom_friction[nominal["object_geoms"], 0] = (
                 nominal["object_friction"] * np.asarray(values["object_friction"]))
@@ -224,8 +245,14 @@ class Randomizer:
             # at qpos0, light_dir0: the same here, its body being aligned with the world.
             ptr.light_dir0[nominal["lights"]] = direction
         if "light_intensity" in values:
-            ptr.light_diffuse[nominal["lights"]] = (nominal["light_diffuse"]
-                                                    * values["light_intensity"])
+            diffuse = nominal["light_diffuse"] * values["light_intensity"]
+            with np.errstate(over="ignore"):  # MuJoCo keeps float32: inf there, refused.
+                representable = np.isfinite(diffuse.astype(np.float32)).all()
+            if not representable:
+                raise ValueError(f"randomization 'light_intensity' drew a factor of "
+                                 f"{values['light_intensity']:g}, which makes a light's "
+                                 "colour infinite in MuJoCo's float32: bound it")
+            ptr.light_diffuse[nominal["lights"]] = diffuse
         if "camera_position" in values:
             ptr.cam_pos[nominal["cameras"]] = nominal["cam_pos"] + values["camera_position"]
         if "camera_rotation" in values:

@@ -9,6 +9,7 @@ None leaves that parameter out.
 from __future__ import annotations
 
 import dataclasses
+import pickle
 from typing import Any, Mapping
 
 import numpy as np
@@ -66,11 +67,25 @@ PRESETS: dict[str, dict[str, Any]] = {
     name: {parameter: kind(*arguments) for parameter, (kind, arguments, _) in reasons.items()}
     for name, reasons in PRESET_REASONS.items()}
 
+#: Each preset entry as pickled, to tell a copy of one (`from_a_preset`).
+_PRESET_PICKLES = {name: {parameter: pickle.dumps(distribution)
+                          for parameter, distribution in preset.items()}
+                   for name, preset in PRESETS.items()}
+
+
 def from_a_preset(parameter: str, distribution) -> bool:
     """Whether `distribution` is a preset's own for `parameter` (a mapping built on a preset,
     `{**PRESETS["default"], ...}`): such an entry applies where it can, as the preset does,
-    rather than being refused where the env does not have what it varies."""
-    return any(preset.get(parameter) is distribution for preset in PRESETS.values())
+    rather than being refused where the env does not have what it varies. Told by value,
+    as pickled: a copied or unpickled env (a vector env's spawned worker) holds copies of
+    the preset's entries, not them (told by identity, those were refused there)."""
+    if any(preset.get(parameter) is distribution for preset in PRESETS.values()):
+        return True
+    try:
+        pickled = pickle.dumps(distribution)
+    except Exception:  # A distribution that does not pickle is no preset's.
+        return False
+    return any(pickles.get(parameter) == pickled for pickles in _PRESET_PICKLES.values())
 
 
 #: Draws taken from each distribution when the option is set, to refuse a range that can
