@@ -403,13 +403,17 @@ def test_a_reset_whose_draw_is_refused_is_not_drawn_again_by_the_next(interface)
 
 def test_a_mass_factor_too_small_for_mujoco_is_a_value_error_naming_it():
     """A factor of 1e-11 left the block's inertia below what MuJoCo simulates, and the reset
-    raised dm_control's PhysicsError from inside the block's placer."""
+    raised dm_control's PhysicsError from inside the block's placer. The least mass is the one
+    a body compiles with: the option refuses less (it was made that mass, 1e-5 kg, silently)."""
     env = franka_composer.load("pick_and_place", seed=0, randomization={"object_mass": 1e-11})
     with pytest.raises(ValueError, match=re.escape(
-            "randomization 'object_mass' drew a factor of 1e-11, which leaves an object's "
-            "inertia (2.66667e-16 kg m^2) below the least MuJoCo simulates (1e-15): bound the "
-            "factor away from 0")):
+            "randomization 'object_mass' drew a factor of 1e-11, which makes an object 1e-12 "
+            "kg, lighter than any body compiles (1e-05 kg): bound the factor away from 0")):
         env.reset()
+    with pytest.raises(ValueError, match=re.escape(
+            "object_mass must be >= 1e-05, got 1e-12")):
+        franka_composer.load("pick_and_place", object_mass=1e-12)
+    franka_composer.load("pick_and_place", object_mass=1e-5).reset()  # The least, taken.
 
 
 def test_action_noise_moves_the_target_by_the_noise():

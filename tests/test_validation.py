@@ -34,7 +34,7 @@ NAN, INF = float("nan"), float("inf")
     ("object_friction", -0.5, "object_friction must be >= 0, got -0.5"),
     ("object_damping", -0.01, "object_damping must be >= 0, got -0.01"),
     ("floor_friction", -1, "floor_friction must be >= 0, got -1"),
-    ("object_mass", 0, "object_mass must be > 0, got 0"),
+    ("object_mass", 0, "object_mass must be >= 1e-05, got 0"),
     ("block_half_size", 0.0, "block_half_size must be > 0, got 0.0"),
     ("block_half_size", (0.02,), "block_half_size must be a finite number > 0, got"),
     ("puck_radius", 0.03, "puck_radius does not apply to push: its objects are blocks "
@@ -51,7 +51,7 @@ NAN, INF = float("nan"), float("inf")
     # Composer's own error, raised from deep inside, before the check was Composer's.
     ("control_timestep", 0.05000002, "control_timestep must be a whole multiple of the "
                                      r"physics timestep \(0.002 s\), got 0.05000002"),
-    ("object_mass", 10**400, r"object_mass must be a finite number > 0 that a 64-bit float "
+    ("object_mass", 10**400, r"object_mass must be a finite number >= 1e-05 that a 64-bit float "
                              r"holds, got 1000000000000000000000000000000000000000\.\.\. "
                              r"\(401 characters\)"),
     ("block_half_size", -10**400, "block_half_size must be a finite number > 0 that a 64-bit"),

@@ -17,6 +17,11 @@ from franka_composer.contacts import make_stiff
 from franka_composer.entities.faces import add_coloured_faces
 from franka_composer.entities.features import ArrayFeature
 
+#: The least mass (kg) a body compiles with: Composer's arena bounds lighter ones up to it
+#: (`boundmass` in dm_control/composer/arena.xml), so an object option or a randomised mass
+#: below it would not be the mass asked for.
+MIN_MASS = 1e-5
+
 
 class Prop(primitive.Primitive):
     """A single-geom free prop; `resting_height` is its centre's height on a surface, `rgba`

@@ -23,6 +23,7 @@ import mujoco
 import numpy as np
 from dm_control.composer.variation import variation_values
 
+from franka_composer.entities.props import MIN_MASS
 from franka_composer.randomization.parameters import GROUPS, PARAMETERS, noise, noisy
 from franka_composer.randomization.ranges import draw_range
 from franka_composer.randomization.settings import PROBE_DRAWS, RandomizationSettings
@@ -185,15 +186,15 @@ class Randomizer:
         ptr = model.ptr
         if values.get("object_mass"):
             factors = np.asarray(values["object_mass"])
-            inertia = nominal["inertia"] * factors[:, None]
-            if inertia.min() < mujoco.mjMINVAL:  # MuJoCo's invalid inertia: a PhysicsError.
+            masses = nominal["mass"] * factors
+            if masses.min() < MIN_MASS:  # (Its inertia could fall below MuJoCo's minimum.)
                 raise ValueError(
                     f"randomization 'object_mass' drew a factor of "
-                    f"{factors[np.argmin(inertia.min(axis=1))]:g}, which leaves an object's "
-                    f"inertia ({inertia.min():g} kg m^2) below the least MuJoCo simulates "
-                    f"({mujoco.mjMINVAL:g}): bound the factor away from 0")
-            ptr.body_mass[nominal["bodies"]] = nominal["mass"] * factors
-            ptr.body_inertia[nominal["bodies"]] = inertia
+                    f"{factors[np.argmin(masses)]:g}, which makes an object "
+                    f"{masses.min():g} kg, lighter than any body compiles ({MIN_MASS:g} kg): "
+                    "bound the factor away from 0")
+            ptr.body_mass[nominal["bodies"]] = masses
+            ptr.body_inertia[nominal["bodies"]] = nominal["inertia"] * factors[:, None]
         if values.get("object_friction"):
             ptr.geom_friction[nominal["object_geoms"], 0] = (
                 nominal["object_friction"] * np.asarray(values["object_friction"]))

@@ -23,6 +23,7 @@ from franka_composer.controllers import CONTROLS, ControlSettings
 from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
                                                   WELD_TIME_CONSTANT)
 from franka_composer.entities import Block, Prop, Puck
+from franka_composer.entities.props import MIN_MASS
 from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.randomization.parameters import unread_parameter
@@ -642,7 +643,8 @@ IMAGE_OPTIONS = ("cameras", "pixel_height", "pixel_width", "camera_meshes")
 
 #: The options users pass, by name: where each goes and what it accepts.
 OPTIONS: dict[str, Option] = {
-    "object_mass": Option(("objects", "mass"), _positive),
+    "object_mass": Option(("objects", "mass"),
+                          lambda name, value: check_number(name, value, minimum=MIN_MASS)),
     "object_friction": Option(("objects", "friction"), _non_negative),
     "object_damping": Option(("objects", "joint_damping"), _non_negative),
     "block_half_size": Option(("objects", "half_size"), _positive),
