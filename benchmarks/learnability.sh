@@ -21,6 +21,10 @@ read -ra tasks <<< "${TASKS:-stack flip}"
 read -ra seeds <<< "${SEEDS:-0}"
 sweep=(sweep --out "$RUNS" --tasks "${tasks[@]}" --algos tqc --seeds "${seeds[@]}"
        --steps 500000)
-train_options=(--backend sbx --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000
-               --threads 1 --device cpu)
+# Under v0's surface guard, as the campaign trained (on aba3e70, before stack's v1; flip's
+# own is the same): told to this tree's code; a FROZEN tree from before v1 has no other.
+guard=(--guard-ignores-carried false)
+[ -z "${FROZEN:-}" ] || guard=()
+train_options=(--backend sbx "${guard[@]}" --stop-at-success 0.95 --stop-after 5
+               --checkpoint-every 10000 --threads 1 --device cpu)
 background_sweep "$1" results/learnability

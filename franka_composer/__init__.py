@@ -2,8 +2,8 @@
 
 Six tasks: push, slide and pick_and_place (the paper's), reach, stack and flip (panda-gym's).
 `load(name)` gives a dm_env environment; importing this package also registers the
-Gymnasium ids `Franka{Push,Slide,PickAndPlace,Reach,Stack}{Sparse,Dense}-v0` and
-`FrankaFlip{Sparse,Dense}-v1`, with `Osc` (same versions) and `Joints` (one version up:
+Gymnasium ids `Franka{Push,Slide,PickAndPlace,Reach}{Sparse,Dense}-v0` and
+`Franka{Stack,Flip}{Sparse,Dense}-v1`, with `Osc` (same versions) and `Joints` (one version up:
 the surface guard acts under joints) after the task name for the other controllers.
 """
 

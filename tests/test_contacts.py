@@ -240,11 +240,12 @@ def test_a_hand_holding_a_block_goes_down_when_commanded_down():
 def test_a_hand_carrying_a_block_low_in_its_grip_goes_down_at_the_commanded_speed(
         control, first_two_steps):
     """Stack's v1: a block the hand carries is part of the hand, not a surface beneath it.
-    Grasped 12 mm above its centre, block 1 reaches down past the fingertips' inner corners,
-    whose rays started inside it and met its underside: v0's guard (still
-    `guard_ignores_carried=False`) held the hand up by what it carried, 0.3-1 mm a step
-    under mocap for a full downward command. Set down, the block is no longer carried, and
-    the guard stops the hand on it: it rests at its height, not pressed into the floor."""
+    Held low in the grip (its centre ~1 cm above the tool centre point, its underside level
+    with the fingertips), block 1 was taken by v0's guard (still `guard_ignores_carried=
+    False`) for a surface beneath the hand, which it held up by what it carried: 2.5-3.3 mm
+    a step under mocap for a full downward command (`experiments/carried_descent.py`). Set
+    down, the block rests at its height, not pressed into the floor, and the hand stops
+    with its fingertips on the floor (the block slid up a little in the grip)."""
     moved = {}
     for ignores in (True, False):
         env = franka_composer.load("stack", seed=0, terminate_on_success=False,
@@ -268,6 +269,6 @@ def test_a_hand_carrying_a_block_low_in_its_grip_goes_down_at_the_commanded_spee
             assert timestep.observation["block1/position"][2] == pytest.approx(block[2],
                                                                                 abs=0.002)
             assert np.linalg.norm(timestep.observation["block1/linear_velocity"]) < 0.3 * 0.05
-            assert heights[-1] == pytest.approx(heights[-2], abs=0.001)  # Stopped on it.
+            assert heights[-1] == pytest.approx(heights[-2], abs=0.001)  # Stopped there.
     assert moved[True] > first_two_steps
     assert moved[False] < 0.01

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import pickle
 import re
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -84,11 +85,21 @@ def test_a_mapping_built_on_a_preset_survives_copies_and_pickles():
     env.close()
     for task in ("push", "reach"):  # Reach: the preset's object entries, copied.
         franka_composer.load(task, randomization=copy.deepcopy(PRESETS["default"])).reset()
-    # A camera entry of one's own is still refused in a state env.
+    # An entry of one's own is still refused where it does nothing, even one that draws as
+    # the preset's does (told apart by the preset's mark, not by what they draw).
+    for own in (distributions.Uniform(-0.02, 0.02), distributions.Uniform(-0.01, 0.01)):
+        with pytest.raises(ValueError, match=re.escape(
+                "randomization 'camera_position' does nothing here: no camera's images are "
+                "observed")):
+            _make(randomization={"camera_position": own})
     with pytest.raises(ValueError, match=re.escape(
-            "randomization 'camera_position' does nothing here: no camera's images are "
-            "observed")):
-        _make(randomization={"camera_position": distributions.Uniform(-0.02, 0.02)})
+            "randomization 'object_mass' does nothing here: reach has no object")):
+        franka_composer.load("reach", randomization={
+            "object_mass": distributions.Uniform(0.5, 1.5)})
+    # A preset's entry under another parameter is not that parameter's preset entry.
+    with pytest.raises(ValueError, match=re.escape("randomization 'camera_rotation' does "
+                                                   "nothing here")):
+        _make(randomization={"camera_rotation": PRESETS["default"]["camera_position"]})
 
 
 def test_numpy_constants_are_taken_as_the_numbers_they_hold():
@@ -404,16 +415,27 @@ def test_a_reset_whose_draw_is_refused_is_not_drawn_again_by_the_next(interface)
 def test_a_mass_factor_too_small_for_mujoco_is_a_value_error_naming_it():
     """A factor of 1e-11 left the block's inertia below what MuJoCo simulates, and the reset
     raised dm_control's PhysicsError from inside the block's placer. The least mass is the one
-    a body compiles with: the option refuses less (it was made that mass, 1e-5 kg, silently)."""
-    env = franka_composer.load("pick_and_place", seed=0, randomization={"object_mass": 1e-11})
+    a body compiles with: the option refuses less (it was made that mass, 1e-5 kg, silently);
+    a draw from a range not known to reach it (a wrapped distribution) is refused at its
+    reset."""
+    env = franka_composer.load("pick_and_place", seed=0, randomization={
+        "object_mass": distributions.Uniform(1e-6, 2e-4) * distributions.LogNormal(0, 0.01)})
     with pytest.raises(ValueError, match=re.escape(
-            "randomization 'object_mass' drew a factor of 1e-11, which makes an object 1e-12 "
-            "kg, lighter than any body compiles (1e-05 kg): bound the factor away from 0")):
+            "randomization 'object_mass' drew a factor of 9.03984e-05, which makes an object "
+            "9.03984e-06 kg, lighter than any body compiles (1e-05 kg): bound the factor away "
+            "from 0")):
         env.reset()
     with pytest.raises(ValueError, match=re.escape(
             "object_mass must be >= 1e-05, got 1e-12")):
         franka_composer.load("pick_and_place", object_mass=1e-12)
     franka_composer.load("pick_and_place", object_mass=1e-5).reset()  # The least, taken.
+    # A range known to reach below it is refused as the env is made, not at some reset.
+    with pytest.raises(ValueError, match=re.escape(
+            "randomization 'object_mass' draws factors in [1e-06, 0.0002], which make a 0.1 kg "
+            "object as light as 1e-07 kg, lighter than any body compiles (1e-05 kg): refused "
+            "now")):
+        franka_composer.load("pick_and_place", randomization={
+            "object_mass": distributions.Uniform(1e-6, 2e-4)})
 
 
 def test_action_noise_moves_the_target_by_the_noise():
@@ -584,7 +606,9 @@ def test_a_light_intensity_past_float32_is_a_value_error_naming_it():
     """MuJoCo keeps a light's colour in float32: a factor of 1e39 wrote inf there (numpy's
     overflow warning the only sign)."""
     env = _make(randomization={"light_intensity": 1e39})
-    with pytest.raises(ValueError, match=re.escape(
-            "randomization 'light_intensity' drew a factor of 1e+39, which makes a light's "
-            "colour infinite in MuJoCo's float32: bound it")):
-        env.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # Not numpy's overflow warning on the way.
+        with pytest.raises(ValueError, match=re.escape(
+                "randomization 'light_intensity' drew a factor of 1e+39, which makes a "
+                "light's colour infinite in MuJoCo's float32: bound it")):
+            env.reset(seed=0)

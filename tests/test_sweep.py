@@ -708,8 +708,8 @@ def test_table2_sh_trains_only_the_cells_sync_has_not_kept_as_finished(tmp_path)
      "--tasks pick_and_place --algos sac --seeds 0 1 2", "--precision bf16", "default-timing"),
     ("reference_timing.sh", {"TIMING": "default", "ALGO": "ddpg"},
      "--tasks pick_and_place --algos ddpg --seeds 0 1 2", "", "default-timing"),
-    ("learnability.sh", {}, "--tasks stack flip --algos tqc --seeds 0", "--backend sbx",
-     "learnability"),
+    ("learnability.sh", {}, "--tasks stack flip --algos tqc --seeds 0",
+     "--backend sbx --guard-ignores-carried false", "learnability"),
 ])
 def test_background_campaigns_train_their_cells_with_their_options(
         tmp_path, script, env, cells, options, kept):

@@ -1674,6 +1674,16 @@ def test_a_run_keeps_the_surface_guard_it_trained_under():
             "guard_ignores_carried does nothing here: reach has no object to carry")):
         RunConfig("reach", "sac", 0, hyperparameters("reach", "sac"),
                   guard_ignores_carried=True)
+    # `train --guard-ignores-carried false` trains (or, in a sweep, names) such a run: a
+    # campaign's stack cell from before v1 is its own run again, not "another run".
+    from franka_composer.cli.train import run_config
+
+    parsed = cli.build_parser().parse_args(["train", "--task", "stack", "--algo", "tqc",
+                                            "--backend", "sbx", "--guard-ignores-carried",
+                                            "FALSE"])
+    assert run_config(parsed).differing(older) == {}
+    with pytest.raises(SystemExit):
+        cli.build_parser().parse_args(["train", "--guard-ignores-carried", "no"])
 
 
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])

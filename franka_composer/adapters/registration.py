@@ -5,8 +5,8 @@ loop, no list.
 paper's three are the reference implementation's ids, so users of `panda_mujoco_gym` switch
 by changing one import), and `Franka{Task}{Osc,Joints}{Sparse,Dense}-v<version>` under the
 others, panda-gym's naming. The suffix is the task's version (`TaskConfig.version`) plus the
-controller's (`CONTROL_VERSIONS`): -v0, except flip's -v1 (reachable goals) and the Joints
-ids' one more (the surface guard under joints); an older suffix is not registered, so
+controller's (`CONTROL_VERSIONS`): -v0, except flip's -v1 (reachable goals) and stack's
+-v1 (a carried block part of the hand for the surface guard), and the Joints ids' one more (the surface guard under joints); an older suffix is not registered, so
 `gym.make` of it raises Gymnasium's "deprecated, use -v1" error. Each task has its own class,
 `Franka{Task}Env`, whose docstring is the task's documentation page (`pages.page`: spaces,
 observation table, rewards, episode rules, version history).
@@ -35,9 +35,10 @@ def _camel(task: str) -> str:
 def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`; with `osc` ->
     `FrankaPickAndPlaceOscDense-v0`, with `joints` -> `FrankaPickAndPlaceJointsDense-v1`.
-    The suffix is the task's `TaskConfig.version` (flip's is 1: its goals changed) plus the
-    controller's (`CONTROL_VERSIONS`: joints' is 1, its surface guard). An unknown task,
-    reward type or controller is a ValueError naming the valid ones."""
+    The suffix is the task's `TaskConfig.version` (flip's and stack's are 1: flip's goals
+    changed, and stack's surface guard) plus the controller's (`CONTROL_VERSIONS`: joints'
+    is 1, its surface guard). An unknown task, reward type or controller is a ValueError
+    naming the valid ones."""
     check_choice("task", task, ALL_TASKS)
     check_choice("reward_type", reward_type, REWARD_TYPES)
     check_choice("control", control, CONTROLS)

@@ -247,6 +247,24 @@ def add_object_damping(parser: argparse.ArgumentParser, default: str) -> None:
                              "physics.md)")
 
 
+def add_guard_ignores_carried(parser: argparse.ArgumentParser) -> None:
+    """--guard-ignores-carried {true,false}: the task option `guard_ignores_carried` (None
+    when not given: the task's own)."""
+    parser.add_argument("--guard-ignores-carried", type=true_or_false, default=None,
+                        metavar="{true,false}",
+                        help="whether the surface guard counts a block the hand carries as "
+                             "part of the hand, not a surface beneath it (default: the "
+                             "task's own: true for stack since its v1, false for the "
+                             "others; docs/guide/physics.md)")
+
+
+def true_or_false(text: str) -> bool:
+    """`true` or `false` (any case) as a bool, for argparse."""
+    if text.lower() not in ("true", "false"):
+        raise argparse.ArgumentTypeError(f"must be true or false, got {text!r}")
+    return text.lower() == "true"
+
+
 def timing_options(args: argparse.Namespace) -> dict:
     """`control_timestep`, `velocity_timestep` and `weld_time_constant` from --timing or
     --control-timestep (None: the task's); both given is refused."""

@@ -9,9 +9,9 @@ import pathlib
 import signal
 import warnings
 
-from franka_composer.cli.options import (add_object_damping, add_timing, non_negative_int,
-                                         number, output_folder, positive_int,
-                                         timing_options, training_seed)
+from franka_composer.cli.options import (add_guard_ignores_carried, add_object_damping,
+                                         add_timing, non_negative_int, number, output_folder,
+                                         positive_int, timing_options, training_seed)
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import ALL_TASKS
@@ -79,6 +79,7 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
     from franka_composer.training import demos
 
     env_options = dict(control=args.control, object_damping=args.object_damping,
+                       guard_ignores_carried=args.guard_ignores_carried,
                        **timing_options(args))
     demos.check_room(demos.transitions(args.task, args.expert_demos, args.demos,
                                        args.demo_episodes, env_options),
@@ -108,6 +109,7 @@ def add_parser(subparsers) -> None:
                        "its stated 0.05 s: the arm at rest after each action); --timing "
                        "reference is all of that code's timing")
     add_object_damping(parser, "0, undamped")
+    add_guard_ignores_carried(parser)
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
                         help="domain randomisation preset for training and evaluation "
                              "(default: none); docs/guide/randomization.md")
@@ -278,6 +280,7 @@ def run_config(args: argparse.Namespace):
                      args.backend, args.control, args.precision, args.randomization,
                      str(args.demos.resolve()) if args.demos else None, args.demo_episodes,
                      args.expert_demos, preset=args.preset, object_damping=args.object_damping,
+                     guard_ignores_carried=args.guard_ignores_carried,
                      **timing_options(args))
 
 

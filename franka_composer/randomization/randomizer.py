@@ -58,6 +58,7 @@ class Randomizer:
                 observable.corruptor = _StepNoise(self._ranges[parameter], self)
         self._action_noise = self._ranges.get("action_noise")
         self._probe_object_colours()
+        self._check_mass_range()
 
     def _probe_object_colours(self) -> None:
         """`object_rgb` drawn from each object's own colour (`noises.Multiplicative` jitter
@@ -72,6 +73,22 @@ class Randomizer:
                                                  draw_range(colour, nominal))
             for _ in range(PROBE_DRAWS):
                 self._draw("object_rgb", colour, nominal, probe)
+
+    def _check_mass_range(self) -> None:
+        """A mass factor whose known range makes an object lighter than any body compiles
+        (`MIN_MASS`) is refused before anything is built, as the option refuses a range
+        that leaves a factor's domain; each draw is checked again where it is written (a
+        range open at 0, such as LogNormal's, reaches below it only in its far tail)."""
+        factor = self._ranges.get("object_mass")
+        masses = [geom.mass for prop in self._props for geom in prop.mjcf_model.find_all("geom")
+                  if geom.mass is not None]
+        drawn = None if factor is None or not masses else draw_range(factor, 1.0)
+        if drawn is not None and 0.0 < drawn.low * min(masses) < MIN_MASS:
+            raise ValueError(f"randomization 'object_mass' draws factors in {drawn}, which "
+                             f"make a {min(masses):g} kg object as light as "
+                             f"{drawn.low * min(masses):g} kg, lighter than any body compiles "
+                             f"({MIN_MASS:g} kg): refused now, not at the first reset that "
+                             "draws so (maybe hours into a run); bound it")
 
     @property
     def values(self) -> dict:
@@ -246,7 +263,8 @@ class Randomizer:
             # at qpos0, light_dir0: the same here, its body being aligned with the world.
             ptr.light_dir0[nominal["lights"]] = direction
         if "light_intensity" in values:
-            diffuse = nominal["light_diffuse"] * values["light_intensity"]
+            # In float64 (the model's colours are float32, which a product could overflow).
+            diffuse = nominal["light_diffuse"].astype(np.float64) * values["light_intensity"]
             with np.errstate(over="ignore"):  # MuJoCo keeps float32: inf there, refused.
                 representable = np.isfinite(diffuse.astype(np.float32)).all()
             if not representable:

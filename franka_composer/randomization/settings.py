@@ -9,7 +9,6 @@ None leaves that parameter out.
 from __future__ import annotations
 
 import dataclasses
-import pickle
 from typing import Any, Mapping
 
 import numpy as np
@@ -62,30 +61,31 @@ PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
                      "commands are not executed exactly: 5 % of a full command"),
 }}
 
+#: The attribute that marks a preset's own entry with (preset, parameter): it travels with
+#: the distribution through copies and pickles (a vector env's spawned worker), as identity
+#: does not, and an entry of one's own that draws the same has none (`from_a_preset`).
+PRESET_MARK = "_franka_composer_preset"
+
+
+def _preset_entry(name: str, parameter: str, kind, arguments):
+    entry = kind(*arguments)
+    setattr(entry, PRESET_MARK, (name, parameter))
+    return entry
+
+
 #: The presets, as mappings the option takes.
 PRESETS: dict[str, dict[str, Any]] = {
-    name: {parameter: kind(*arguments) for parameter, (kind, arguments, _) in reasons.items()}
+    name: {parameter: _preset_entry(name, parameter, kind, arguments)
+           for parameter, (kind, arguments, _) in reasons.items()}
     for name, reasons in PRESET_REASONS.items()}
-
-#: Each preset entry as pickled, to tell a copy of one (`from_a_preset`).
-_PRESET_PICKLES = {name: {parameter: pickle.dumps(distribution)
-                          for parameter, distribution in preset.items()}
-                   for name, preset in PRESETS.items()}
-
 
 def from_a_preset(parameter: str, distribution) -> bool:
     """Whether `distribution` is a preset's own for `parameter` (a mapping built on a preset,
-    `{**PRESETS["default"], ...}`): such an entry applies where it can, as the preset does,
-    rather than being refused where the env does not have what it varies. Told by value,
-    as pickled: a copied or unpickled env (a vector env's spawned worker) holds copies of
-    the preset's entries, not them (told by identity, those were refused there)."""
-    if any(preset.get(parameter) is distribution for preset in PRESETS.values()):
-        return True
-    try:
-        pickled = pickle.dumps(distribution)
-    except Exception:  # A distribution that does not pickle is no preset's.
-        return False
-    return any(pickles.get(parameter) == pickled for pickles in _PRESET_PICKLES.values())
+    `{**PRESETS["default"], ...}`, or a copy or pickle of one: `PRESET_MARK`): such an entry
+    applies where it can, as the preset does, rather than being refused where the env does
+    not have what it varies; one's own that draws the same is refused there."""
+    mark = getattr(distribution, PRESET_MARK, None)
+    return isinstance(mark, tuple) and len(mark) == 2 and mark[1] == parameter
 
 
 #: Draws taken from each distribution when the option is set, to refuse a range that can

@@ -64,10 +64,14 @@ def make_env(task: str, *, terminate_on_success: bool = True,
     seconds velocities are multiplied by, or None for the control period;
     `weld_time_constant`: the mocap weld's, or None for the task's; `object_damping`: the
     objects' free joints' (0: undamped, the task's); `guard_ignores_carried`: the surface
-    guard's, or None for the task's (other suites' envs have no such guard). `render_options`
+    guard's, or None for the task's (the builders of other envs take none: refused). `render_options`
     (`render_mode`, `width`, `height`) go to `gym.make` as they are.
     """
     if environment is not None:
+        if guard_ignores_carried is not None:  # (Their builders take no guard setting.)
+            raise ValueError(f"the run trained in {environment}'s {task} environment with "
+                             f"guard_ignores_carried={guard_ignores_carried}, which that "
+                             "environment's builder does not set")
         if environment not in ENVIRONMENTS:
             raise ValueError(f"the run trained in {environment}'s {task} environment, which "
                              "this process does not build: train, evaluate or play it through "
