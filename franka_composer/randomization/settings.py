@@ -79,6 +79,7 @@ PRESETS: dict[str, dict[str, Any]] = {
            for parameter, (kind, arguments, _) in reasons.items()}
     for name, reasons in PRESET_REASONS.items()}
 
+
 def from_a_preset(parameter: str, distribution) -> bool:
     """Whether `distribution` is a preset's own for `parameter` (a mapping built on a preset,
     `{**PRESETS["default"], ...}`, or a copy or pickle of one: `PRESET_MARK`): such an entry
