@@ -557,6 +557,18 @@ def test_report_and_evaluate_refuse_to_write_over_a_runs_own_files(tmp_path):
             cli.main([command, str(run.root), "--out", str(own)])
     assert {path.name: path.read_bytes() for path in run.root.iterdir()} == before
     assert cli.main(["report", str(run.root), "--out", str(run.root / "report.md")]) == 0
+    # Nor over another run's: a mistyped --out left that run unreadable (its config.json a
+    # table), and `rollout` checked no run at all.
+    other = _run(tmp_path / "other", seed=1)
+    kept = {path.name: path.read_bytes() for path in other.root.iterdir()}
+    for command in (["report", str(run.root)], ["evaluate", str(run.root)],
+                    ["rollout", "--task", "push", "--episodes", "1"]):
+        for own in (other.config_path, other.root / "expert-demos.npz"):
+            with pytest.raises(ValueError, match=f"^--out {re.escape(str(own))} is one of the "
+                                                 f"run {re.escape(str(other.root))}'s own "
+                                                 "files: give another file$"):
+                cli.main([*command, "--out", str(own)])
+    assert {path.name: path.read_bytes() for path in other.root.iterdir()} == kept
 
 
 def test_keep_refuses_to_keep_a_run_into_another(tmp_path):

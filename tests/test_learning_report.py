@@ -521,3 +521,26 @@ def test_runs_of_different_variants_are_not_seeds_of_one_cell(tmp_path):
         "- push (osc control, bf16) / sac: seeds 0; trained steps 10; success 40.0 %",
         "- push (sbx) / tqc: seeds 0; trained steps 10; success 20.0 %",
         "- slide / tqc: seeds 0; trained steps 10; success 100.0 %"]
+
+
+def test_minutes_to_read_a_seed_stopped_by_a_shorter_rule_as_steps_to_do(tmp_path):
+    """With `--stop-after 2` a stopped seed holds the mean of the 2 evaluations that met the
+    rule (1.0), above its last smoothed value (0.44): steps to 80 % counted it reached, at
+    its stop, and minutes to 80 % counted it never ("–" beside a step)."""
+    import dataclasses
+
+    roots = []
+    for seed in (0, 1):
+        root = _write_run(tmp_path, "reach", "sac", seed, [0.0, 0.0, 0.0, 0.0, 0.2, 1.0, 1.0],
+                          (True, 50.0), seconds=30)
+        config = RunDir(root).read_config()
+        RunDir(root).write_config(dataclasses.replace(config, hyperparameters=(
+            config.hyperparameters.replace(stop_after_evaluations=2))))
+        roots.append(root)
+    roots.append(_write_run(tmp_path, "reach", "sac", 2, [0.0, 0.0, 0.0, 0.0, 0.2, 0.6, 0.8,
+                                                          0.8, 0.8, 0.8], seconds=30))
+    runs = [read_run(root) for root in roots]
+    assert max(smoothed(runs[0].curve).values()) == pytest.approx(0.44)
+    assert steps_to(runs, 0.8) == 14000  # Two of three seeds held at 1.0 there.
+    assert minutes_to(runs, 0.8) == pytest.approx(3.0)  # Theirs at their stop: 6 x 30 s.
+    assert minutes_to(runs, 0.3) == pytest.approx(3.0)  # Their own smoothed curves: 0.44.

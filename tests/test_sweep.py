@@ -585,8 +585,10 @@ def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monk
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path, signum):
     """`kill` (SIGTERM), or SIGINT though a background job ignores it, stops the sweep the
-    way Ctrl-C does: the running cell checkpoints, and no train process is left behind."""
-    out = tmp_path / "sweep"
+    way Ctrl-C does: the running cell checkpoints, and no train process is left behind. The
+    command it says to continue with, and the one its log records, copy into a shell as
+    they are (a folder with a space in its name split in two)."""
+    out = tmp_path / "the sweep"
     run = RunDir(out / "push-sac-seed0")
     sweep = subprocess.Popen(
         [sys.executable, "-m", "franka_composer", "sweep", "--out", str(out), "--tasks", "push",
@@ -603,8 +605,9 @@ def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path,
     assert "interrupted: each running cell saved a checkpoint" in output
     assert run.read_state()["steps"] >= 200
     assert (f"interrupted: its checkpoint at step {run.read_state()['steps']:,} is kept; "
-            f"continue with franka-composer train --resume --out {run.root}") in cell_log(
+            f"continue with franka-composer train --resume --out '{run.root}'") in cell_log(
         Cell("push", "sac", 0, 100000), out).read_text()
+    assert f" --out '{run.root}' " in cell_log(Cell("push", "sac", 0, 100000), out).read_text()
     # "--" first: a pattern that starts with "--" is otherwise read as pgrep's option.
     left = subprocess.run(["pgrep", "-f", "--", f"--out {run.root}"], capture_output=True,
                           text=True)
@@ -910,3 +913,27 @@ def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_
     synced = _benchmark_sh(tmp_path, "fast_preset.sh", "sync")
     assert synced.stdout == (f"franka-composer keep {tmp_path}/runs/push-seed1/ --into "
                              "results/fast-preset\n")
+
+
+def test_a_cell_another_process_is_training_is_refused_before_the_sweep_starts(tmp_path):
+    """The cell's Ray task found the lock held and raised: the sweep ended with Ray's
+    traceback and cancelled every other cell (one before its first checkpoint lost it)."""
+    from franka_composer.training.sweep import run_sweep
+
+    run = RunDir(tmp_path / "push-sac-seed0")
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import pathlib, sys, time\n"
+         "from franka_composer.training.runs import RunDir\n"
+         "with RunDir(pathlib.Path(sys.argv[1])).training_lock():\n"
+         "    print('held', flush=True); time.sleep(60)\n", str(run.root)],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        with pytest.raises(ValueError, match=re.escape(
+                f"{run.root} is being trained by process {holder.pid} on ")):
+            run_sweep([Cell("push", "sac", 0, 200), Cell("push", "sac", 1, 200)], tmp_path,
+                      show=lambda table: None)
+        assert sorted(path.name for path in tmp_path.iterdir()) == ["push-sac-seed0"]
+    finally:
+        holder.kill()
+        holder.wait()

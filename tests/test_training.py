@@ -1610,6 +1610,25 @@ def test_a_run_on_damped_objects_is_recorded_and_played_on_them(tmp_path):
     assert not (tmp_path / "refused").exists()
 
 
+def test_rollout_of_a_policy_records_episodes_as_its_run_trained(tmp_path):
+    """`rollout --policy` recorded a run trained without termination on success, or with
+    randomisation, in terminating, unrandomised episodes: other success numbers than
+    `evaluate` and `demo` gave, and a dataset `train --demos` refused for that very run."""
+    from franka_composer.policies.rollout import Trajectories
+
+    out = tmp_path / "run"
+    assert _train(out, "sac", 200, "--no-terminate-on-success", "--randomization",
+                  "default") == 0
+    assert cli.main(["rollout", "--task", "push", "--policy", str(out), "--episodes", "2",
+                     "--out", str(tmp_path / "played.npz")]) == 0
+    played = Trajectories.load(tmp_path / "played.npz")
+    assert played.metadata["options"] == {"terminate_on_success": False,
+                                          "randomization": "default"}
+    assert played.lengths.tolist() == [50, 50]
+    assert _train(tmp_path / "on-demos", "sac", 100, "--no-terminate-on-success",
+                  "--randomization", "default", "--demos", str(tmp_path / "played.npz")) == 0
+
+
 def test_the_weld_counts_only_under_mocap_control():
     """The weld's time constant is part of a mocap run's timing (its label, a resume's
     comparison); the osc and joints controllers have no weld, so a run of theirs recorded

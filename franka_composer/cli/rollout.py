@@ -45,7 +45,8 @@ def add_parser(subparsers) -> None:
     add_object_damping(parser, "0, undamped; with --policy, as the run trained")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
                         help="act with the policy trained in this run directory instead of "
-                             "the scripted expert")
+                             "the scripted expert, in episodes as it trained: their "
+                             "termination on success and randomisation its own")
     parser.add_argument("--action-noise", type=standard_deviation, default=0.0, metavar="STD",
                         help="Gaussian noise added to each action component (default: 0)")
     parser.add_argument("--reward-type", choices=REWARD_TYPES, default="sparse",
@@ -61,22 +62,26 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.datasets import record
+    from franka_composer.training.runs import RunDir, check_out_apart
 
-    run_timing, damping, guard = None, args.object_damping, {}
+    run_timing, damping, episodes_as = None, args.object_damping, {}
+    # Not over a run's own files: its expert-demos.npz, say, or another run's config.json.
+    check_out_apart(args.out, [args.policy] if args.policy is not None else [])
     if args.policy is not None:  # In the run's env unless told otherwise.
         from franka_composer.training.policy_file import check_trained
-        from franka_composer.training.runs import RunDir, check_out_apart
 
         policy_run = RunDir(args.policy)
         trained = policy_run.read_config()
         check_trained(policy_run)  # Before a dataset is begun.
-        check_out_apart(args.out, [args.policy])  # Its expert-demos.npz, say.
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
-        guard = {name: value for name, value in trained.dynamics_options.items()
-                 if name == "guard_ignores_carried"}  # A stack run from before v1.
+        # Its episodes as it trained: their ends and randomisation (a dataset of them fills
+        # its buffer), and its guard (a stack run from before v1).
+        episodes_as = {name: value for name, value in trained.env_options.items()
+                       if name in ("terminate_on_success", "randomization",
+                                   "guard_ignores_carried") and value is not None}
     task_options = {**given_timing(args, run_timing),
-                    **({"object_damping": damping} if damping else {}), **guard}
+                    **({"object_damping": damping} if damping else {}), **episodes_as}
     if args.policy is not None:  # Acts there as it learned: found before a dataset is begun.
         from franka_composer.datasets.sources import check_acts_in
         from franka_composer.tasks import task_config

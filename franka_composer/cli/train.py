@@ -6,6 +6,7 @@ import argparse
 import contextlib
 import os
 import pathlib
+import shlex
 import signal
 import warnings
 
@@ -63,9 +64,10 @@ def _rate(text: str) -> float:
     return value
 
 
-def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -> None:
-    """Checks --demos before the run directory exists: they load as the task's, and the
-    buffer keeps them."""
+def _check_demos(args: argparse.Namespace, config, total_steps: int) -> None:
+    """Checks --demos before the run directory exists: they load as the task's, in the
+    run's own env (`config`, its `RunConfig`: its termination and randomisation too), and
+    the buffer keeps them."""
     if args.expert_demos is not None:  # (Beside --demos, RunConfig has refused them.)
         from franka_composer.policies import check_expert_control
         from franka_composer.tasks import TASK_CONFIGS
@@ -78,12 +80,9 @@ def _check_demos(args: argparse.Namespace, buffer_size: int, total_steps: int) -
         return
     from franka_composer.training import demos
 
-    env_options = dict(control=args.control, object_damping=args.object_damping,
-                       guard_ignores_carried=args.guard_ignores_carried,
-                       **timing_options(args))
     demos.check_room(demos.transitions(args.task, args.expert_demos, args.demos,
-                                       args.demo_episodes, env_options),
-                     buffer_size, total_steps)
+                                       args.demo_episodes, config.env_options),
+                     config.hyperparameters.buffer_size, total_steps)
 
 
 def add_parser(subparsers) -> None:
@@ -310,7 +309,7 @@ def check_new_run(args: argparse.Namespace):
     if args.stop_after is not None and hp.stop_success_rate is None:
         raise ValueError("--stop-after counts evaluations for --stop-at-success RATE, and "
                          "no --stop-at-success was given")
-    _check_demos(settings, hp.buffer_size, total_steps)
+    _check_demos(settings, config, total_steps)
     if hp.learning_starts >= total_steps:
         warnings.warn(f"--learning-starts {hp.learning_starts} is not below --total-steps "
                       f"{total_steps}: the run takes random actions only and never updates "
@@ -432,7 +431,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         steps = run_dir.read_state().get("steps") if run_dir.config_path.exists() else None
         if steps is not None:
             print(f"interrupted: its checkpoint at step {steps:,} is kept; continue with "
-                  f"franka-composer train --resume --out {run_dir.root}")
+                  f"franka-composer train --resume --out {shlex.quote(str(run_dir.root))}")
         elif not run_dir.config_path.exists():
             print("interrupted before its first checkpoint: nothing of the run is kept; the "
                   "same command starts it again")

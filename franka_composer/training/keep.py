@@ -13,7 +13,7 @@ import pathlib
 import shutil
 
 from franka_composer.atomic_files import replace_atomically
-from franka_composer.training.runs import (RunDir, read_eval_rows, run_finished,
+from franka_composer.training.runs import (RunDir, is_run, read_eval_rows, run_finished,
                                            write_eval_rows)
 
 
@@ -131,16 +131,6 @@ def check_kept_apart(roots, kept: pathlib.Path, option: str) -> None:
             raise ValueError(f"{option} {kept} is inside the run {root}: give a folder "
                              "outside the runs")
     for folder in (inside, *inside.parents):
-        if _is_run(folder):  # Another run, kept or training.
+        if is_run(folder):  # Another run, kept or training.
             raise ValueError(f"{option} {kept} is {'' if folder == inside else 'inside '}"
                              f"the run {folder}: give a folder outside the runs")
-
-
-def _is_run(folder: pathlib.Path) -> bool:
-    """Whether `folder` holds a run: a config.json that reads as a run's (a project's own
-    config.json does not)."""
-    try:
-        RunDir(folder).read_config()  # No config.json at all is a ValueError too.
-    except ValueError:
-        return False
-    return True

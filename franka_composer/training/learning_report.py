@@ -105,7 +105,7 @@ def minutes_to(runs: list[RunRecord], threshold: float) -> float | None:
     seed never does. What a recipe costs to learn, where steps to a threshold do not
     compare recipes whose steps cost differently."""
     minutes = [np.inf if step is None else run.wall_times[step] / 60 for run, step in (
-        (run, first_reaching(smoothed(run.curve), threshold)) for run in runs)]
+        (run, _first_reaching_held(run, threshold)) for run in runs)]
     median = float(np.median(minutes)) if minutes else np.inf
     return median if np.isfinite(median) else None
 
@@ -117,9 +117,25 @@ def held(run: RunRecord, curve: dict[int, float], steps) -> dict[int, float]:
     run's curve comes back as it is."""
     if not run.stopped_early:
         return curve
-    streak = [run.curve[step] for step in sorted(run.curve)[-run.stop_after:]]
-    last, level = max(curve), float(np.mean(streak))
+    last, level = max(curve), _held_level(run)
     return {**curve, **{step: level for step in steps if step > last}}
+
+
+def _held_level(run: RunRecord) -> float:
+    """The level a run stopped early by the rule holds: the mean of its last `stop_after`
+    evaluations, those that met the rule."""
+    return float(np.mean([run.curve[step] for step in sorted(run.curve)[-run.stop_after:]]))
+
+
+def _first_reaching_held(run: RunRecord, threshold: float) -> int | None:
+    """The first step at which the run's smoothed curve reaches `threshold`, or, for a run
+    stopped early whose held level (`held`) reaches it first, its last step: what
+    `steps_to` reads, so the two columns agree (a rule of fewer evaluations than the
+    smoothing's holds above the curve's last smoothed value)."""
+    step = first_reaching(smoothed(run.curve), threshold)
+    if step is None and run.stopped_early and _held_level(run) >= threshold - REACH_TOLERANCE:
+        return max(run.curve)
+    return step
 
 
 def first_reaching(curve: dict[int, float], threshold: float) -> int | None:

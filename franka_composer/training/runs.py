@@ -485,8 +485,23 @@ def append_eval_row(path: pathlib.Path, row: dict[str, float]) -> None:
 
 def check_out_apart(out: pathlib.Path | None, roots) -> None:
     """A ValueError where `out` (a command's --out) is one of the files of the runs at
-    `roots`: `evaluate RUN --out RUN/eval.csv` wrote its table over the run's evaluations."""
-    for root in roots:
-        if out is not None and RunDir(pathlib.Path(root)).holds(out):
+    `roots`, or of any run it lies in: `evaluate RUN --out RUN/eval.csv` wrote its table
+    over the run's evaluations, and `--out OTHER_RUN/config.json` over another run's
+    config, which nothing could then read."""
+    if out is None:
+        return
+    inside = [folder for folder in pathlib.Path(out).resolve().parents if is_run(folder)]
+    for root in [*map(pathlib.Path, roots), *inside]:
+        if RunDir(root).holds(out):
             raise ValueError(f"--out {out} is one of the run {root}'s own files: give "
                              "another file")
+
+
+def is_run(folder: pathlib.Path) -> bool:
+    """Whether `folder` holds a run: a config.json that reads as a run's (a project's own
+    config.json does not)."""
+    try:
+        RunDir(folder).read_config()  # No config.json at all is a ValueError too.
+    except ValueError:
+        return False
+    return True

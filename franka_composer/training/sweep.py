@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
+import shlex
 import shutil
 import signal
 import site
@@ -159,7 +160,7 @@ def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tup
     with open(cell_log(cell, root), "a") as log:
         command = train_command(cell, root, train_args, resume=bool(run.read_state()))
         # The line also tells the sweep's table that the cell left the queue.
-        log.write(f"{time.strftime('%Y-%m-%dT%H:%M:%S')} {' '.join(command)}\n")
+        log.write(f"{time.strftime('%Y-%m-%dT%H:%M:%S')} {shlex.join(command)}\n")
         log.flush()
         process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT,
                                    env=cell_environment())
@@ -305,6 +306,12 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     if address is not None:
         check_ray_address(address)
     todo = [cell for cell in cells if not cell_finished(RunDir(root / cell.name), cell)]
+    for cell in todo:  # Before anything starts (a cell's task found it, and the sweep ended).
+        trainer = RunDir(root / cell.name).trainer()
+        if trainer is not None:
+            raise ValueError(f"{root / cell.name} is being trained by {trainer}: let it end, "
+                             "or stop it (SIGTERM checkpoints it) before the sweep resumes "
+                             "it")
     failed: set[str] = set()
     if todo:
         started = not ray.is_initialized()
