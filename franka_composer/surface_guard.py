@@ -23,8 +23,8 @@ stiffness)`: about 1.3 mm for the weld, 8 mm for the operational-space law).
 
 A block the hand carries (both fingers touch it, nothing else does) is part of the hand, not
 a surface beneath it, where the task says so (`ControlSettings.guard_ignores_carried`): the
-rays from the fingertips' inner corners start inside a block held low in the grip and meet
-its underside, and without it the hand is held up by what it carries.
+hand's rays meet a block held low in the grip (`experiments/held_rays.py`), and without it
+the hand is held up by what it carries.
 """
 
 from __future__ import annotations
