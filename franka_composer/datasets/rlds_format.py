@@ -23,6 +23,7 @@ import numpy as np
 
 from franka_composer import seeding
 from franka_composer.datasets.folders import make_folder
+from franka_composer.policies.rollout import episode_limit
 
 
 def import_envlogger():
@@ -44,8 +45,8 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     composer_env, task = adapter.composer_env, adapter.task
     # Through gym.make the episode length is TimeLimit's, which the dm_env logged here does
     # not see: it gets that length (the shorter, where it has one of its own).
-    limit = env.spec.max_episode_steps if env.spec is not None else None
-    if limit is not None and limit < (composer_env.episode_steps or float("inf")):
+    limit = episode_limit(env)
+    if limit is not None and limit != composer_env.episode_steps:
         composer_env.set_episode_steps(limit)
     made = make_folder(root)
     episode = {"seed": None}
