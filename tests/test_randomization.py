@@ -371,7 +371,7 @@ def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():
         _make(randomization={"object_rgb": noises.Multiplicative(
             distributions.Uniform(0.9, 1.5))})
     # Its range is known from the colour: one that leaves [0, 1] by 0.0005 (blue 0.9 x 1.1117)
-    # is refused as well, though 64 probe draws miss it (a reset ~1,658 in met it).
+    # is refused as well, though 64 probe draws miss it (a later reset met it).
     with pytest.raises(ValueError, match=re.escape(
             "draws in [0.05, 1.00053]: refused now, not at the first reset that draws outside")):
         _make(randomization={"object_rgb": noises.Multiplicative(
