@@ -824,6 +824,29 @@ def test_a_minari_recording_that_fails_leaves_nothing_behind(tmp_path, monkeypat
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # "out" too, which it made.
 
 
+
+def test_a_minari_recording_stopped_while_its_collector_is_made_leaves_nothing_behind(
+        tmp_path, monkeypatch):
+    """Ctrl-C while Minari's collector was being made left the dataset's empty folder (seen
+    by stopping `rollout --format minari` half a second in)."""
+    import gymnasium as gym
+    import minari
+
+    from franka_composer.adapters.registration import env_id
+    from franka_composer.datasets import minari_format
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(minari, "DataCollector", stopped)
+    env = gym.make(env_id("push", "sparse"))
+    with pytest.raises(KeyboardInterrupt):
+        minari_format.write(env, lambda obs: env.action_space.sample(), 3, 0,
+                            tmp_path / "out" / "nested", "franka_composer/push/expert-v0",
+                            "a test")
+    env.close()
+    assert list(tmp_path.iterdir()) == []
+
 @pytest.mark.parametrize("recorded_with, message", [
     (dict(max_tcp_step=0.2), "was recorded with max_tcp_step=0.2, and this run trains with "
                              "max_tcp_step=0.05: its transitions are of another task (other "

@@ -1071,21 +1071,6 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
     assert [r["steps"] for r in whole[0]] == [0, 100, 200, 300, 400, 500]
 
 
-def test_a_first_stop_signal_asks_and_a_second_interrupts():
-    import signal
-
-    from franka_composer.training.signals import stop_requests
-
-    asked = []
-    before = signal.getsignal(signal.SIGTERM)
-    with pytest.raises(KeyboardInterrupt, match="signal 15, again"):
-        with stop_requests(lambda: asked.append(True), signal.SIGTERM):
-            signal.raise_signal(signal.SIGTERM)
-            assert asked == [True]  # Asked; nothing raised.
-            signal.raise_signal(signal.SIGTERM)
-    assert asked == [True] and signal.getsignal(signal.SIGTERM) is before
-
-
 def test_sbx_model_has_table_i_settings():
     import sbx  # In the test extra: a missing sbx is a failure here, not a skip.
     env = make_env("push")

@@ -47,13 +47,20 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     for `root`)."""
     import minari
 
+    from franka_composer.training.signals import held
+
+    with held():
+        # Minari's first step imports jax: interrupted there (Ctrl-C, kill), jaxlib's import
+        # could crash the interpreter (a segmentation fault) rather than stop the rollout.
+        import jax.tree_util  # noqa: F401
     made = make_folder(root)
-    with datasets_root(root):
-        # Images stored as they were observed: Minari's default JPEG changed 99.9 % of
-        # their pixels (up to 138 levels) and lost a 32 x 48 image's block and goal marker.
-        collector = minari.DataCollector(env, record_infos=True, jpeg_encoding=False)
-    successes, finished = 0, False
+    collector, successes, finished = None, 0, False
     try:
+        with datasets_root(root):
+            # Images stored as they were observed: Minari's default JPEG changed 99.9 % of
+            # their pixels (up to 138 levels) and lost a 32 x 48 image's block and goal
+            # marker.
+            collector = minari.DataCollector(env, record_infos=True, jpeg_encoding=False)
         for index in range(episodes):
             if hasattr(policy, "reset"):
                 policy.reset()
@@ -74,7 +81,8 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
                 author="franka_composer")
         finished = True
     finally:
-        collector.close()
+        if collector is not None:
+            collector.close()
         if not finished:
             shutil.rmtree(made or root / dataset_id, ignore_errors=True)
     return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,

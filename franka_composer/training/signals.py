@@ -10,17 +10,82 @@ from __future__ import annotations
 
 import contextlib
 import signal
+import sys
+import threading
+
+#: How often an interrupt not seen on its way out is raised again.
+_AGAIN_S = 0.05
+#: What `held` holds: the stop signals and the interrupt's repeat.
+_HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
 
 
 @contextlib.contextmanager
 def _handled(handler, signums):
-    """Inside the block `handler` receives each of `signums`; their handlers restored after."""
-    previous = {signum: signal.signal(signum, handler) for signum in signums}
+    """Inside the block `handler` receives each of `signums`; their handlers restored after.
+
+    Python drops an exception raised where it cannot pass it on: in a garbage collector's
+    callback (jax adds one) or a finalizer it prints "Exception ignored", and C code that
+    looks a value up (a dict, an attribute) can clear it unseen. A stopped rollout recorded
+    on. So once `handler` has raised KeyboardInterrupt, it is raised again every `_AGAIN_S`
+    (SIGALRM) wherever none is on its way out (its cleanup runs undisturbed), until the
+    block ends; Python's message for one it dropped is left out."""
+    raised = []
+    previous_hook = sys.unraisablehook
+
+    def raising(signum, frame):
+        try:
+            handler(signum, frame)
+        except KeyboardInterrupt as interrupt:
+            if not raised:
+                raised.append(interrupt)
+                signal.setitimer(signal.ITIMER_REAL, _AGAIN_S, _AGAIN_S)
+            raise
+
+    def again(signum, frame):
+        if raised and not _interrupt_in_flight():
+            raise raised[0].with_traceback(None)
+
+    def hook(unraisable):
+        if not (raised and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+            previous_hook(unraisable)
+
+    # SIGALRM restored last: restoring the others first acts on a repeat still pending.
+    previous = {signum: signal.signal(signum, raising) for signum in signums}
+    previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, again)
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        sys.unraisablehook = previous_hook
+        for signum, action in previous.items():
+            signal.signal(signum, action)
+
+
+def _interrupt_in_flight() -> bool:
+    """Whether a KeyboardInterrupt is on its way out (what runs is its cleanup)."""
+    return isinstance(sys.exc_info()[1], KeyboardInterrupt)
+
+
+@contextlib.contextmanager
+def held():
+    """Inside the block Ctrl-C, SIGTERM and an interrupt's repeat are held, and delivered as
+    it ends to the handlers there were: for code that an exception raised inside leaves
+    broken (jaxlib's import, interrupted, crashed the interpreter). Python runs handlers in
+    its main thread only: in another, nothing to hold."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received = []
+    previous = {signum: signal.signal(signum, lambda signum, frame: received.append(signum))
+                for signum in _HELD}
     try:
         yield
     finally:
         for signum, action in previous.items():
             signal.signal(signum, action)
+        for signum in dict.fromkeys(received):
+            signal.raise_signal(signum)
 
 
 def interrupt_on(*signums: int):
