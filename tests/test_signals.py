@@ -45,16 +45,16 @@ def test_an_interrupt_python_dropped_is_raised_again_and_not_reported(monkeypatc
     callback = _signalled_in_a_gc_callback(signal.SIGTERM)
     try:
         with pytest.raises(KeyboardInterrupt, match="^signal 15$"):
+            begun = time.monotonic()
             with interrupt_on(signal.SIGTERM):
                 gc.collect()  # The interrupt is raised, and dropped, in here.
-                begun = time.monotonic()
-                while time.monotonic() - begun < 5:
+                while time.monotonic() - begun < 10:
                     sum(range(1000))
                 pytest.fail("the interrupt dropped in the gc callback was not raised again")
     finally:
         if callback in gc.callbacks:
             gc.callbacks.remove(callback)
-    assert time.monotonic() - begun < 0.5
+    assert time.monotonic() - begun < 2  # A collection, and a repeat's 50 ms.
     assert reported == []  # Python's "Exception ignored" for it, left out.
     assert {signum: signal.getsignal(signum) for signum in before} == before
     assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
@@ -85,3 +85,32 @@ def test_a_held_signal_is_delivered_as_the_block_ends():
                 went_on.append(True)
             went_on.append(False)
     assert went_on == [True]
+
+
+def test_jax_is_imported_whole_with_a_stop_signal_held_over_it():
+    """SIGTERM inside jaxlib's import crashed the interpreter or failed it as an ImportError
+    (a new process each: jax is imported once). Here it arrives as jaxlib's extension is
+    looked for, and stops the process once jax is imported."""
+    import subprocess
+    import textwrap
+
+    script = textwrap.dedent("""
+        import signal, sys
+        from franka_composer.training.signals import interrupt_on, jax_imported
+
+        class SignalledOnLookup:
+            def find_spec(self, name, path=None, target=None):
+                if name == "jaxlib._jax":
+                    signal.raise_signal(signal.SIGTERM)
+                return None
+
+        sys.meta_path.insert(0, SignalledOnLookup())
+        try:
+            with interrupt_on(signal.SIGTERM):
+                jax_imported()
+        except KeyboardInterrupt as interrupt:
+            print(interrupt, "jax" in sys.modules, "jaxlib._jax" in sys.modules)
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120)
+    assert (done.returncode, done.stdout) == (0, "signal 15 True True\n"), done.stderr

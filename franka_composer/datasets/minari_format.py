@@ -47,12 +47,9 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     for `root`)."""
     import minari
 
-    from franka_composer.training.signals import held
+    from franka_composer.training.signals import jax_imported
 
-    with held():
-        # Minari's first step imports jax: interrupted there (Ctrl-C, kill), jaxlib's import
-        # could crash the interpreter (a segmentation fault) rather than stop the rollout.
-        import jax.tree_util  # noqa: F401
+    jax_imported()  # Minari's first step imports it.
     made = make_folder(root)
     collector, successes, finished = None, 0, False
     try:

@@ -24,6 +24,7 @@ from franka_composer.training.models import (algorithm_class, build_model, check
                                              resolve_device)
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import model_damage
+from franka_composer.training.signals import jax_imported
 from franka_composer.training.runs import RunDir
 
 #: Bumped when the file's layout changes; a file of another version is refused by name.
@@ -124,6 +125,7 @@ def read_policy_file(config: RunConfig, path: pathlib.Path, device: str = "cpu")
 def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Path):
     """A freshly built sbx model's policy with the saved actor parameters in place (its
     critics stay untrained: acting needs the actor alone)."""
+    jax_imported()
     import flax
     import jax.numpy as jnp
     from flax.traverse_util import flatten_dict, unflatten_dict

@@ -88,6 +88,19 @@ def held():
             signal.raise_signal(signum)
 
 
+def jax_imported() -> None:
+    """Imports jax with the stop signals held (`held`), where it is not imported yet: jaxlib's
+    import, interrupted inside its extension, crashed the interpreter or failed as an
+    ImportError. A missing jax is left to the import that needs it to say."""
+    if "jax" in sys.modules:
+        return
+    with held():
+        try:
+            import jax  # noqa: F401
+        except ImportError:
+            pass
+
+
 def interrupt_on(*signums: int):
     """Inside the block each of `signums` raises KeyboardInterrupt; restored after."""
     def handler(signum, frame):
