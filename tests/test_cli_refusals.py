@@ -238,6 +238,31 @@ def test_a_policy_run_with_nothing_trained_is_named_before_anything_is_made(tmp_
     assert made == [] and sorted(path.name for path in tmp_path.iterdir()) == ["training"]
 
 
+def test_rollout_of_a_policy_takes_its_runs_task_and_controller(tmp_path):
+    """`rollout --policy RUN` needed --task and --control repeated (an osc run without
+    them was refused as a mocap push); now, like `demo --policy`, it takes the run's, and
+    names a --task or --control that asks for others."""
+    from franka_composer.policies import Trajectories
+
+    committed = pathlib.Path(__file__).parents[1] / "results" / "push-osc-sac-seed0"
+    out = tmp_path / "osc.npz"
+    assert cli.main(["rollout", "--policy", str(committed), "--episodes", "1", "--out",
+                     str(out)]) == 0
+    recorded = Trajectories.load(out).metadata
+    assert (recorded["id"], recorded["source"]) == ("FrankaPushOscSparse-v0", "policy")
+    for given, message in ((["--task", "slide"], "was trained on push, not --task slide"),
+                           (["--control", "mocap"], "acts through osc control, not "
+                                                    "--control mocap")):
+        with pytest.raises(ValueError, match=f"^--policy {re.escape(str(committed))} "
+                                             f"{message}$"):
+            cli.main(["rollout", "--policy", str(committed), *given, "--episodes", "1",
+                      "--out", str(tmp_path / "other.npz")])
+    with pytest.raises(ValueError, match=re.escape(
+            "rollout needs --task (or --policy RUN_DIR: its run's task)")):
+        cli.main(["rollout", "--episodes", "1", "--out", str(tmp_path / "none.npz")])
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["osc.npz"]
+
+
 def test_a_policy_that_cannot_act_is_named_before_anything_is_made(tmp_path, monkeypatch):
     """A damaged policy.pt, and a timing given that is not the run's, were found only once
     the env was built (and, by demo, its episode begun)."""

@@ -30,16 +30,17 @@ def add_parser(subparsers) -> None:
                     "records every episode: observations, actions, rewards, terminations, "
                     "truncations and success flags, with each episode's reset seed.",
     )
-    parser.add_argument("--task", required=True, choices=franka_composer.ALL_TASKS,
-                        help="the task to demonstrate")
+    parser.add_argument("--task", choices=franka_composer.ALL_TASKS, default=None,
+                        help="the task to demonstrate (with --policy, the run's)")
     parser.add_argument("--episodes", type=positive_int, default=100,
                         help="number of episodes (default: 100)")
     parser.add_argument("--seed", type=episode_seed, default=0,
                         help="episode i is reset with seed + i (default: 0)")
     parser.add_argument("--format", choices=FORMATS, default="npz",
                         help="npz (default), minari or rlds")
-    parser.add_argument("--control", choices=CONTROLS, default="mocap",
-                        help="the controller (default: mocap; the experts take mocap and osc)")
+    parser.add_argument("--control", choices=CONTROLS, default=None,
+                        help="the controller (default: mocap, or the --policy run's; the "
+                             "experts take mocap and osc)")
     add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "
                        "the timing the run trained at, and another is refused)")
     add_object_damping(parser, "0, undamped; with --policy, as the run trained")
@@ -67,12 +68,23 @@ def run(args: argparse.Namespace) -> int:
     run_timing, damping, episodes_as = None, args.object_damping, {}
     # Not over a run's own files: its expert-demos.npz, say, or another run's config.json.
     check_out_apart(args.out, [args.policy] if args.policy is not None else [])
-    if args.policy is not None:  # In the run's env unless told otherwise.
+    if args.policy is None:
+        if args.task is None:
+            raise ValueError("rollout needs --task (or --policy RUN_DIR: its run's task)")
+        args.control = args.control or "mocap"
+    else:  # In the run's env unless told otherwise.
         from franka_composer.training.policy_file import check_trained
 
         policy_run = RunDir(args.policy)
         trained = policy_run.read_config()
         check_trained(policy_run)  # Before a dataset is begun.
+        if args.task not in (None, trained.task):
+            raise ValueError(f"--policy {args.policy} was trained on {trained.task}, not "
+                             f"--task {args.task}")
+        if args.control not in (None, trained.control):
+            raise ValueError(f"--policy {args.policy} acts through {trained.control} "
+                             f"control, not --control {args.control}")
+        args.task, args.control = trained.task, trained.control
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
         # Its episodes as it trained: their ends and randomisation (a dataset of them fills
