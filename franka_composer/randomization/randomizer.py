@@ -162,7 +162,10 @@ class Randomizer:
             else:
                 values[name] = self._draw(name, distribution, parameter.nominal(), stream)
         self._write(physics, values)
-        self._values = {name: _plain(value) for name, value in values.items()}
+        # Reported where it applies: a preset's camera jitter is drawn (the visual stream's
+        # draws stay those of a pixel env) and moves nothing where no camera is observed.
+        self._values = {name: _plain(value) for name, value in values.items()
+                        if self._cameras or not PARAMETERS[name].observed_cameras}
 
     @property
     def tick(self) -> int:
