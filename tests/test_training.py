@@ -410,8 +410,8 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(
 def test_a_campaign_cell_stopped_and_resumed_is_the_uninterrupted_run_to_the_bit(
         tmp_path, monkeypatch):
     """Issue 37's SAC cells, small: pick-and-place at the reference timing, its gradient
-    steps in bf16. (Seed 1's run there, resumed at 52,241 steps, left the evaluations of
-    the run never stopped at 66,000; on one machine a resume is exact.)"""
+    steps in bf16. (Their runs begun again on another machine left the kept evaluations:
+    a machine can change a course; on one machine a resume does not.)"""
     options = ["--precision", "bf16", "--timing", "reference"]
     assert _train(tmp_path / "whole", "sac", 400, *options, task="pick_and_place") == 0
     with monkeypatch.context() as patch:
