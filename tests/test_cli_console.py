@@ -68,6 +68,32 @@ def test_ctrl_c_ends_a_command_in_one_line_leaving_nothing_half_written(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_ctrl_c_python_dropped_still_stops_a_command(monkeypatch, capsys):
+    """Ctrl-C raised inside a gc callback (jax adds one) is dropped by Python: the command
+    went on. `console` takes Ctrl-C as it takes SIGTERM, and raises it again."""
+    import gc
+    import time
+
+    from franka_composer import cli
+
+    def a_long_command(argv):
+        def callback(phase, info):
+            if phase == "start" and callback in gc.callbacks:
+                gc.callbacks.remove(callback)
+                signal.raise_signal(signal.SIGINT)
+
+        gc.callbacks.append(callback)
+        gc.collect()
+        time.sleep(10)
+        return 0
+
+    monkeypatch.setattr(cli, "main", a_long_command)
+    begun = time.monotonic()
+    assert cli.console([]) == 128 + signal.SIGINT
+    assert time.monotonic() - begun < 5
+    assert capsys.readouterr().err == "franka-composer: interrupted\n"
+
+
 def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
     env = {**os.environ, "MENAGERIE_ROOT": str(tmp_path)}
     out = tmp_path / "demo"

@@ -824,7 +824,6 @@ def test_a_minari_recording_that_fails_leaves_nothing_behind(tmp_path, monkeypat
     assert sorted(p.name for p in tmp_path.iterdir()) == []  # "out" too, which it made.
 
 
-
 def test_a_minari_recording_stopped_while_its_collector_is_made_leaves_nothing_behind(
         tmp_path, monkeypatch):
     """Ctrl-C while Minari's collector was being made left the dataset's empty folder (seen

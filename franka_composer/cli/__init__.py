@@ -57,15 +57,16 @@ def console(argv: list[str] | None = None) -> int:
     command quietly, with the status a shell gives a command SIGPIPE ends; so does Ctrl-C
     where the command has nothing of its own to say (train and sweep say what they kept),
     saying so in one line."""
-    from franka_composer.training.signals import interrupt_on
+    from franka_composer.training.signals import interrupt_on, stop_signals
 
     warnings.formatwarning = _format_warning
     try:
         try:
             # `kill` (SIGTERM: schedulers, `timeout`) stops any command as Ctrl-C does, so
             # what it was writing is taken away whole (a rollout's half-written RLDS or
-            # Minari dataset was left); train and sweep stop at their checkpoints.
-            with interrupt_on(signal.SIGTERM):
+            # Minari dataset was left); train and sweep stop at their checkpoints. Ctrl-C
+            # through the same handler: one Python dropped is raised again.
+            with interrupt_on(*stop_signals()):
                 return main(argv)
         finally:
             sys.stdout.flush()  # What is still buffered meets a gone reader here.

@@ -92,8 +92,9 @@ class Randomizer:
 
     @property
     def values(self) -> dict:
-        """This episode's drawn parameters, by name (factors, colours, offsets, angles,
-        steps: `PARAMETERS`), as floats, ints and tuples; per-object ones one per object."""
+        """This episode's drawn parameters that apply, by name (factors, colours, offsets,
+        angles, steps: `PARAMETERS`), as floats, ints and tuples; per-object ones one per
+        object. (Camera jitter applies where a camera's images are observed.)"""
         return self._values
 
     # ----- Once per compiled model ----------------------------------------------------------

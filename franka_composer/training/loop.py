@@ -13,7 +13,6 @@ import dataclasses
 import importlib.util
 import pathlib
 import shutil
-import signal
 import warnings
 
 from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
@@ -30,7 +29,7 @@ from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, unpickling
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunDir, run_finished,
                                           write_eval_rows)
-from franka_composer.training.signals import stop_requests
+from franka_composer.training.signals import stop_requests, stop_signals
 from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.
@@ -48,13 +47,6 @@ def _skip_evaluated_episodes(eval_env, evaluations: int, episodes: int) -> None:
     this a resumed run would evaluate the episodes of its first evaluations again."""
     for _ in range(evaluations * (episodes + 1)):
         eval_env.reset()
-
-
-def _stop_signals() -> list[int]:
-    """SIGTERM, and SIGINT where Ctrl-C reaches the process (not a background job's SIG_IGN)."""
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        return [signal.SIGTERM, signal.SIGINT]
-    return [signal.SIGTERM]
 
 
 def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str, goes_on: bool):
@@ -240,7 +232,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     remaining = hp.total_steps - model.num_timesteps
     try:
         with stop_requests(lambda: setattr(checkpoint, "stop_requested", True),
-                           *_stop_signals()):
+                           *stop_signals()):
             # Also where nothing is left to train (a resume at its checkpoint's step): the
             # callbacks' end of training evaluates where the run ends, as it would have.
             model.learn(total_timesteps=remaining, callback=callbacks,

@@ -13,66 +13,103 @@ import signal
 import sys
 import threading
 
-#: How often an interrupt not seen on its way out is raised again.
+#: How often an interrupt not yet seen on its way out is raised again.
 _AGAIN_S = 0.05
-#: What `held` holds: the stop signals and the interrupt's repeat.
+#: What `held` holds: the stop signals and an interrupt's repeat.
 _HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
 
 
-@contextlib.contextmanager
-def _handled(handler, signums):
+def stop_signals() -> list[int]:
+    """SIGTERM, and SIGINT where Ctrl-C reaches the process (not a background job's SIG_IGN,
+    nor a handler of the caller's own)."""
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        return [signal.SIGTERM, signal.SIGINT]
+    return [signal.SIGTERM]
+
+
+class _Handled:
     """Inside the block `handler` receives each of `signums`; their handlers restored after.
 
     Python drops an exception raised where it cannot pass it on: in a garbage collector's
     callback (jax adds one) or a finalizer it prints "Exception ignored", and C code that
-    looks a value up (a dict, an attribute) can clear it unseen. A stopped rollout recorded
-    on. So once `handler` has raised KeyboardInterrupt, it is raised again every `_AGAIN_S`
-    (SIGALRM) wherever none is on its way out (its cleanup runs undisturbed), until the
-    block ends; Python's message for one it dropped is left out."""
-    raised = []
-    previous_hook = sys.unraisablehook
+    looks a value up can clear it unseen; a stopped rollout recorded on. So once `handler`
+    has raised KeyboardInterrupt it is raised again every `_AGAIN_S` (SIGALRM, taken only
+    then, and given back with its timer as the block ends) until it is seen on its way out
+    or handled, or the block ends; Python's message for one it dropped is left out."""
 
-    def raising(signum, frame):
+    def __init__(self, handler, signums) -> None:
+        self._handler, self._signums = handler, signums
+        self._repeat = None  # The arguments of the interrupt to raise again.
+        self._alarm = None  # SIGALRM's handler, its timer and the hook the repeat took.
+        self._ending = False
+
+    def __enter__(self) -> None:
+        self._previous = {signum: signal.signal(signum, self._raising)
+                          for signum in self._signums}
+
+    def _raising(self, signum, frame) -> None:
         try:
-            handler(signum, frame)
+            self._handler(signum, frame)
         except KeyboardInterrupt as interrupt:
-            if not raised:
-                raised.append(interrupt)
-                signal.setitimer(signal.ITIMER_REAL, _AGAIN_S, _AGAIN_S)
+            self._repeat = interrupt.args
+            if self._alarm is None and not self._ending:
+                self._alarm = (signal.signal(signal.SIGALRM, self._again),
+                               signal.setitimer(signal.ITIMER_REAL, _AGAIN_S, _AGAIN_S),
+                               sys.unraisablehook)
+                sys.unraisablehook = self._unraisable
             raise
 
-    def again(signum, frame):
-        if raised and not _interrupt_in_flight():
-            raise raised[0].with_traceback(None)
+    def _again(self, signum, frame) -> None:
+        if self._repeat is None or frame.f_code is _Handled.__exit__.__code__:
+            return  # (At the end of the block: its `__exit__` gives everything back.)
+        if _interrupt_in_flight():
+            self._repeat = None  # Its cleanup, or its handler, runs undisturbed.
+            return
+        raise KeyboardInterrupt(*self._repeat)
 
-    def hook(unraisable):
-        if not (raised and isinstance(unraisable.exc_value, KeyboardInterrupt)):
-            previous_hook(unraisable)
+    def _unraisable(self, unraisable) -> None:
+        if not (self._repeat is not None
+                and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+            self._alarm[2](unraisable)
 
-    # SIGALRM restored last: restoring the others first acts on a repeat still pending.
-    previous = {signum: signal.signal(signum, raising) for signum in signums}
-    previous[signal.SIGALRM] = signal.signal(signal.SIGALRM, again)
-    sys.unraisablehook = hook
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        sys.unraisablehook = previous_hook
-        for signum, action in previous.items():
-            signal.signal(signum, action)
+    def __exit__(self, *exc) -> bool:
+        self._repeat, self._ending = None, True
+        restores = list(self._previous.items())
+        alarm = self._alarm
+        if alarm is not None:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            sys.unraisablehook = alarm[2]
+            restores.append((signal.SIGALRM, alarm[0]))
+        arrived = None  # A signal acted on as its handler is given back.
+        for signum, action in restores:
+            try:
+                signal.signal(signum, action)
+            except KeyboardInterrupt as interrupt:
+                arrived = arrived or interrupt
+        if alarm is not None and alarm[1][0] > 0:  # A timer of the caller's, running on.
+            signal.setitimer(signal.ITIMER_REAL, *alarm[1])
+        if arrived is not None and not _interrupt_in_flight():
+            raise arrived
+        return False
 
 
 def _interrupt_in_flight() -> bool:
-    """Whether a KeyboardInterrupt is on its way out (what runs is its cleanup)."""
-    return isinstance(sys.exc_info()[1], KeyboardInterrupt)
+    """Whether a KeyboardInterrupt is on its way out or being handled (what runs is its
+    cleanup, or handling another exception inside it)."""
+    exception = sys.exc_info()[1]
+    while exception is not None:
+        if isinstance(exception, KeyboardInterrupt):
+            return True
+        exception = exception.__context__
+    return False
 
 
 @contextlib.contextmanager
 def held():
     """Inside the block Ctrl-C, SIGTERM and an interrupt's repeat are held, and delivered as
-    it ends to the handlers there were: for code that an exception raised inside leaves
-    broken (jaxlib's import, interrupted, crashed the interpreter). Python runs handlers in
-    its main thread only: in another, nothing to hold."""
+    it ends, in the order they came, to the handlers there were: for code that an exception
+    raised inside leaves broken (jaxlib's import, interrupted, crashed the interpreter).
+    Python runs handlers in its main thread only: in another, nothing to hold."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -83,8 +120,9 @@ def held():
         yield
     finally:
         for signum, action in previous.items():
-            signal.signal(signum, action)
-        for signum in dict.fromkeys(received):
+            if action is not None:  # (None: a handler not set from Python, left as it is.)
+                signal.signal(signum, action)
+        for signum in received:
             signal.raise_signal(signum)
 
 
@@ -106,7 +144,7 @@ def interrupt_on(*signums: int):
     def handler(signum, frame):
         raise KeyboardInterrupt(f"signal {signum}")
 
-    return _handled(handler, signums)
+    return _Handled(handler, signums)
 
 
 def stop_requests(request, *signums: int):
@@ -121,4 +159,4 @@ def stop_requests(request, *signums: int):
         received.append(signum)
         request()
 
-    return _handled(handler, signums)
+    return _Handled(handler, signums)
