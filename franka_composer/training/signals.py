@@ -34,8 +34,9 @@ class _Handled:
     callback (jax adds one) or a finalizer it prints "Exception ignored", and C code that
     looks a value up can clear it unseen; a stopped rollout recorded on. So once `handler`
     has raised KeyboardInterrupt it is raised again every `_AGAIN_S` (SIGALRM, taken only
-    then, and given back with its timer as the block ends) until it is seen on its way out
-    or handled, or the block ends; Python's message for one it dropped is left out."""
+    then, and given back with its timer as the block ends) until a repeat finds it on its
+    way out or being handled, or the block ends (a block that handles it faster and runs
+    on gets it again); Python's message for one it dropped is left out."""
 
     def __init__(self, handler, signums) -> None:
         self._handler, self._signums = handler, signums
