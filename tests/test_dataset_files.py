@@ -846,6 +846,50 @@ def test_a_minari_recording_stopped_while_its_collector_is_made_leaves_nothing_b
     env.close()
     assert list(tmp_path.iterdir()) == []
 
+
+@pytest.mark.parametrize("format", ["minari", "rlds"])
+def test_a_recording_stopped_in_a_folder_that_was_there_leaves_it_as_it_was(
+        tmp_path, monkeypatch, format):
+    """Into an existing datasets folder, a stopped Minari recording left its namespaces'
+    metadata files; and a second signal during the cleanup of either format left half a
+    dataset: the cleanup runs with the signals held, and what was there stays."""
+    import signal
+
+    from franka_composer.datasets import folders
+    from franka_composer.training.signals import interrupt_on
+
+    root = tmp_path / "datasets"
+    (root / "franka_composer" / "other").mkdir(parents=True)  # Another dataset's.
+    (root / "franka_composer" / "other" / "data.hdf5").write_text("kept")
+    if format == "rlds":  # `record` takes an empty one.
+        root = tmp_path / "empty"
+        root.mkdir()
+    before = sorted(tmp_path.rglob("*"))
+    removing, rmtree = [], folders.shutil.rmtree
+
+    def interrupted_again(path, *args, **kwargs):  # A second SIGTERM as it cleans up.
+        if not removing:
+            removing.append(path)
+            signal.raise_signal(signal.SIGTERM)
+        return rmtree(path, *args, **kwargs)
+
+    monkeypatch.setattr(folders.shutil, "rmtree", interrupted_again)
+    steps = []
+
+    def stopped_policy(obs):
+        steps.append(obs)
+        if len(steps) == 60:  # In the second episode.
+            signal.raise_signal(signal.SIGTERM)
+        return np.zeros(3)
+
+    import franka_composer.datasets as datasets
+
+    monkeypatch.setattr(datasets, "make_policy", lambda env, **kwargs: stopped_policy)
+    with pytest.raises(KeyboardInterrupt):
+        with interrupt_on(signal.SIGTERM):
+            record("push", 3, root, format=format, seed=0)
+    assert removing and sorted(tmp_path.rglob("*")) == before
+
 @pytest.mark.parametrize("recorded_with, message", [
     (dict(max_tcp_step=0.2), "was recorded with max_tcp_step=0.2, and this run trains with "
                              "max_tcp_step=0.05: its transitions are of another task (other "

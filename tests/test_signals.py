@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from franka_composer.training.signals import interrupt_on, stop_requests
+from franka_composer.training.signals import interrupt_on, stop_requests, stop_signals
 
 
 def test_a_first_stop_signal_asks_and_a_second_interrupts():
@@ -180,3 +180,30 @@ def test_jax_is_imported_whole_with_a_stop_signal_held_over_it():
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           timeout=120)
     assert (done.returncode, done.stdout) == (0, "signal 15 True True\n"), done.stderr
+
+
+def test_ctrl_c_stays_a_stop_request_for_training_inside_the_command_lines_block():
+    """`console` takes Ctrl-C with its own handler: training then left SIGINT out of its
+    stop requests, and Ctrl-C stopped a run at once, at an inexact checkpoint."""
+    assert stop_signals() == [signal.SIGTERM, signal.SIGINT]
+    with interrupt_on(*stop_signals()):
+        assert stop_signals() == [signal.SIGTERM, signal.SIGINT]
+    before = signal.signal(signal.SIGINT, signal.SIG_IGN)  # A background job.
+    try:
+        assert stop_signals() == [signal.SIGTERM]
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+def test_an_interrupt_python_dropped_just_before_the_block_ends_is_raised_as_it_ends():
+    """Dropped inside Minari's dataset creation, which then finished before a repeat: the
+    rollout ended as if never stopped."""
+    with pytest.raises(KeyboardInterrupt, match="^signal 15$"):
+        with interrupt_on(signal.SIGTERM):
+            callback = _signal_in_the_next_gc_callback(signal.SIGTERM)
+            try:
+                gc.collect()
+            finally:
+                if callback in gc.callbacks:
+                    gc.callbacks.remove(callback)
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)

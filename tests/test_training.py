@@ -1037,7 +1037,10 @@ def _wait_for_evaluation(out, steps, process, timeout_s=120):
         time.sleep(0.05)
 
 
-def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
+@pytest.mark.parametrize("signum", ["SIGTERM", "SIGINT"])
+def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path, signum):
+    """And Ctrl-C, as a terminal sends it: the command line's own handler for it had
+    training stop at once, at an inexact checkpoint."""
     import signal
     import subprocess
     import sys
@@ -1045,9 +1048,10 @@ def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path):
     out = tmp_path / "interrupted"
     command = [sys.executable, "-m", "franka_composer", "train", "--task", "push", "--algo",
                "ddpg", "--seed", "1", "--out", str(out), "--total-steps", "100000", *TINY]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True)
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, preexec_fn=(
+        lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)))
     _wait_for_evaluation(out, 200, process, timeout_s=60)
-    process.send_signal(signal.SIGTERM)
+    process.send_signal(getattr(signal, signum))
     stdout, _ = process.communicate(timeout=60)
     assert process.returncode == 130 and "--resume" in stdout
     steps = RunDir(out).read_state()["steps"]

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import pathlib
+import shutil
+
+from franka_composer.training.signals import held
 
 
 def make_folder(root: pathlib.Path) -> pathlib.Path | None:
@@ -11,3 +15,26 @@ def make_folder(root: pathlib.Path) -> pathlib.Path | None:
     missing = [folder for folder in (root, *root.parents) if not folder.exists()]
     root.mkdir(parents=True, exist_ok=True)
     return missing[-1] if missing else None
+
+
+@contextlib.contextmanager
+def removed_if_it_fails(root: pathlib.Path):
+    """Makes `root` for a recording (`make_folder`); if the block raises, removes what the
+    recording made: the folders made for it, or, in a `root` that was there, each file and
+    folder that was not (Minari writes its namespaces' metadata beside the dataset), with
+    Ctrl-C and SIGTERM held meanwhile: a second one left half a dataset."""
+    made = make_folder(root)
+    before = None if made else set(root.rglob("*"))
+    try:
+        yield
+    except BaseException:
+        with held():
+            if made:
+                shutil.rmtree(made, ignore_errors=True)
+            else:
+                for path in sorted(set(root.rglob("*")) - before, key=lambda p: len(p.parts)):
+                    if path.is_dir() and not path.is_symlink():
+                        shutil.rmtree(path, ignore_errors=True)
+                    elif path.exists() or path.is_symlink():
+                        path.unlink()
+        raise

@@ -12,10 +12,9 @@ import contextlib
 import importlib.metadata
 import os
 import pathlib
-import shutil
 import warnings
 
-from franka_composer.datasets.folders import make_folder
+from franka_composer.datasets.folders import removed_if_it_fails
 
 #: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
 DATASETS_PATH_VARIABLE = "MINARI_DATASETS_PATH"
@@ -43,45 +42,44 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     Minari's collector keeps the episodes in a temporary folder under its datasets root
     until `create_dataset`, and joins that root to itself if it is relative: the collector
     is made with `root` (absolute) as its root, and closed (its temporary folder removed)
-    whatever happens; a dataset that was not finished is removed (with the folders it made
-    for `root`)."""
+    whatever happens; what a dataset that was not finished made is removed
+    (`removed_if_it_fails`)."""
     import minari
 
     from franka_composer.training.signals import jax_imported
 
     jax_imported()  # Minari's first step imports it.
-    made = make_folder(root)
-    collector, successes, finished = None, 0, False
-    try:
-        with datasets_root(root):
-            # Images stored as they were observed: Minari's default JPEG changed 99.9 % of
-            # their pixels (up to 138 levels) and lost a 32 x 48 image's block and goal
-            # marker.
-            collector = minari.DataCollector(env, record_infos=True, jpeg_encoding=False)
-        for index in range(episodes):
-            if hasattr(policy, "reset"):
-                policy.reset()
-            obs, _ = collector.reset(seed=seed + index)
-            done, info = False, {"is_success": False}
-            while not done:
-                obs, _, terminated, truncated, info = collector.step(policy(obs))
-                done = terminated or truncated
-            successes += bool(info["is_success"])
-        with datasets_root(root), warnings.catch_warnings():
-            # Minari recommends a contact e-mail and a link to versioned code; a dataset
-            # made on a user's machine has neither, and says which package version made it.
-            warnings.filterwarnings("ignore", message="`(author_email|code_permalink)` is set",
-                                    category=UserWarning)
-            dataset = collector.create_dataset(
-                dataset_id=dataset_id, eval_env=env.spec, algorithm_name=description,
-                description=f"{description}; made by franka_composer {_version()}",
-                author="franka_composer")
-        finished = True
-    finally:
-        if collector is not None:
-            collector.close()
-        if not finished:
-            shutil.rmtree(made or root / dataset_id, ignore_errors=True)
+    collector, successes = None, 0
+    with removed_if_it_fails(root):
+        try:
+            with datasets_root(root):
+                # Images stored as they were observed: Minari's default JPEG changed 99.9 %
+                # of their pixels (up to 138 levels) and lost a 32 x 48 image's block and
+                # goal marker.
+                collector = minari.DataCollector(env, record_infos=True, jpeg_encoding=False)
+            for index in range(episodes):
+                if hasattr(policy, "reset"):
+                    policy.reset()
+                obs, _ = collector.reset(seed=seed + index)
+                done, info = False, {"is_success": False}
+                while not done:
+                    obs, _, terminated, truncated, info = collector.step(policy(obs))
+                    done = terminated or truncated
+                successes += bool(info["is_success"])
+            with datasets_root(root), warnings.catch_warnings():
+                # Minari recommends a contact e-mail and a link to versioned code; a dataset
+                # made on a user's machine has neither, and says which package version made
+                # it.
+                warnings.filterwarnings("ignore",
+                                        message="`(author_email|code_permalink)` is set",
+                                        category=UserWarning)
+                dataset = collector.create_dataset(
+                    dataset_id=dataset_id, eval_env=env.spec, algorithm_name=description,
+                    description=f"{description}; made by franka_composer {_version()}",
+                    author="franka_composer")
+        finally:
+            if collector is not None:
+                collector.close()
     return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
             "success_rate": successes / episodes}
 

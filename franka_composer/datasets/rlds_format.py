@@ -17,12 +17,11 @@ extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unic
 from __future__ import annotations
 
 import pathlib
-import shutil
 
 import numpy as np
 
 from franka_composer import seeding
-from franka_composer.datasets.folders import make_folder
+from franka_composer.datasets.folders import removed_if_it_fails
 from franka_composer.policies.rollout import episode_limit
 
 
@@ -48,33 +47,24 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     limit = episode_limit(env)
     if limit is not None and limit != composer_env.episode_steps:
         composer_env.set_episode_steps(limit)
-    made = make_folder(root)
     episode = {"seed": None}
     steps = successes = 0
-    try:
-        with envlogger.EnvLogger(composer_env, data_directory=str(root), metadata=metadata,
-                                 episode_fn=lambda timestep, action, env: dict(episode)
-                                 ) as logged:
-            for index in range(episodes):
-                episode["seed"] = seed + index
-                if hasattr(policy, "reset"):
-                    policy.reset()
-                seeding.reseed(composer_env.random_state, seed + index)  # As reset(seed=...).
-                timestep = logged.reset()
-                while not timestep.last():
-                    timestep = logged.step(
-                        policy(adapter.goal_observation(timestep.observation)))
-                    steps += 1
-                successes += bool(task.success)
-    except BaseException:
-        # A recording cut short is no dataset: nothing of it is left behind, in a folder
-        # it made or in the empty one it was given (`record` takes no other).
-        if made:
-            shutil.rmtree(made, ignore_errors=True)
-        else:
-            for entry in root.iterdir():
-                shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
-        raise
+    # A recording cut short is no dataset: nothing of it is left behind, in a folder it made
+    # or in the empty one it was given (`record` takes no other).
+    with removed_if_it_fails(root), envlogger.EnvLogger(
+            composer_env, data_directory=str(root), metadata=metadata,
+            episode_fn=lambda timestep, action, env: dict(episode)) as logged:
+        for index in range(episodes):
+            episode["seed"] = seed + index
+            if hasattr(policy, "reset"):
+                policy.reset()
+            seeding.reseed(composer_env.random_state, seed + index)  # As reset(seed=...).
+            timestep = logged.reset()
+            while not timestep.last():
+                timestep = logged.step(
+                    policy(adapter.goal_observation(timestep.observation)))
+                steps += 1
+            successes += bool(task.success)
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
 
 

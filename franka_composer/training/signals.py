@@ -19,14 +19,6 @@ _AGAIN_S = 0.05
 _HELD = (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)
 
 
-def stop_signals() -> list[int]:
-    """SIGTERM, and SIGINT where Ctrl-C reaches the process (not a background job's SIG_IGN,
-    nor a handler of the caller's own)."""
-    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        return [signal.SIGTERM, signal.SIGINT]
-    return [signal.SIGTERM]
-
-
 class _Handled:
     """Inside the block `handler` receives each of `signums`; their handlers restored after.
 
@@ -36,11 +28,13 @@ class _Handled:
     has raised KeyboardInterrupt it is raised again every `_AGAIN_S` (SIGALRM, taken only
     then, and given back with its timer as the block ends) until a repeat finds it on its
     way out or being handled, or the block ends (a block that handles it faster and runs
-    on gets it again); Python's message for one it dropped is left out."""
+    on gets it again); one Python dropped (its message left out) and not yet raised again
+    is raised as the block ends."""
 
     def __init__(self, handler, signums) -> None:
         self._handler, self._signums = handler, signums
         self._repeat = None  # The arguments of the interrupt to raise again.
+        self._dropped = None  # Those of one Python dropped and no repeat has raised yet.
         self._alarm = None  # SIGALRM's handler, its timer and the hook the repeat took.
         self._ending = False
 
@@ -66,15 +60,18 @@ class _Handled:
         if _interrupt_in_flight():
             self._repeat = None  # Its cleanup, or its handler, runs undisturbed.
             return
+        self._dropped = None
         raise KeyboardInterrupt(*self._repeat)
 
     def _unraisable(self, unraisable) -> None:
-        if not (self._repeat is not None
-                and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+        if self._repeat is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
+            self._dropped = self._repeat
+        else:
             self._alarm[2](unraisable)
 
     def __exit__(self, *exc) -> bool:
         self._repeat, self._ending = None, True
+        dropped = self._dropped  # Python dropped it, and the block ended before a repeat.
         restores = list(self._previous.items())
         alarm = self._alarm
         if alarm is not None:
@@ -89,9 +86,21 @@ class _Handled:
                 arrived = arrived or interrupt
         if alarm is not None and alarm[1][0] > 0:  # A timer of the caller's, running on.
             signal.setitimer(signal.ITIMER_REAL, *alarm[1])
+        if arrived is None and dropped is not None:
+            arrived = KeyboardInterrupt(*dropped)
         if arrived is not None and not _interrupt_in_flight():
             raise arrived
         return False
+
+
+def stop_signals() -> list[int]:
+    """SIGTERM, and SIGINT where Ctrl-C reaches the process: Python's own handler, or one of
+    these blocks' (`console` takes Ctrl-C so), not a background job's SIG_IGN."""
+    handler = signal.getsignal(signal.SIGINT)
+    if handler is signal.default_int_handler or isinstance(
+            getattr(handler, "__self__", None), _Handled):
+        return [signal.SIGTERM, signal.SIGINT]
+    return [signal.SIGTERM]
 
 
 def _interrupt_in_flight() -> bool:
