@@ -24,16 +24,20 @@ def test_a_first_stop_signal_asks_and_a_second_interrupts():
     assert asked == [True] and signal.getsignal(signal.SIGTERM) is before
 
 
-def _signal_in_the_next_gc_callback(signum):
-    """A gc callback (as jax adds one) in which `signum` arrives, once: Python drops what
-    its handler raises there."""
+def _collect_dropping(signum):
+    """A garbage collection in whose callback (as jax adds one) `signum` arrives: Python
+    drops what its handler raises there."""
     def callback(phase, info):
         if phase == "start" and callback in gc.callbacks:
             gc.callbacks.remove(callback)
             signal.raise_signal(signum)
 
     gc.callbacks.append(callback)
-    return callback
+    try:
+        gc.collect()
+    finally:
+        if callback in gc.callbacks:
+            gc.callbacks.remove(callback)
 
 
 def _busy(seconds):
@@ -51,17 +55,12 @@ def test_an_interrupt_python_dropped_is_raised_again_and_not_reported(monkeypatc
     monkeypatch.setattr(sys, "unraisablehook", reported.append)
     before = {signum: signal.getsignal(signum) for signum in (signum, signal.SIGALRM)}
     collected = []
-    try:
-        with pytest.raises(KeyboardInterrupt, match=f"^signal {signum}$"):
-            with interrupt_on(signum):
-                callback = _signal_in_the_next_gc_callback(signum)
-                gc.collect()  # The interrupt is raised, and dropped, in here.
-                collected.append(time.monotonic())
-                _busy(10)
-                pytest.fail("the interrupt dropped in the gc callback was not raised again")
-    finally:
-        if callback in gc.callbacks:
-            gc.callbacks.remove(callback)
+    with pytest.raises(KeyboardInterrupt, match=f"^signal {signum}$"):
+        with interrupt_on(signum):
+            _collect_dropping(signum)  # The interrupt is raised, and dropped, in here.
+            collected.append(time.monotonic())
+            _busy(10)
+            pytest.fail("the interrupt dropped in the gc callback was not raised again")
     # Raised again within a repeat's 50 ms, or during the collection itself.
     assert not collected or time.monotonic() - collected[0] < 1
     assert reported == []  # Python's "Exception ignored" for it, left out.
@@ -125,12 +124,7 @@ def test_an_inner_block_leaves_the_outer_blocks_repeat_running():
     waits to be raised again took the repeat's timer with it."""
     with pytest.raises(KeyboardInterrupt, match="^signal 15$"):
         with interrupt_on(signal.SIGTERM):
-            callback = _signal_in_the_next_gc_callback(signal.SIGTERM)
-            try:
-                gc.collect()
-            finally:
-                if callback in gc.callbacks:
-                    gc.callbacks.remove(callback)
+            _collect_dropping(signal.SIGTERM)
             with interrupt_on(signal.SIGTERM, signal.SIGINT):
                 pass
             _busy(10)
@@ -200,10 +194,5 @@ def test_an_interrupt_python_dropped_just_before_the_block_ends_is_raised_as_it_
     rollout ended as if never stopped."""
     with pytest.raises(KeyboardInterrupt, match="^signal 15$"):
         with interrupt_on(signal.SIGTERM):
-            callback = _signal_in_the_next_gc_callback(signal.SIGTERM)
-            try:
-                gc.collect()
-            finally:
-                if callback in gc.callbacks:
-                    gc.callbacks.remove(callback)
+            _collect_dropping(signal.SIGTERM)
     assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
