@@ -53,6 +53,17 @@ def _sb3_logs_in_pytests_folder(tmp_path_factory):
     os.environ["SB3_LOGDIR"] = str(tmp_path_factory.mktemp("sb3-logs"))
 
 
+@pytest.fixture
+def ctrl_c_reaches_the_process():
+    """Ctrl-C as a terminal gives it, with Python's handler: a test run in the background
+    of a shell without job control (CI's) has SIGINT ignored."""
+    import signal
+
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 @pytest.fixture(params=franka_composer.ALL_TASKS)
 def task_name(request) -> str:
     """Every registered task: a new task is tested the day it is added."""

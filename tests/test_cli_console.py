@@ -68,7 +68,8 @@ def test_ctrl_c_ends_a_command_in_one_line_leaving_nothing_half_written(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
-def test_a_ctrl_c_python_dropped_still_stops_a_command(monkeypatch, capsys):
+def test_a_ctrl_c_python_dropped_still_stops_a_command(monkeypatch, capsys,
+                                                     ctrl_c_reaches_the_process):
     """Ctrl-C raised inside a gc callback (jax adds one) is dropped by Python: the command
     went on. `console` takes Ctrl-C as it takes SIGTERM, and raises it again."""
     import gc

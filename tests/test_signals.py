@@ -176,7 +176,8 @@ def test_jax_is_imported_whole_with_a_stop_signal_held_over_it():
     assert (done.returncode, done.stdout) == (0, "signal 15 True True\n"), done.stderr
 
 
-def test_ctrl_c_stays_a_stop_request_for_training_inside_the_command_lines_block():
+def test_ctrl_c_stays_a_stop_request_for_training_inside_the_command_lines_block(
+        ctrl_c_reaches_the_process):
     """`console` takes Ctrl-C with its own handler: training then left SIGINT out of its
     stop requests, and Ctrl-C stopped a run at once, at an inexact checkpoint."""
     assert stop_signals() == [signal.SIGTERM, signal.SIGINT]
