@@ -23,7 +23,7 @@ from franka_composer.atomic_files import replace_atomically
 from franka_composer.controllers.settings import TCP_CONTROLS
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
                                          frame_size, given_timing, output_folder,
-                                         positive_int)
+                                         positive_int, the_runs_control)
 from franka_composer.policies import make_expert, rollout
 from franka_composer.tasks import task_config
 from franka_composer.validation import check_writable, repeated
@@ -124,10 +124,8 @@ def _adopt_the_runs_task(args: argparse.Namespace):
     if args.tasks not in (franka_composer.ALL_TASKS, (config.task,)):
         raise ValueError(f"--policy {args.policy} was trained on {config.task}; --tasks "
                          f"{','.join(args.tasks)} asks for others")
-    if args.control not in (None, config.control):
-        raise ValueError(f"--policy {args.policy} acts through {config.control} control, "
-                         f"not --control {args.control}")
-    args.tasks, args.control = (config.task,), config.control
+    args.tasks = (config.task,)
+    args.control = the_runs_control(args.policy, config, args.control)
     # A timing given that is not the run's, refused before its env is made.
     options = {**config.env_options, **given_timing(args)}
     del options["environment"]  # This suite's env: a run trained in another's is refused.

@@ -178,6 +178,15 @@ def standard_deviation(text: str) -> float:
     return value
 
 
+def the_runs_control(policy: pathlib.Path, config, control: str | None) -> str:
+    """The controller the --policy run (`config`, its `RunConfig`) acts through; a
+    --control that names another is an error."""
+    if control not in (None, config.control):
+        raise ValueError(f"--policy {policy} acts through {config.control} control, not "
+                         f"--control {control}")
+    return config.control
+
+
 def add_run_dirs(parser: argparse.ArgumentParser) -> None:
     """The RUN_DIR arguments of the commands that read finished or running runs."""
     parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",

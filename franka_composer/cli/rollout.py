@@ -16,7 +16,8 @@ import pathlib
 
 import franka_composer
 from franka_composer.cli.options import (add_object_damping, add_timing, episode_seed,
-                                         given_timing, positive_int, standard_deviation)
+                                         given_timing, positive_int, standard_deviation,
+                                         the_runs_control)
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks.rewards import REWARD_TYPES
 
@@ -81,10 +82,8 @@ def run(args: argparse.Namespace) -> int:
         if args.task not in (None, trained.task):
             raise ValueError(f"--policy {args.policy} was trained on {trained.task}, not "
                              f"--task {args.task}")
-        if args.control not in (None, trained.control):
-            raise ValueError(f"--policy {args.policy} acts through {trained.control} "
-                             f"control, not --control {args.control}")
-        args.task, args.control = trained.task, trained.control
+        args.task = trained.task
+        args.control = the_runs_control(args.policy, trained, args.control)
         run_timing = trained.timing_options
         damping = trained.object_damping if damping is None else damping
         # Its episodes as it trained: their ends and randomisation (a dataset of them fills

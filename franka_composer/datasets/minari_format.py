@@ -15,6 +15,7 @@ import pathlib
 import warnings
 
 from franka_composer.datasets.folders import removed_if_it_fails
+from franka_composer.training.signals import jax_imported
 
 #: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
 DATASETS_PATH_VARIABLE = "MINARI_DATASETS_PATH"
@@ -45,8 +46,6 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     whatever happens; what a dataset that was not finished made is removed
     (`removed_if_it_fails`)."""
     import minari
-
-    from franka_composer.training.signals import jax_imported
 
     jax_imported()  # Minari's first step imports it.
     collector, successes = None, 0
