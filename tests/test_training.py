@@ -453,6 +453,12 @@ def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
         gc.enable()
 
 
+def _evaluations(out) -> list[tuple]:
+    """A run's eval.csv rows without their wall-clock times: what a rerun gives again."""
+    return [(r["steps"], r["success_rate"], r["mean_reward"])
+            for r in read_eval_rows(RunDir(out).eval_csv)]
+
+
 def _stop_at_once(out, steps: int, monkeypatch) -> None:
     """A SAC run of 400 steps into `out`, stopped at once (a second signal) at `steps`: its
     checkpoint there is not at an episode's end."""
@@ -527,14 +533,37 @@ def test_a_resume_at_its_checkpoints_step_ends_with_the_evaluation_there(tmp_pat
         assert _train(out, "sac", 130, "--resume") == 0
     assert _train(tmp_path / "whole", "sac", 130) == 0
 
-    def rows(root):
-        return [(r["steps"], r["success_rate"], r["mean_reward"])
-                for r in read_eval_rows(RunDir(root).eval_csv)]
-
-    assert [row[0] for row in rows(out)] == [0, 100, 130]
-    assert rows(out) == rows(tmp_path / "whole")
+    assert [row[0] for row in _evaluations(out)] == [0, 100, 130]
+    assert _evaluations(out) == _evaluations(tmp_path / "whole")
     outcome = RunDir(out).read_outcome()
     assert outcome["steps"] == 130 and outcome["fresh_streams"] == []
+
+
+def test_an_evaluation_cut_short_by_a_stop_at_once_is_made_on_resume(tmp_path, monkeypatch):
+    """A second signal inside the evaluation at step 200 leaves a checkpoint there without
+    its row in eval.csv: the resume evaluates there first, as the uninterrupted run did, to
+    the digit (the same model, on the same evaluation episodes)."""
+    from franka_composer.training.callbacks import RecordEvaluation
+
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        record = RecordEvaluation._on_step
+
+        def interrupted(self):
+            if self.num_timesteps == 200:
+                raise KeyboardInterrupt("signal 15, again")
+            return record(self)
+
+        patch.setattr(RecordEvaluation, "_on_step", interrupted)
+        assert _train(out, "sac", 300) == 130
+    assert RunDir(out).read_state()["steps"] == 200
+    assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100]
+    with pytest.warns(RuntimeWarning, match="fresh episode stream"):
+        assert _train(out, "sac", 300, "--resume") == 0
+    assert _train(tmp_path / "whole", "sac", 300) == 0
+
+    assert [row[0] for row in _evaluations(out)] == [0, 100, 200, 300]
+    assert _evaluations(out)[:3] == _evaluations(tmp_path / "whole")[:3]
 
 
 def test_an_interrupt_in_the_evaluation_at_a_resumes_end_leaves_its_exact_checkpoint(

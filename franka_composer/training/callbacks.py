@@ -125,8 +125,11 @@ class Evaluation(EvalCallback):
         # run's step, not from this session's start.
         self.n_calls = self.num_timesteps
         self.record.restore()
-        if self.num_timesteps == 0:
-            self._evaluate_now()  # The untrained policy.
+        if self.num_timesteps % self.eval_freq == 0 and \
+                self.record.last_steps < self.num_timesteps:
+            # The untrained policy at step 0; after a resume, the evaluation on the grid
+            # that a stop at once (a second signal) cut short, where its checkpoint is.
+            self._evaluate_now()
 
     def _on_training_end(self) -> None:
         # The curve ends where training ended, even off the grid.
