@@ -1347,6 +1347,27 @@ def test_a_resume_of_a_run_that_has_ended_says_it_trained_nothing(runs, tmp_path
         "to train")
 
 
+def test_an_interrupted_resume_of_a_run_that_has_ended_says_so(runs, tmp_path, monkeypatch,
+                                                                 capsys):
+    """Stopped while it loads the ended run's model, it said "continue with franka-composer
+    train --resume", which trains nothing."""
+    from franka_composer.training import loop
+
+    out = tmp_path / "ended"
+    shutil.copytree(runs["sac"], out)
+    (out / "training.lock").unlink(missing_ok=True)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(loop, "_trained_model", interrupted)
+    capsys.readouterr()
+    assert _train(out, "sac", 300, "--resume") == 130
+    assert capsys.readouterr().out.splitlines()[-1] == (
+        f"interrupted: {out} had ended at 300 steps: nothing to train (a larger "
+        "--total-steps goes on)")
+
+
 def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):
     with pytest.raises(SystemExit):
         cli.main(["train", "--stop-at-success", "1.5"])

@@ -430,7 +430,9 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
                                threads=threads, progress=args.progress)
     except KeyboardInterrupt:
         steps = run_dir.read_state().get("steps") if run_dir.config_path.exists() else None
-        if steps is not None:
+        if steps is not None and run_finished(run_dir, args.total_steps):
+            print(f"interrupted: {_has_ended(run_dir)}")
+        elif steps is not None:
             print(f"interrupted: its checkpoint at step {steps:,} is kept; continue with "
                   f"franka-composer train --resume --out {shlex.quote(str(run_dir.root))}")
         elif not run_dir.config_path.exists():
@@ -440,12 +442,23 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
             print(f"interrupted before its first checkpoint: {run_dir.root} holds none; "
                   "delete it to start again")
         return 130
-    early = " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
-        "stopped_early") else ""
     if ended:
-        more = "" if early else " (a larger --total-steps goes on)"
-        print(f"{run_dir.root} had ended at {model.num_timesteps} steps{early}: nothing to "
-              f"train{more}")
+        print(_has_ended(run_dir))
         return 0
-    print(f"trained {model.num_timesteps} steps{early} -> {run_dir.final_model}")
+    print(f"trained {model.num_timesteps} steps{_stopped_early(run_dir)} -> "
+          f"{run_dir.final_model}")
     return 0
+
+
+def _stopped_early(run_dir) -> str:
+    return " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
+        "stopped_early") else ""
+
+
+def _has_ended(run_dir) -> str:
+    """What a resume of a run that has ended says: where, how, and whether a larger budget
+    goes on."""
+    early = _stopped_early(run_dir)
+    more = "" if early else " (a larger --total-steps goes on)"
+    return (f"{run_dir.root} had ended at {run_dir.read_outcome()['steps']} steps{early}: "
+            f"nothing to train{more}")
