@@ -856,7 +856,7 @@ def test_a_recording_stopped_in_a_folder_that_was_there_leaves_it_as_it_was(
     import signal
 
     from franka_composer.datasets import folders
-    from franka_composer.training.signals import interrupt_on
+    from franka_composer.signals import interrupt_on
 
     root = tmp_path / "datasets"
     (root / "franka_composer" / "other").mkdir(parents=True)  # Another dataset's.

@@ -1,4 +1,4 @@
-"""Signals that stop a command (`franka_composer.training.signals`): raised once, raised
+"""Signals that stop a command (`franka_composer.signals`): raised once, raised
 again where Python dropped them, held where an exception would break what runs."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from franka_composer.training.signals import interrupt_on, stop_requests, stop_signals
+from franka_composer.signals import interrupt_on, stop_requests, stop_signals
 
 
 def test_a_first_stop_signal_asks_and_a_second_interrupts():
@@ -135,7 +135,7 @@ def test_an_inner_block_leaves_the_outer_blocks_repeat_running():
 def test_a_held_signal_is_delivered_as_the_block_ends():
     """Held where an exception breaks what runs (jaxlib's import, interrupted, crashed the
     interpreter), and then acted on."""
-    from franka_composer.training.signals import held
+    from franka_composer.signals import held
 
     went_on = []
     with pytest.raises(KeyboardInterrupt, match="^signal 15$"):
@@ -156,7 +156,7 @@ def test_jax_is_imported_whole_with_a_stop_signal_held_over_it():
 
     script = textwrap.dedent("""
         import signal, sys
-        from franka_composer.training.signals import interrupt_on, jax_imported
+        from franka_composer.signals import interrupt_on, jax_imported
 
         class SignalledOnLookup:
             def find_spec(self, name, path=None, target=None):

@@ -17,6 +17,7 @@ import warnings
 from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
 from franka_composer.headless_gl import HeadlessGLError
+from franka_composer.signals import interrupt_on, stop_signals
 
 #: Subcommand modules, in the order `--help` lists them.
 SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "keep", "evaluate", "plot",
@@ -57,8 +58,6 @@ def console(argv: list[str] | None = None) -> int:
     command quietly, with the status a shell gives a command SIGPIPE ends; so does Ctrl-C
     where the command has nothing of its own to say (train and sweep say what they kept),
     saying so in one line."""
-    from franka_composer.training.signals import interrupt_on, stop_signals
-
     warnings.formatwarning = _format_warning
     try:
         try:

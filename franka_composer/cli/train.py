@@ -20,7 +20,7 @@ from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UP
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, run_finished
-from franka_composer.training.signals import interrupt_on, jax_imported
+from franka_composer.signals import interrupt_on, jax_imported
 
 
 #: The run's settings when their options are not given: filled in here, not by argparse, so

@@ -6,7 +6,7 @@ import contextlib
 import pathlib
 import shutil
 
-from franka_composer.training.signals import held
+from franka_composer.signals import held
 
 
 def make_folder(root: pathlib.Path) -> pathlib.Path | None:

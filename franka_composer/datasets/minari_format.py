@@ -15,7 +15,7 @@ import pathlib
 import warnings
 
 from franka_composer.datasets.folders import removed_if_it_fails
-from franka_composer.training.signals import jax_imported
+from franka_composer.signals import jax_imported
 
 #: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
 DATASETS_PATH_VARIABLE = "MINARI_DATASETS_PATH"

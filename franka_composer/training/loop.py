@@ -29,7 +29,7 @@ from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, unpickling
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunDir, run_finished,
                                           write_eval_rows)
-from franka_composer.training.signals import stop_requests, stop_signals
+from franka_composer.signals import stop_requests, stop_signals
 from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.

@@ -24,7 +24,7 @@ from franka_composer.training.models import (algorithm_class, build_model, check
                                              resolve_device)
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import model_damage
-from franka_composer.training.signals import jax_imported
+from franka_composer.signals import jax_imported
 from franka_composer.training.runs import RunDir
 
 #: Bumped when the file's layout changes; a file of another version is refused by name.

@@ -1,5 +1,6 @@
-"""Signals that stop a training process the way Ctrl-C does, so what is running checkpoints:
-at once (`interrupt_on`), or where it is ready to (`stop_requests`).
+"""Signals that stop a command the way Ctrl-C does, so that what is running cleans up or
+checkpoints: at once (`interrupt_on`), or where it is ready to (`stop_requests`, a training
+run at its episode's end); and held over code they would break (`held`).
 
 `kill PID` (SIGTERM) is how schedulers, `timeout` and Ray stop a process, and a job started
 in the background ignores SIGINT (the shell sets it to SIG_IGN), so neither would otherwise
