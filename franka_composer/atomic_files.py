@@ -1,11 +1,15 @@
-"""A file written whole or not at all: beside its place, then moved there in one step; and
-what is written flushed to the disk."""
+"""A file written whole or not at all: beside its place, then moved there in one step; what
+is written flushed to the disk; and the folders made for it removed again if it is not."""
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import os
 import pathlib
 import stat
+
+from franka_composer.signals import held
 
 
 def replace_atomically(path: pathlib.Path, write) -> None:
@@ -14,20 +18,60 @@ def replace_atomically(path: pathlib.Path, write) -> None:
     or none, never half of one; a write that fails takes its partial file with it. A link
     is written through (the file it points to replaced, the link kept); a device, FIFO or
     socket is refused (`validation.check_writable`), not replaced by a file."""
-    problem = irregular_file(path)
-    if problem is not None:
-        raise ValueError(f"cannot write to {path}: {problem}")
-    path = pathlib.Path(os.path.realpath(path))
-    # Hidden and named after the whole file name, so that it is no file of the user's
-    # (keep.npz's partial file is not keep.partial.npz).
-    partial = path.with_name(f".{path.name}.partial{path.suffix}")
+    replace_together({path: write})
+
+
+def replace_together(writes: dict) -> None:
+    """`replace_atomically` for files that go together (a video and its first frame): each
+    `write(partial)` of `writes` ({path: write}) writes its file beside its path, and only
+    once all are written do they take their places, the signals held meanwhile (`held`): a
+    command stopped or failing leaves the files it had, or all the new ones, never one
+    without the others."""
+    places = {}
+    for path, write in writes.items():
+        problem = irregular_file(path)
+        if problem is not None:
+            raise ValueError(f"cannot write to {path}: {problem}")
+        path = pathlib.Path(os.path.realpath(path))
+        # Hidden and named after the whole file name, so that it is no file of the user's
+        # (keep.npz's partial file is not keep.partial.npz).
+        places[path.with_name(f".{path.name}.partial{path.suffix}")] = path
     try:
-        write(partial)
-        sync_to_disk(partial)
+        for partial, write in zip(places, writes.values()):
+            write(partial)
+            sync_to_disk(partial)
     except BaseException:
-        partial.unlink(missing_ok=True)
+        with held():
+            for partial in places:
+                partial.unlink(missing_ok=True)
         raise
-    os.replace(partial, path)
+    with held():
+        for partial, path in places.items():
+            os.replace(partial, path)
+
+
+def missing_folders(folder) -> list[pathlib.Path]:
+    """`folder` and the folders above it (`..` taken out) that are not there, nearest
+    first: what a command that makes them removes again if it fails, to leave nothing."""
+    folder = pathlib.Path(os.path.abspath(folder))
+    return list(itertools.takewhile(lambda f: not f.exists(), (folder, *folder.parents)))
+
+
+@contextlib.contextmanager
+def folders_made_for(path):
+    """Makes the folders above the file `path` that are missing, and removes them again if
+    the block raises, the signals held (`held`): a command stopped or failing before its
+    file lands leaves no empty folder it made. One that is not empty by then is left."""
+    made = missing_folders(pathlib.Path(path).parent)
+    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
+    try:
+        yield
+    except BaseException:
+        with held():
+            for folder in made:
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
+        raise
 
 
 def irregular_file(path) -> str | None:

@@ -32,6 +32,17 @@ def test_a_reader_gone_ends_the_command_quietly_with_sigpipes_status():
     assert read.returncode == 0 and "| push (bf16) | SAC | 0 | 250,000 |" in read.stdout
 
 
+def test_an_rlds_rollout_prints_its_line_and_nothing_else(tmp_path):
+    """envlogger's C++ writer logged "Empty steps, nothing to do" three times on stderr,
+    after glog's own "Logging before InitGoogleLogging()"."""
+    recorded = franka_composer("rollout", "--task", "push", "--episodes", "2", "--format",
+                               "rlds", "--out", str(tmp_path / "data"),
+                               stdout=subprocess.PIPE)
+    assert (recorded.returncode, recorded.stderr) == (0, "")
+    assert recorded.stdout == (f"push: 2 episodes, 36 steps, success rate 100% -> "
+                               f"{tmp_path / 'data'}\n")
+
+
 @pytest.mark.parametrize("signum, format", [
     (signal.SIGINT, "npz"),
     pytest.param(signal.SIGTERM, "rlds", marks=pytest.mark.slow),

@@ -61,6 +61,20 @@ def test_rollout_command_saves_loadable_demonstrations(tmp_path, capsys):
     assert loaded.episodes[0]["observation"].shape == (loaded.lengths[0] + 1, 18)
 
 
+def test_a_rollout_stopped_before_its_file_lands_leaves_no_folder_it_made(tmp_path,
+                                                                         monkeypatch):
+    from franka_composer import atomic_files
+
+    def stopped(path):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic_files, "sync_to_disk", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        main(["rollout", "--task", "push", "--episodes", "1", "--out",
+              str(tmp_path / "sub" / "push.npz")])
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_unknown_task_is_an_error_naming_the_valid_ones(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["demo", "--tasks", "push,lift", "--no-video"])
@@ -110,8 +124,10 @@ def test_demo_refuses_a_task_twice_and_an_empty_out(tmp_path, capsys):
 
 
 def test_demo_interrupted_while_writing_a_video_leaves_none(tmp_path, monkeypatch):
-    """Ctrl-C while ffmpeg wrote push.mp4 left 48 bytes no player reads: a video is written
-    beside its place and moved there whole, or not at all."""
+    """Ctrl-C while ffmpeg wrote push.mp4 left 48 bytes no player reads, beside the first
+    frame, and in an existing folder the old video beside the new frame: a video and its
+    frame are written beside their places and moved there together, or not at all, and a
+    folder made for them goes with them."""
     import pathlib
     import time
 
@@ -140,8 +156,13 @@ def test_demo_interrupted_while_writing_a_video_leaves_none(tmp_path, monkeypatc
     monkeypatch.setattr(demo_imageio, "mimwrite", interrupted)
     with pytest.raises(KeyboardInterrupt):
         main(argv)
-    assert [path.name for path in out.iterdir()] == ["reach.png"]
+    assert not out.exists()
     monkeypatch.undo()
     assert main(argv) == 0
     assert sorted(path.name for path in out.iterdir()) == ["reach.mp4", "reach.png"]
     assert imageio.mimread(out / "reach.mp4")[0].shape == (48, 64, 3)
+    written = {path.name: path.read_bytes() for path in out.iterdir()}
+    monkeypatch.setattr(demo_imageio, "mimwrite", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        main([*argv[:-4], "--width", "32", "--height", "24"])  # Another frame.
+    assert {path.name: path.read_bytes() for path in out.iterdir()} == written

@@ -203,6 +203,25 @@ def test_plot_writes_its_figure_whole_or_not_at_all(tmp_path, monkeypatch):
     assert out.read_bytes() == b"kept"
 
 
+@pytest.mark.parametrize("command, name", [("plot", "curves.png"), ("report", "table.md")])
+def test_a_command_stopped_before_its_file_lands_leaves_no_folder_it_made(
+        tmp_path, monkeypatch, command, name):
+    """`--out sub/deeper/x` made sub/deeper/, and left it empty when stopped before x
+    landed."""
+    from franka_composer import atomic_files
+
+    run = _write_run(tmp_path / "runs", "push", "sac", 0, [0.0, 0.5])
+
+    def stopped(path):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic_files, "sync_to_disk", stopped)
+    given = str(run) if command == "plot" else str(run.parent)
+    with pytest.raises(KeyboardInterrupt):
+        cli.main([command, given, "--out", str(tmp_path / "sub" / "deeper" / name)])
+    assert [path.name for path in tmp_path.iterdir()] == ["runs"]
+
+
 def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     stopped = read_run(_write_run(tmp_path, "push", "tqc", 0, [1.0] * 5, (True, 50.0)))
     going = read_run(_write_run(tmp_path, "push", "tqc", 1, [0.0] * 5 + [1.0] * 5))

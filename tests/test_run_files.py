@@ -11,7 +11,7 @@ import re
 import pytest
 
 from franka_composer import cli
-from franka_composer.atomic_files import replace_atomically
+from franka_composer.atomic_files import folders_made_for, replace_atomically, replace_together
 from franka_composer.training.runs import RunDir, read_eval_rows
 
 #: Small enough for seconds per run; learning starts after two 50-step episodes.
@@ -81,6 +81,45 @@ def test_a_file_written_in_one_step_is_whole_or_as_it_was(tmp_path):
     replace_atomically(path, lambda partial: partial.write_bytes(b"the model after"))
     assert path.read_bytes() == b"the model after"
     assert [p.name for p in tmp_path.iterdir()] == ["model.zip"]
+
+
+def test_files_that_go_together_land_together_or_not_at_all(tmp_path):
+    video, frame = tmp_path / "push.mp4", tmp_path / "push.png"
+    video.write_bytes(b"the video before")
+    frame.write_bytes(b"the frame before")
+
+    def killed_while_writing(partial: pathlib.Path) -> None:
+        partial.write_bytes(b"half of the")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        replace_together({frame: lambda partial: partial.write_bytes(b"the frame after"),
+                          video: killed_while_writing})
+    assert (frame.read_bytes(), video.read_bytes()) == (b"the frame before",
+                                                         b"the video before")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["push.mp4", "push.png"]
+    replace_together({frame: lambda partial: partial.write_bytes(b"the frame after"),
+                      video: lambda partial: partial.write_bytes(b"the video after")})
+    assert (frame.read_bytes(), video.read_bytes()) == (b"the frame after",
+                                                         b"the video after")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["push.mp4", "push.png"]
+
+
+def test_the_folders_made_for_a_file_go_if_it_does_not_land(tmp_path):
+    (tmp_path / "there").mkdir()
+    path = tmp_path / "there" / "new" / "newer" / "table.md"
+    with pytest.raises(KeyboardInterrupt), folders_made_for(path):
+        assert path.parent.is_dir()
+        raise KeyboardInterrupt
+    assert [p.name for p in tmp_path.rglob("*")] == ["there"]
+    # A folder made that holds something by then is left, with the folders above it.
+    with pytest.raises(KeyboardInterrupt), folders_made_for(path):
+        (path.parent / "another.md").write_text("kept")
+        raise KeyboardInterrupt
+    assert (path.parent / "another.md").read_text() == "kept"
+    with folders_made_for(tmp_path / "other" / "table.md"):
+        replace_atomically(tmp_path / "other" / "table.md", lambda p: p.write_text("x"))
+    assert (tmp_path / "other" / "table.md").read_text() == "x"
 
 
 @pytest.mark.parametrize("name, content, message", [

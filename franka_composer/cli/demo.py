@@ -19,7 +19,7 @@ import gymnasium as gym
 import franka_composer
 from franka_composer import headless_gl
 from franka_composer.adapters.registration import env_id
-from franka_composer.atomic_files import replace_atomically
+from franka_composer.atomic_files import folders_made_for, replace_together
 from franka_composer.controllers.settings import TCP_CONTROLS
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
                                          frame_size, given_timing, output_folder,
@@ -162,13 +162,15 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     if frames:
         import imageio
 
-        args.out.mkdir(parents=True, exist_ok=True)  # Here: a demo that fails leaves none.
-        # Whole or not at all: a video interrupted while ffmpeg wrote it was 48 bytes no
-        # player reads.
-        replace_atomically(args.out / f"{task}.png",
-                           lambda partial: imageio.imwrite(partial, frames[0]))
-        replace_atomically(args.out / f"{task}.mp4", lambda partial: imageio.mimwrite(
-            partial, frames, fps=fps, macro_block_size=1))
+        # Whole or not at all, the video and its first frame together (a video interrupted
+        # while ffmpeg wrote it was 48 bytes no player reads; a demo stopped between the two
+        # left a frame without its video), in a folder made here: a demo that fails leaves
+        # none.
+        with folders_made_for(args.out / f"{task}.png"):
+            replace_together({
+                args.out / f"{task}.png": lambda partial: imageio.imwrite(partial, frames[0]),
+                args.out / f"{task}.mp4": lambda partial: imageio.mimwrite(
+                    partial, frames, fps=fps, macro_block_size=1)})
     steps = int(trajectories.lengths.sum())
     return (task, len(trajectories), trajectories.success_rate,
             float(trajectories.lengths.mean()), steps / trajectories.env_seconds)

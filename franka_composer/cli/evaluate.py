@@ -64,8 +64,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"\nSuccess rate %, mean ± std over seeds, {args.episodes} episodes per model:\n")
     print(table + "\n" + notes, end="")
     if args.out:
-        from franka_composer.atomic_files import replace_atomically
+        from franka_composer.atomic_files import folders_made_for, replace_atomically
 
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        replace_atomically(args.out, lambda path: path.write_text(table + "\n" + notes))
+        with folders_made_for(args.out):
+            replace_atomically(args.out, lambda path: path.write_text(table + "\n" + notes))
     return 0

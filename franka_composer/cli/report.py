@@ -61,8 +61,8 @@ def run(args: argparse.Namespace) -> int:
     print(table, end="")
     report_waiting(waiting)
     if args.out:
-        from franka_composer.atomic_files import replace_atomically
+        from franka_composer.atomic_files import folders_made_for, replace_atomically
 
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        replace_atomically(args.out, lambda path: path.write_text(table))
+        with folders_made_for(args.out):
+            replace_atomically(args.out, lambda path: path.write_text(table))
     return 0

@@ -10,17 +10,18 @@ import shlex
 import signal
 import warnings
 
+from franka_composer.atomic_files import missing_folders
 from franka_composer.cli.options import (add_guard_ignores_carried, add_object_damping,
                                          add_timing, non_negative_int, number, output_folder,
                                          positive_int, timing_options, training_seed)
 from franka_composer.controllers import CONTROLS
 from franka_composer.randomization import PRESETS
+from franka_composer.signals import interrupt_on, jax_imported
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, run_finished
-from franka_composer.signals import interrupt_on, jax_imported
 
 
 #: The run's settings when their options are not given: filled in here, not by argparse, so
@@ -396,7 +397,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
 
     # The folders on the way to --out (`..` taken out as parsed) that are not there yet:
     # made here, and removed with the run if it fails before its first checkpoint.
-    made = [folder for folder in (out, *out.parents) if not folder.exists()]
+    made = missing_folders(out)
     try:  # The checks (seconds where they load --demos): stopped here, nothing is written.
         if args.resume:
             run_dir = RunDir(out)

@@ -16,6 +16,7 @@ import pathlib
 import gymnasium as gym
 
 from franka_composer.adapters.registration import env_id
+from franka_composer.atomic_files import folders_made_for
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end, recorded_with
@@ -68,8 +69,8 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
         policy = make_policy(env, policy_dir=policy_dir, action_noise=action_noise, seed=seed)
         if format == "npz":
             trajectories = rollout(env, policy, episodes, seed=seed)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            trajectories.save(out, metadata)
+            with folders_made_for(out):
+                trajectories.save(out, metadata)
             return {"episodes": len(trajectories), "steps": int(trajectories.lengths.sum()),
                     "success_rate": trajectories.success_rate, "path": str(out)}
         if format == "minari":

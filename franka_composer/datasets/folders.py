@@ -6,13 +6,14 @@ import contextlib
 import pathlib
 import shutil
 
+from franka_composer.atomic_files import missing_folders
 from franka_composer.signals import held
 
 
 def make_folder(root: pathlib.Path) -> pathlib.Path | None:
     """Makes `root` and the folders above it that are missing; the topmost of those it made
     (what a failed recording removes to leave nothing behind), or None if `root` was there."""
-    missing = [folder for folder in (root, *root.parents) if not folder.exists()]
+    missing = missing_folders(root)
     root.mkdir(parents=True, exist_ok=True)
     return missing[-1] if missing else None
 

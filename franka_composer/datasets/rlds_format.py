@@ -16,6 +16,7 @@ extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unic
 
 from __future__ import annotations
 
+import os
 import pathlib
 
 import numpy as np
@@ -27,11 +28,20 @@ from franka_composer.policies.rollout import episode_limit
 
 def import_envlogger():
     """envlogger, with the one NumPy 1 name it uses put back under NumPy 2 (imported
-    plainly, its `EnvLogger` fails on the first step: np.unicode_ was removed)."""
+    plainly, its `EnvLogger` fails on the first step: np.unicode_ was removed), and its
+    C++ writer's informational log lines off ("Empty steps, nothing to do", three to a
+    recording, on stderr): glog reads `GLOG_minloglevel` as its library loads, so it is
+    set for the import only, where the user has not set it."""
     if "unicode_" not in np.__dict__:
         np.unicode_ = np.str_  # What NumPy 1 had under that name.
-    import envlogger
-
+    quiet = "GLOG_minloglevel" not in os.environ
+    if quiet:
+        os.environ["GLOG_minloglevel"] = "1"  # Warnings and errors.
+    try:
+        import envlogger
+    finally:
+        if quiet:
+            del os.environ["GLOG_minloglevel"]
     return envlogger
 
 

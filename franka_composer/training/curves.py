@@ -11,7 +11,7 @@ import textwrap
 
 import numpy as np
 
-from franka_composer.atomic_files import replace_atomically
+from franka_composer.atomic_files import folders_made_for, replace_atomically
 from franka_composer.training.hyperparams import ALGOS
 from franka_composer.training.learning_report import RunRecord, held, read_run
 from franka_composer.training.report import TASK_ORDER, TASK_TITLES
@@ -128,8 +128,8 @@ def plot_curves(run_dirs: list[pathlib.Path], out: pathlib.Path,
         ax.legend(loc="upper left").set_in_layout(False)
     axes[0][0].set_ylabel("success rate")
     _move_tall_legends_below(fig, axes[0])
-    out.parent.mkdir(parents=True, exist_ok=True)
-    replace_atomically(out, lambda partial: fig.savefig(partial, dpi=120))
+    with folders_made_for(out):
+        replace_atomically(out, lambda partial: fig.savefig(partial, dpi=120))
     plt.close(fig)
     return drawn
 

@@ -19,6 +19,7 @@ from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from franka_composer.atomic_files import replace_atomically
+from franka_composer.signals import stop_requests, stop_signals
 from franka_composer.training import demos, exact_resume, machine
 from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
                                                 StoppedAtCheckpoint, StoppingRule, WallClock)
@@ -29,7 +30,6 @@ from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, unpickling
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunDir, run_finished,
                                           write_eval_rows)
-from franka_composer.signals import stop_requests, stop_signals
 from franka_composer.training.target_bounds import clip_target_critic
 
 #: The evaluation env's seed is offset from the training seed so they never share episodes.

@@ -10,9 +10,9 @@ import gymnasium as gym
 import numpy as np
 
 from franka_composer.adapters.registration import env_id
+from franka_composer.signals import jax_imported
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, Hyperparameters
 from franka_composer.training.run_files import saved_policy_module
-from franka_composer.signals import jax_imported
 from franka_composer.validation import check_choice
 
 DEVICES = ("auto", "cpu", "cuda")

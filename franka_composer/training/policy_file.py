@@ -19,12 +19,12 @@ import warnings
 import gymnasium as gym
 import numpy as np
 
+from franka_composer.signals import jax_imported
 from franka_composer.training.models import (algorithm_class, build_model, check_saved_by,
                                              load_model, make_env, policy_kwargs,
                                              resolve_device)
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import model_damage
-from franka_composer.signals import jax_imported
 from franka_composer.training.runs import RunDir
 
 #: Bumped when the file's layout changes; a file of another version is refused by name.

@@ -24,10 +24,10 @@ import subprocess
 import sys
 import time
 
+from franka_composer.signals import interrupt_on
 from franka_composer.training.report import with_variant
 from franka_composer.training.keep import check_kept_apart, files_to_keep, keep_run
 from franka_composer.training.runs import RunDir, read_eval_rows, run_finished
-from franka_composer.signals import interrupt_on
 from franka_composer.validation import repeated
 
 
