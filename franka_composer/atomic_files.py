@@ -24,53 +24,69 @@ def replace_atomically(path: pathlib.Path, write) -> None:
 def replace_together(writes: dict) -> None:
     """`replace_atomically` for files that go together (a video and its first frame): each
     `write(partial)` of `writes` ({path: write}) writes its file beside its path, and only
-    once all are written do they take their places, the signals held meanwhile (`held`): a
-    command stopped or failing leaves the files it had, or all the new ones, never one
-    without the others."""
-    places = {}
+    once all are written do they take their places, one rename each, with Ctrl-C and
+    SIGTERM held meanwhile (`held`): a command stopped or failing leaves the files it had,
+    or all the new ones, never one without the others (short of the process being killed
+    outright, or the machine stopping, between two renames). Two paths that are one file,
+    or a folder where a file is to go, are refused before anything is written."""
+    places = []
     for path, write in writes.items():
         problem = irregular_file(path)
         if problem is not None:
             raise ValueError(f"cannot write to {path}: {problem}")
-        path = pathlib.Path(os.path.realpath(path))
+        real = pathlib.Path(os.path.realpath(path))
+        if real.is_dir():
+            raise ValueError(f"cannot write to {path}: it is a folder")
+        if real in (place for _, place, _ in places):
+            raise ValueError(f"cannot write to {path} twice at once: it is {real}, given "
+                             "already")
         # Hidden and named after the whole file name, so that it is no file of the user's
         # (keep.npz's partial file is not keep.partial.npz).
-        places[path.with_name(f".{path.name}.partial{path.suffix}")] = path
+        places.append((real.with_name(f".{real.name}.partial{real.suffix}"), real, write))
     try:
-        for partial, write in zip(places, writes.values()):
+        for partial, _, write in places:
             write(partial)
             sync_to_disk(partial)
+        with held():
+            for partial, place, _ in places:
+                os.replace(partial, place)
     except BaseException:
         with held():
-            for partial in places:
+            for partial, _, _ in places:
                 partial.unlink(missing_ok=True)
         raise
-    with held():
-        for partial, path in places.items():
-            os.replace(partial, path)
 
 
 def missing_folders(folder) -> list[pathlib.Path]:
-    """`folder` and the folders above it (`..` taken out) that are not there, nearest
-    first: what a command that makes them removes again if it fails, to leave nothing."""
-    folder = pathlib.Path(os.path.abspath(folder))
+    """`folder` and the folders above it that are not there, nearest first, as the file
+    system finds them (`os.path.realpath`: links followed, `..` taken out): what a command
+    that makes them removes again if it fails, to leave nothing behind."""
+    folder = pathlib.Path(os.path.realpath(folder))
     return list(itertools.takewhile(lambda f: not f.exists(), (folder, *folder.parents)))
+
+
+def remove_empty(folders) -> None:
+    """Removes each of `folders` (`missing_folders`' list: nearest first) that is empty, with
+    Ctrl-C and SIGTERM held (`held`): what a command that made them leaves when it fails.
+    One not empty by then is left as it is, and so are those above it."""
+    with held():
+        for folder in folders:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
 
 
 @contextlib.contextmanager
 def folders_made_for(path):
-    """Makes the folders above the file `path` that are missing, and removes them again if
-    the block raises, the signals held (`held`): a command stopped or failing before its
-    file lands leaves no empty folder it made. One that is not empty by then is left."""
-    made = missing_folders(pathlib.Path(path).parent)
-    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
+    """Makes the folders above the file `path` that are missing (`missing_folders`), and
+    removes them again if the block raises (`remove_empty`): a command stopped or failing
+    before its file lands leaves no empty folder it made."""
+    made = missing_folders(pathlib.Path(os.path.realpath(path)).parent)
     try:
+        if made:
+            made[0].mkdir(parents=True, exist_ok=True)
         yield
     except BaseException:
-        with held():
-            for folder in made:
-                with contextlib.suppress(OSError):
-                    folder.rmdir()
+        remove_empty(made)
         raise
 
 

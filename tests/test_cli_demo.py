@@ -61,8 +61,10 @@ def test_rollout_command_saves_loadable_demonstrations(tmp_path, capsys):
     assert loaded.episodes[0]["observation"].shape == (loaded.lengths[0] + 1, 18)
 
 
+@pytest.mark.parametrize("out", ["sub/push.npz", "new/../sub/push.npz"])
 def test_a_rollout_stopped_before_its_file_lands_leaves_no_folder_it_made(tmp_path,
-                                                                         monkeypatch):
+                                                                         monkeypatch, out):
+    """`new/../sub` made new on the way, which was not removed with sub."""
     from franka_composer import atomic_files
 
     def stopped(path):
@@ -70,8 +72,7 @@ def test_a_rollout_stopped_before_its_file_lands_leaves_no_folder_it_made(tmp_pa
 
     monkeypatch.setattr(atomic_files, "sync_to_disk", stopped)
     with pytest.raises(KeyboardInterrupt):
-        main(["rollout", "--task", "push", "--episodes", "1", "--out",
-              str(tmp_path / "sub" / "push.npz")])
+        main(["rollout", "--task", "push", "--episodes", "1", "--out", f"{tmp_path}/{out}"])
     assert list(tmp_path.iterdir()) == []
 
 

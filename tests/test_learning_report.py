@@ -207,7 +207,7 @@ def test_plot_writes_its_figure_whole_or_not_at_all(tmp_path, monkeypatch):
 def test_a_command_stopped_before_its_file_lands_leaves_no_folder_it_made(
         tmp_path, monkeypatch, command, name):
     """`--out sub/deeper/x` made sub/deeper/, and left it empty when stopped before x
-    landed."""
+    landed (and `new/..` on the way made new/)."""
     from franka_composer import atomic_files
 
     run = _write_run(tmp_path / "runs", "push", "sac", 0, [0.0, 0.5])
@@ -218,7 +218,7 @@ def test_a_command_stopped_before_its_file_lands_leaves_no_folder_it_made(
     monkeypatch.setattr(atomic_files, "sync_to_disk", stopped)
     given = str(run) if command == "plot" else str(run.parent)
     with pytest.raises(KeyboardInterrupt):
-        cli.main([command, given, "--out", str(tmp_path / "sub" / "deeper" / name)])
+        cli.main([command, given, "--out", f"{tmp_path}/new/../sub/deeper/{name}"])
     assert [path.name for path in tmp_path.iterdir()] == ["runs"]
 
 

@@ -105,6 +105,27 @@ def test_files_that_go_together_land_together_or_not_at_all(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["push.mp4", "push.png"]
 
 
+def test_files_that_cannot_land_together_are_refused_before_any_is_written(tmp_path):
+    """Two names of one file wrote the second's bytes into the next file's place; a folder
+    where the second was to go let the first land alone."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "push.mp4").mkdir()
+    writes = []
+
+    def write(partial: pathlib.Path) -> None:
+        writes.append(partial)
+        partial.write_bytes(b"x")
+
+    with pytest.raises(ValueError, match=re.escape(
+            f"cannot write to {tmp_path / 'sub' / '..' / 'a.txt'} twice at once: it is "
+            f"{tmp_path / 'a.txt'}, given already")):
+        replace_together({tmp_path / "a.txt": write, tmp_path / "sub" / ".." / "a.txt": write})
+    with pytest.raises(ValueError, match=re.escape(
+            f"cannot write to {tmp_path / 'push.mp4'}: it is a folder")):
+        replace_together({tmp_path / "push.png": write, tmp_path / "push.mp4": write})
+    assert writes == [] and sorted(p.name for p in tmp_path.iterdir()) == ["push.mp4", "sub"]
+
+
 def test_the_folders_made_for_a_file_go_if_it_does_not_land(tmp_path):
     (tmp_path / "there").mkdir()
     path = tmp_path / "there" / "new" / "newer" / "table.md"

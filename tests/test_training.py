@@ -459,18 +459,23 @@ def _evaluations(out) -> list[tuple]:
             for r in read_eval_rows(RunDir(out).eval_csv)]
 
 
+def _stopped_at_once_in(monkeypatch, callback, steps: int) -> None:
+    """A stop at once (a second signal) in `callback`'s step at step `steps`."""
+    on_step = callback._on_step
+
+    def interrupted(self):
+        if self.num_timesteps == steps:
+            raise KeyboardInterrupt("signal 15, again")
+        return on_step(self)
+
+    monkeypatch.setattr(callback, "_on_step", interrupted)
+
+
 def _stop_at_once(out, steps: int, monkeypatch) -> None:
     """A SAC run of 400 steps into `out`, stopped at once (a second signal) at `steps`: its
     checkpoint there is not at an episode's end."""
     with monkeypatch.context() as patch:
-        on_step = LatestCheckpoint._on_step
-
-        def interrupted(self):
-            if self.num_timesteps == steps:
-                raise KeyboardInterrupt("signal 15, again")
-            return on_step(self)
-
-        patch.setattr(LatestCheckpoint, "_on_step", interrupted)
+        _stopped_at_once_in(patch, LatestCheckpoint, steps)
         assert _train(out, "sac", 400) == steps
 
 
@@ -539,22 +544,21 @@ def test_a_resume_at_its_checkpoints_step_ends_with_the_evaluation_there(tmp_pat
     assert outcome["steps"] == 130 and outcome["fresh_streams"] == []
 
 
+def _evaluation_cut_short_at(monkeypatch, steps: int) -> None:
+    """A stop at once (a second signal) inside the evaluation at step `steps`, before its
+    row is written."""
+    from franka_composer.training.callbacks import RecordEvaluation
+
+    _stopped_at_once_in(monkeypatch, RecordEvaluation, steps)
+
+
 def test_an_evaluation_cut_short_by_a_stop_at_once_is_made_on_resume(tmp_path, monkeypatch):
     """A second signal inside the evaluation at step 200 leaves a checkpoint there without
     its row in eval.csv: the resume evaluates there first, as the uninterrupted run did, to
     the digit (the same model, on the same evaluation episodes)."""
-    from franka_composer.training.callbacks import RecordEvaluation
-
     out = tmp_path / "run"
     with monkeypatch.context() as patch:
-        record = RecordEvaluation._on_step
-
-        def interrupted(self):
-            if self.num_timesteps == 200:
-                raise KeyboardInterrupt("signal 15, again")
-            return record(self)
-
-        patch.setattr(RecordEvaluation, "_on_step", interrupted)
+        _evaluation_cut_short_at(patch, 200)
         assert _train(out, "sac", 300) == 130
     assert RunDir(out).read_state()["steps"] == 200
     assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100]
@@ -1297,6 +1301,29 @@ def test_the_early_stopping_rule_ends_a_run_and_resume_keeps_it_ended(tmp_path, 
     assert len(read_eval_rows(run.eval_csv)) == 6
 
 
+def test_an_evaluation_made_on_resume_that_meets_the_rule_ends_the_run_there(tmp_path,
+                                                                            monkeypatch):
+    """The rule met by the evaluation a resume makes first (one a stop at once cut short)
+    ends the run at that step, as the uninterrupted run ended: it trained on, and ended a
+    step of the grid later, or never if that evaluation failed."""
+    rule = ("--stop-at-success", "0.95", "--stop-after", "3")
+    _scripted_evaluations(monkeypatch, [1.0] * 3)
+    assert _train(tmp_path / "whole", "sac", 600, *rule) == 0
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        _evaluation_cut_short_at(patch, 200)
+        _scripted_evaluations(patch, [1.0] * 3)
+        assert _train(out, "sac", 600, *rule) == 130
+    _scripted_evaluations(monkeypatch, [1.0, 0.0])
+    with pytest.warns(RuntimeWarning, match="fresh episode stream"):
+        assert _train(out, "sac", 600, "--resume") == 0
+    for run in (RunDir(tmp_path / "whole"), RunDir(out)):
+        assert [r["steps"] for r in read_eval_rows(run.eval_csv)] == [0, 100, 200]
+        outcome = run.read_outcome()
+        assert (outcome["steps"], outcome["stopped_early"]) == (200, True)
+        assert run.read_state()["steps"] == 200
+
+
 def test_an_evaluation_off_the_grid_neither_stops_a_run_nor_survives_a_raised_budget(
         tmp_path, monkeypatch):
     """A budget between two evaluations ends with one at the last step: success there is
@@ -1347,10 +1374,10 @@ def test_a_resume_of_a_run_that_has_ended_says_it_trained_nothing(runs, tmp_path
         "to train")
 
 
-def test_an_interrupted_resume_of_a_run_that_has_ended_says_so(runs, tmp_path, monkeypatch,
-                                                                 capsys):
-    """Stopped while it loads the ended run's model, it said "continue with franka-composer
-    train --resume", which trains nothing."""
+def _ended_run_resumed_and_interrupted(runs, tmp_path, monkeypatch, capsys, stage: str,
+                                       steps: int) -> tuple[pathlib.Path, str]:
+    """A copy of the ended 300-step SAC run resumed to `steps`, interrupted in `loop`'s
+    function `stage`: the copy, and the last line train printed."""
     from franka_composer.training import loop
 
     out = tmp_path / "ended"
@@ -1360,12 +1387,48 @@ def test_an_interrupted_resume_of_a_run_that_has_ended_says_so(runs, tmp_path, m
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(loop, "_trained_model", interrupted)
+    monkeypatch.setattr(loop, stage, interrupted)
     capsys.readouterr()
-    assert _train(out, "sac", 300, "--resume") == 130
+    assert _train(out, "sac", steps, "--resume") == 130
+    return out, capsys.readouterr().out.splitlines()[-1]
+
+
+def test_an_interrupted_resume_of_a_run_that_has_ended_says_so(runs, tmp_path, monkeypatch,
+                                                                 capsys):
+    """Stopped while it loads the ended run's model, it said "continue with franka-composer
+    train --resume", which trains nothing."""
+    out, said = _ended_run_resumed_and_interrupted(runs, tmp_path, monkeypatch, capsys,
+                                                   "_trained_model", 300)
+    assert said == (f"interrupted: {out} had ended at 300 steps: nothing to train (a larger "
+                    "--total-steps goes on)")
+
+
+def test_a_run_interrupted_once_it_has_ended_says_so(tmp_path, monkeypatch, capsys):
+    """Stopped after it wrote its outcome, it said "continue with ... --resume", which
+    trains nothing: it says where it ended."""
+    from franka_composer.training import loop
+
+    finish = loop._finish
+
+    def finished_then_interrupted(*args, **kwargs):
+        finish(*args, **kwargs)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(loop, "_finish", finished_then_interrupted)
+    capsys.readouterr()
+    assert _train(tmp_path / "run", "sac", 200) == 130
     assert capsys.readouterr().out.splitlines()[-1] == (
-        f"interrupted: {out} had ended at 300 steps: nothing to train (a larger "
-        "--total-steps goes on)")
+        f"interrupted as it ended: trained 200 steps -> {tmp_path / 'run' / 'model.zip'}")
+
+
+def test_a_raised_budget_interrupted_before_it_is_saved_says_to_resume_with_it(
+        runs, tmp_path, monkeypatch, capsys):
+    """Stopped while it loads the ended run's checkpoint, before config.json takes the new
+    budget, it said to resume without it, which then trains nothing."""
+    out, said = _ended_run_resumed_and_interrupted(runs, tmp_path, monkeypatch, capsys,
+                                                   "_resume", 400)
+    assert said == ("interrupted: its checkpoint at step 300 is kept; continue with "
+                    f"franka-composer train --resume --out {out} --total-steps 400")
 
 
 def test_stop_at_success_refuses_a_rate_outside_zero_to_one(capsys):

@@ -62,7 +62,7 @@ def output_file(text: str) -> pathlib.Path:
     """A file to write at the end of a command: not a folder, and where a file can be made
     (missing parent folders are made when it is written), so a long evaluation is not lost
     to a bad path."""
-    path = pathlib.Path(text)
+    path = normal_path(text)
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a file, got the folder {text!r}")
     return _writable(path, folder=False)
@@ -74,14 +74,19 @@ def output_folder(text: str) -> pathlib.Path:
     return _writable(folder_path(text), folder=True)
 
 
+def normal_path(text: str) -> pathlib.Path:
+    """A path a command writes to, `..` taken out: "x/../out" would make x on the way, which
+    a command that fails does not remove (it removes the folders it made as the file
+    system names them: `atomic_files.missing_folders`)."""
+    return pathlib.Path(os.path.normpath(text) if text else text)
+
+
 def folder_path(text: str) -> pathlib.Path:
     """A folder that may be read or written, as the command decides (`sweep --out`: read by
     --status and --sync, written by a run, which checks it then): not a file."""
     if not text:  # pathlib reads it as ".": the working folder, unasked.
         raise argparse.ArgumentTypeError("must be a folder, got ''")
-    # `..` taken out: "x/../runs" would make x on the way (and a run that fails remove
-    # what it made by the path's text).
-    path = pathlib.Path(os.path.normpath(text))
+    path = normal_path(text)
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
     return path

@@ -16,8 +16,8 @@ import pathlib
 
 import franka_composer
 from franka_composer.cli.options import (add_object_damping, add_timing, episode_seed,
-                                         given_timing, positive_int, standard_deviation,
-                                         the_runs_control)
+                                         given_timing, normal_path, positive_int,
+                                         standard_deviation, the_runs_control)
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks.rewards import REWARD_TYPES
 
@@ -57,7 +57,7 @@ def add_parser(subparsers) -> None:
                         help="Minari dataset id (default: franka_composer/<task>[-<control>]/"
                              "<expert|policy>[-noisy]-v0, the control named unless mocap, "
                              "-noisy with --action-noise)")
-    parser.add_argument("--out", type=pathlib.Path, required=True,
+    parser.add_argument("--out", type=normal_path, required=True,
                         help="the .npz file, or the folder of a Minari or RLDS dataset")
     parser.set_defaults(func=run)
 

@@ -426,16 +426,24 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         with loop.removed_if_it_fails_before_a_checkpoint(
                 run_dir, new=not args.resume, made=made), \
                 _limit_threads(threads, run_dir.read_config().backend):
-            model = loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
-                               device=args.device, checkpoint_every=args.checkpoint_every,
-                               threads=threads, progress=args.progress)
+            loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
+                       device=args.device, checkpoint_every=args.checkpoint_every,
+                       threads=threads, progress=args.progress)
     except KeyboardInterrupt:
         steps = run_dir.read_state().get("steps") if run_dir.config_path.exists() else None
-        if steps is not None and run_finished(run_dir, args.total_steps):
+        if ended:
             print(f"interrupted: {_has_ended(run_dir)}")
+        elif steps is not None and run_finished(run_dir, args.total_steps):
+            print(f"interrupted as it ended: {_trained(run_dir)}")
         elif steps is not None:
+            # A budget given that config.json does not hold yet goes in the command: without
+            # it, the resume of a run that had ended trains nothing.
+            budget = "" if args.total_steps in (
+                None, run_dir.read_config().hyperparameters.total_steps) else \
+                f" --total-steps {args.total_steps}"
             print(f"interrupted: its checkpoint at step {steps:,} is kept; continue with "
-                  f"franka-composer train --resume --out {shlex.quote(str(run_dir.root))}")
+                  f"franka-composer train --resume --out {shlex.quote(str(run_dir.root))}"
+                  f"{budget}")
         elif not run_dir.config_path.exists():
             print("interrupted before its first checkpoint: nothing of the run is kept; the "
                   "same command starts it again")
@@ -446,20 +454,25 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     if ended:
         print(_has_ended(run_dir))
         return 0
-    print(f"trained {model.num_timesteps} steps{_stopped_early(run_dir)} -> "
-          f"{run_dir.final_model}")
+    print(_trained(run_dir))
     return 0
 
 
-def _stopped_early(run_dir) -> str:
-    return " (stopped early: the success rule was met)" if run_dir.read_outcome().get(
-        "stopped_early") else ""
+def _ended_at(run_dir) -> tuple[int, str]:
+    """Where the run ended, and how: " (stopped early: ...)" by the rule, else ""."""
+    outcome = run_dir.read_outcome()
+    return outcome["steps"], (" (stopped early: the success rule was met)"
+                              if outcome["stopped_early"] else "")
+
+
+def _trained(run_dir) -> str:
+    steps, early = _ended_at(run_dir)
+    return f"trained {steps} steps{early} -> {run_dir.final_model}"
 
 
 def _has_ended(run_dir) -> str:
     """What a resume of a run that has ended says: where, how, and whether a larger budget
     goes on."""
-    early = _stopped_early(run_dir)
+    steps, early = _ended_at(run_dir)
     more = "" if early else " (a larger --total-steps goes on)"
-    return (f"{run_dir.root} had ended at {run_dir.read_outcome()['steps']} steps{early}: "
-            f"nothing to train{more}")
+    return f"{run_dir.root} had ended at {steps} steps{early}: nothing to train{more}"

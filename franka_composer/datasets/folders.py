@@ -10,28 +10,23 @@ from franka_composer.atomic_files import missing_folders
 from franka_composer.signals import held
 
 
-def make_folder(root: pathlib.Path) -> pathlib.Path | None:
-    """Makes `root` and the folders above it that are missing; the topmost of those it made
-    (what a failed recording removes to leave nothing behind), or None if `root` was there."""
-    missing = missing_folders(root)
-    root.mkdir(parents=True, exist_ok=True)
-    return missing[-1] if missing else None
-
-
 @contextlib.contextmanager
 def removed_if_it_fails(root: pathlib.Path):
-    """Makes `root` for a recording (`make_folder`); if the block raises, removes what the
-    recording made: the folders made for it, or, in a `root` that was there, each file and
-    folder that was not (Minari writes its namespaces' metadata beside the dataset), with
-    Ctrl-C and SIGTERM held meanwhile: a second one left half a dataset."""
-    made = make_folder(root)
+    """Makes `root` for a recording, with the folders above it that are missing
+    (`missing_folders`); if the block raises, removes what the recording made: the folders
+    made for it, or, in a `root` that was there, each file and folder that was not (Minari
+    writes its namespaces' metadata beside the dataset), with Ctrl-C and SIGTERM held
+    meanwhile: a second one left half a dataset."""
+    made = missing_folders(root)
     before = None if made else set(root.rglob("*"))
     try:
+        if made:
+            made[0].mkdir(parents=True, exist_ok=True)
         yield
     except BaseException:
         with held():
             if made:
-                shutil.rmtree(made, ignore_errors=True)
+                shutil.rmtree(made[-1], ignore_errors=True)
             else:
                 for path in sorted(set(root.rglob("*")) - before, key=lambda p: len(p.parts)):
                     if path.is_dir() and not path.is_symlink():

@@ -130,6 +130,8 @@ class Evaluation(EvalCallback):
             # The untrained policy at step 0; after a resume, the evaluation on the grid
             # that a stop at once (a second signal) cut short, where its checkpoint is.
             self._evaluate_now()
+            if self.stopped_early:  # SB3 takes no answer from here: the run ends here.
+                raise StoppedByTheRuleAtStart
 
     def _on_training_end(self) -> None:
         # The curve ends where training ended, even off the grid.
@@ -144,6 +146,12 @@ class Evaluation(EvalCallback):
     @property
     def stopped_early(self) -> bool:
         return self.record.stopped_early
+
+
+class StoppedByTheRuleAtStart(Exception):
+    """The evaluation a run makes as it starts (`Evaluation._on_training_start`) met the
+    early-stopping rule: it ends at that step, before its first, as the uninterrupted run
+    ended where that evaluation was made inside a step."""
 
 
 class StoppedAtCheckpoint(KeyboardInterrupt):

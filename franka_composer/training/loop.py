@@ -18,11 +18,12 @@ import warnings
 from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from franka_composer.atomic_files import replace_atomically
-from franka_composer.signals import stop_requests, stop_signals
+from franka_composer.atomic_files import remove_empty, replace_atomically
+from franka_composer.signals import held, stop_requests, stop_signals
 from franka_composer.training import demos, exact_resume, machine
 from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
-                                                StoppedAtCheckpoint, StoppingRule, WallClock)
+                                                StoppedAtCheckpoint, StoppedByTheRuleAtStart,
+                                                StoppingRule, WallClock)
 from franka_composer.training.models import build_model, load_model, make_env, quiet_logger
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision
@@ -107,14 +108,13 @@ def removed_if_it_fails_before_a_checkpoint(run: RunDir, *, new: bool,
         yield
     except BaseException:
         if new and not run.read_state():
-            for path in run.root.iterdir():
-                if path.is_dir():
-                    shutil.rmtree(path)
-                else:
-                    path.unlink()
-            for folder in made:  # Deepest first; one not empty now is left as it is.
-                with contextlib.suppress(OSError):
-                    folder.rmdir()
+            with held():  # A second signal would leave half of it.
+                for path in run.root.iterdir():
+                    if path.is_dir():
+                        shutil.rmtree(path)
+                    else:
+                        path.unlink()
+                remove_empty(made)
         raise
 
 
@@ -232,7 +232,8 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     remaining = hp.total_steps - model.num_timesteps
     try:
         with stop_requests(lambda: setattr(checkpoint, "stop_requested", True),
-                           *stop_signals()):
+                           *stop_signals()), \
+                contextlib.suppress(StoppedByTheRuleAtStart):  # It ends where it starts.
             # Also where nothing is left to train (a resume at its checkpoint's step): the
             # callbacks' end of training evaluates where the run ends, as it would have.
             model.learn(total_timesteps=remaining, callback=callbacks,
