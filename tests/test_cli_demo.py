@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import pathlib
 import re
+import time
 
 import imageio.v2 as imageio
 import pytest
@@ -129,41 +131,80 @@ def test_demo_interrupted_while_writing_a_video_leaves_none(tmp_path, monkeypatc
     frame, and in an existing folder the old video beside the new frame: a video and its
     frame are written beside their places and moved there together, or not at all, and a
     folder made for them goes with them."""
-    import pathlib
-    import time
-
     import imageio as demo_imageio  # The module `demo` writes with.
 
-    write = demo_imageio.mimwrite
+    get_writer = demo_imageio.get_writer
 
-    class Interrupted(list):
-        """Frames whose reader is interrupted once ffmpeg has begun the file."""
+    def interrupted(path, **options):
+        """A writer interrupted at its third frame, once ffmpeg has begun the file."""
+        writer = get_writer(path, **options)
+        append, frames = writer.append_data, iter(range(2))
 
-        def __iter__(self):
-            yield from self[:2]
-            deadline = time.monotonic() + 10
-            while not self.path.exists() and time.monotonic() < deadline:
-                time.sleep(0.01)
-            raise KeyboardInterrupt
+        def append_data(frame):
+            if next(frames, None) is None:
+                deadline = time.monotonic() + 10
+                while not pathlib.Path(path).exists() and time.monotonic() < deadline:
+                    time.sleep(0.01)
+                raise KeyboardInterrupt
+            append(frame)
 
-    def interrupted(path, frames, **options):
-        frames = Interrupted(frames)
-        frames.path = pathlib.Path(path)
-        return write(path, frames, **options)
+        writer.append_data = append_data
+        return writer
 
     out = tmp_path / "demo"
-    argv = ["demo", "--tasks", "reach", "--episodes", "1", "--out", str(out), "--width", "64",
+    argv = ["demo", "--tasks", "push", "--episodes", "1", "--out", str(out), "--width", "64",
             "--height", "48"]
-    monkeypatch.setattr(demo_imageio, "mimwrite", interrupted)
+    monkeypatch.setattr(demo_imageio, "get_writer", interrupted)
     with pytest.raises(KeyboardInterrupt):
         main(argv)
     assert not out.exists()
     monkeypatch.undo()
     assert main(argv) == 0
-    assert sorted(path.name for path in out.iterdir()) == ["reach.mp4", "reach.png"]
-    assert imageio.mimread(out / "reach.mp4")[0].shape == (48, 64, 3)
+    assert sorted(path.name for path in out.iterdir()) == ["push.mp4", "push.png"]
+    assert imageio.mimread(out / "push.mp4")[0].shape == (48, 64, 3)
     written = {path.name: path.read_bytes() for path in out.iterdir()}
-    monkeypatch.setattr(demo_imageio, "mimwrite", interrupted)
+    monkeypatch.setattr(demo_imageio, "get_writer", interrupted)
     with pytest.raises(KeyboardInterrupt):
         main([*argv[:-4], "--width", "32", "--height", "24"])  # Another frame.
+    assert {path.name: path.read_bytes() for path in out.iterdir()} == written
+
+
+def test_demo_stopped_as_ffmpeg_starts_leaves_nothing_behind(tmp_path, monkeypatch,
+                                                             ctrl_c_reaches_the_process):
+    """Ctrl-C as imageio started ffmpeg, before imageio could stop it again: ffmpeg ran on,
+    and wrote an empty .reach.mp4.partial.mp4 into the demo's folder once the demo had
+    cleaned up."""
+    import signal
+    import subprocess
+
+    out = tmp_path / "demo"
+    argv = ["demo", "--tasks", "reach", "--episodes", "1", "--out", str(out), "--width", "32",
+            "--height", "24"]
+    assert main(argv) == 0
+    written = {path.name: path.read_bytes() for path in out.iterdir()}
+    popen, started = subprocess.Popen, []
+
+    def signalled_as_it_starts(command, *args, **kwargs):
+        process = popen(command, *args, **kwargs)
+        if "rawvideo" in command:  # ffmpeg, to write a video.
+            started.append(process.pid)  # Not the process: its pipe closes as it goes.
+            signal.raise_signal(signal.SIGINT)
+        return process
+
+    def ended(pid: int) -> bool:
+        try:  # Gone, or a zombie (its parent has not reaped it).
+            return pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")")[-1].split()[0] \
+                == "Z"
+        except FileNotFoundError:
+            return True
+
+    monkeypatch.setattr(subprocess, "Popen", signalled_as_it_starts)
+    with pytest.raises(KeyboardInterrupt):
+        main([*argv[:-4], "--width", "64", "--height", "48"])  # Another frame.
+    monkeypatch.undo()
+    assert len(started) == 1
+    deadline = time.monotonic() + 30
+    while not ended(started[0]) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert ended(started[0])
     assert {path.name: path.read_bytes() for path in out.iterdir()} == written

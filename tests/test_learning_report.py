@@ -222,6 +222,16 @@ def test_a_command_stopped_before_its_file_lands_leaves_no_folder_it_made(
     assert [path.name for path in tmp_path.iterdir()] == ["runs"]
 
 
+def test_an_out_through_a_link_and_up_is_where_the_shell_puts_it(tmp_path):
+    """`..` after a link leads up from where the link leads, as the file system takes it:
+    taken out from the path's text, `lnk/../t.md` was written beside the link."""
+    run = _write_run(tmp_path / "runs", "push", "sac", 0, [0.0, 0.5])
+    (tmp_path / "deep" / "inner").mkdir(parents=True)
+    (tmp_path / "lnk").symlink_to(tmp_path / "deep" / "inner")
+    assert cli.main(["report", str(run.parent), "--out", f"{tmp_path}/lnk/../t.md"]) == 0
+    assert (tmp_path / "deep" / "t.md").is_file() and not (tmp_path / "t.md").exists()
+
+
 def test_a_seed_that_stopped_early_holds_its_level(tmp_path):
     stopped = read_run(_write_run(tmp_path, "push", "tqc", 0, [1.0] * 5, (True, 50.0)))
     going = read_run(_write_run(tmp_path, "push", "tqc", 1, [0.0] * 5 + [1.0] * 5))

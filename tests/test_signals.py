@@ -147,29 +147,36 @@ def test_a_held_signal_is_delivered_as_the_block_ends():
     assert went_on == [True]
 
 
-def test_jax_is_imported_whole_with_a_stop_signal_held_over_it():
-    """SIGTERM inside jaxlib's import crashed the interpreter or failed it as an ImportError
-    (a new process each: jax is imported once). Here it arrives as jaxlib's extension is
-    looked for, and stops the process once jax is imported."""
+@pytest.mark.parametrize("importing, package, extension", [
+    ("from franka_composer.signals import jax_imported as imported", "jax", "jaxlib._jax"),
+    ("from franka_composer.datasets.rlds_format import import_envlogger as imported",
+     "envlogger", "envlogger.backends.python.episode_info")])
+def test_a_package_is_imported_whole_with_a_stop_signal_held_over_it(importing, package,
+                                                                      extension):
+    """SIGTERM inside jaxlib's import crashed the interpreter or failed it as an ImportError,
+    inside envlogger's as an ImportError, "initialization failed" (a new process each: a
+    package is imported once). Here it arrives as the extension is looked for, and stops
+    the process once the package is imported."""
     import subprocess
     import textwrap
 
-    script = textwrap.dedent("""
+    script = textwrap.dedent(f"""
         import signal, sys
-        from franka_composer.signals import interrupt_on, jax_imported
+        from franka_composer.signals import interrupt_on
+        {importing}
 
         class SignalledOnLookup:
             def find_spec(self, name, path=None, target=None):
-                if name == "jaxlib._jax":
+                if name == "{extension}":
                     signal.raise_signal(signal.SIGTERM)
                 return None
 
         sys.meta_path.insert(0, SignalledOnLookup())
         try:
             with interrupt_on(signal.SIGTERM):
-                jax_imported()
+                imported()
         except KeyboardInterrupt as interrupt:
-            print(interrupt, "jax" in sys.modules, "jaxlib._jax" in sys.modules)
+            print(interrupt, "{package}" in sys.modules, "{extension}" in sys.modules)
     """)
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           timeout=120)

@@ -25,6 +25,7 @@ from franka_composer.cli.options import (add_tasks_argument, add_timing, episode
                                          frame_size, given_timing, output_folder,
                                          positive_int, the_runs_control)
 from franka_composer.policies import make_expert, rollout
+from franka_composer.signals import held
 from franka_composer.tasks import task_config
 from franka_composer.validation import check_writable, repeated
 
@@ -169,11 +170,26 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
         with folders_made_for(args.out / f"{task}.png"):
             replace_together({
                 args.out / f"{task}.png": lambda partial: imageio.imwrite(partial, frames[0]),
-                args.out / f"{task}.mp4": lambda partial: imageio.mimwrite(
-                    partial, frames, fps=fps, macro_block_size=1)})
+                args.out / f"{task}.mp4": lambda partial: _write_video(partial, frames, fps)})
     steps = int(trajectories.lengths.sum())
     return (task, len(trajectories), trajectories.success_rate,
             float(trajectories.lengths.mean()), steps / trajectories.env_seconds)
+
+
+def _write_video(path, frames: list, fps: float) -> None:
+    """`frames` as an H.264 video at `path`. ffmpeg starts with the first frame, with Ctrl-C
+    and SIGTERM held (`held`): stopped as imageio started it, before imageio could stop it
+    again, it ran on unseen and wrote its file after the demo had cleaned up."""
+    import imageio
+
+    writer = imageio.get_writer(path, fps=fps, macro_block_size=1)
+    try:
+        with held():
+            writer.append_data(frames[0])
+        for frame in frames[1:]:
+            writer.append_data(frame)
+    finally:
+        writer.close()  # Its `with` would not on an exception: ffmpeg would write on.
 
 
 def format_table(rows: list[tuple]) -> str:

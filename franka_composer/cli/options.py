@@ -75,10 +75,11 @@ def output_folder(text: str) -> pathlib.Path:
 
 
 def normal_path(text: str) -> pathlib.Path:
-    """A path a command writes to, `..` taken out: "x/../out" would make x on the way, which
-    a command that fails does not remove (it removes the folders it made as the file
-    system names them: `atomic_files.missing_folders`)."""
-    return pathlib.Path(os.path.normpath(text) if text else text)
+    """A path a command writes to, with `..` taken out as the file system takes it (after
+    a link, from where the link leads; past a folder not there yet, from the path's text):
+    "x/../out" made x on the way, which a command that failed left."""
+    path = pathlib.Path(text)
+    return pathlib.Path(os.path.realpath(path)) if ".." in path.parts else path
 
 
 def folder_path(text: str) -> pathlib.Path:

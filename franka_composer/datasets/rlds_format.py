@@ -24,6 +24,7 @@ import numpy as np
 from franka_composer import seeding
 from franka_composer.datasets.folders import removed_if_it_fails
 from franka_composer.policies.rollout import episode_limit
+from franka_composer.signals import held
 
 
 def import_envlogger():
@@ -31,14 +32,17 @@ def import_envlogger():
     plainly, its `EnvLogger` fails on the first step: np.unicode_ was removed), and its
     C++ writer's informational log lines off ("Empty steps, nothing to do", three to a
     recording, on stderr): glog reads `GLOG_minloglevel` as its library loads, so it is
-    set for the import only, where the user has not set it."""
+    set for the import only, where the user has not set it. Imported with Ctrl-C and
+    SIGTERM held (`held`): stopped inside its extensions' import, a rollout failed with an
+    ImportError ("initialization failed") and a traceback, not as a stop."""
     if "unicode_" not in np.__dict__:
         np.unicode_ = np.str_  # What NumPy 1 had under that name.
     quiet = "GLOG_minloglevel" not in os.environ
     if quiet:
         os.environ["GLOG_minloglevel"] = "1"  # Warnings and errors.
     try:
-        import envlogger
+        with held():
+            import envlogger
     finally:
         if quiet:
             del os.environ["GLOG_minloglevel"]
