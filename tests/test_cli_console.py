@@ -32,6 +32,14 @@ def test_a_reader_gone_ends_the_command_quietly_with_sigpipes_status():
     assert read.returncode == 0 and "| push (bf16) | SAC | 0 | 250,000 |" in read.stdout
 
 
+def test_a_demo_into_a_log_prints_its_table_and_no_progress_bar():
+    """Off a terminal, its progress bar wrote a line to stderr for each update."""
+    done = franka_composer("demo", "--tasks", "reach", "--episodes", "2", "--no-video",
+                           stdout=subprocess.PIPE)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert done.stdout.splitlines()[2].split()[:3] == ["reach", "2", "100%"]
+
+
 def test_an_rlds_rollout_prints_its_line_and_nothing_else(tmp_path):
     """envlogger's C++ writer logged "Empty steps, nothing to do" three times on stderr,
     after glog's own "Logging before InitGoogleLogging()"."""

@@ -100,7 +100,9 @@ def run(args: argparse.Namespace) -> int:
     for task in args.tasks:  # A bad timing is refused before the first episode.
         task_config(task, **given_timing(args))
     rows = []
-    with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode") as bar:
+    # On a terminal only (disable=None): in a log, each update was a line of its own.
+    with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode",
+              disable=None) as bar:
         for task in args.tasks:
             bar.set_postfix_str(task)
             rows.append(_run_task(task, args, trained, lambda _: bar.update()))
