@@ -2,7 +2,7 @@
 surface. `fast_path.FastEnvironment` is the same environment, faster, where the installed
 dm_control has what it needs; this one is the stock path it falls back to.
 
-Four things differ from plain `composer.Environment`:
+Five things differ from plain `composer.Environment`:
 - Its time limit is a whole number of control steps: a time-out is a LAST step with
   discount 1 after exactly that many steps, whatever the float rounding of physics time.
   Composer ends an episode at the first control step whose physics time is >= its time
@@ -18,6 +18,7 @@ Four things differ from plain `composer.Environment`:
 - Threads: a reset or step that renders camera observations from a thread other than the
   one that renders the environment raises `render_owner.RenderThreadError` before anything
   moves, and `close()` works from any thread.
+- Pickling or copying it is a TypeError saying what to do instead.
 """
 
 from __future__ import annotations
@@ -98,6 +99,15 @@ class GoalEnvironment(composer.Environment):
             timestep = timestep._replace(reward=self.task.get_reward(super().physics))
         return timestep
 
+    def __reduce_ex__(self, protocol):
+        # (Composer's own failed deep inside: an MJCF element's NotImplementedError, a
+        # weakref's TypeError.)
+        raise TypeError("a dm_env environment of franka_composer cannot be pickled or copied "
+                        "(its MuJoCo physics and MJCF model cannot): make another with "
+                        "franka_composer.load (the same arguments and seed give the same "
+                        "episodes), or use the Gymnasium env (gym.make), whose pickle and "
+                        "copies make a fresh env with the same options")
+
     def _check_can_step(self) -> None:
         """Open, and on the thread that renders it if its observations are images."""
         self._check_open()
@@ -114,6 +124,14 @@ def diverged(physics, warnings_before: np.ndarray) -> bool:
     """Whether MuJoCo raised a warning since `warnings_before` (its warning counters), which
     is when dm_control takes the physics to have diverged."""
     return bool((physics.data.warning.number > warnings_before).any())
+
+
+def ended_by_divergence(timestep: dm_env.TimeStep, task) -> bool:
+    """Whether `timestep` is a LAST step that the physics diverging ended: Composer's
+    discount 0 with the goal not reached (the goal's discount is 0 with `task.success`, a
+    time-out's 1). MuJoCo has reset the simulation there: its observation is no state the
+    episode reached."""
+    return bool(timestep.last() and timestep.discount == 0 and not task.success)
 
 
 def check_time_limit(time_limit) -> float:

@@ -4,7 +4,9 @@ trains; and recording never leaves half a dataset behind."""
 
 from __future__ import annotations
 
+import itertools
 import json
+import pathlib
 import re
 import zipfile
 
@@ -209,6 +211,58 @@ def test_numbers_of_other_types_shapes_or_past_float32_and_false_terminations_ar
              "holds a termination where the goal was not reached (episode 0, step 4)")
 
 
+#: Options under which the push expert's noisy episodes diverge: a hand step of 1 m.
+_UNSTABLE = dict(max_tcp_step=1.0, action_noise=1.0, terminate_on_success=False)
+
+
+@pytest.mark.parametrize("format, out, refused", [("npz", "push.npz", "episodes 0, 1 "),
+                                                  ("minari", "minari", "episode 0 "),
+                                                  ("rlds", "rlds", "episode 0 ")])
+def test_a_recording_whose_physics_diverges_is_refused_and_leaves_nothing(tmp_path, format,
+                                                                         out, refused):
+    """An episode that ends where MuJoCo reset a diverged simulation: npz and RLDS kept it
+    (the npz's early truncation was then refused as damage, RLDS read its discount 0 as the
+    goal reached), and Minari failed with a "pytree structure error"."""
+    with pytest.raises(ValueError, match=re.escape(
+            f"{refused}ended where the physics diverged (MuJoCo found the simulation "
+            "unstable and reset it): a dataset keeps no transition into such a reset")):
+        record("push", 2, tmp_path / "new" / out, format=format, seed=0, **_UNSTABLE)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_rollout_names_its_diverged_episodes_and_they_are_not_saved(push_env, tmp_path):
+    import gymnasium as gym
+
+    from franka_composer.policies import make_expert, rollout
+
+    env = gym.make("FrankaPushSparse-v0", **{key: value for key, value in _UNSTABLE.items()
+                                            if key != "action_noise"})
+    try:
+        calm = rollout(env, make_expert(env), 1, seed=0)  # Noiseless: no step of 1 m.
+        steps = itertools.count(1)
+        # The hand flung 1 m to and fro along x (back first): the simulation breaks on the
+        # 7th step.
+        flung = rollout(env, lambda obs: np.array([(-1) ** next(steps), 0, 0], np.float32),
+                        1, seed=0)
+    finally:
+        env.close()
+    assert calm.diverged == [] and calm.lengths.tolist() == [50]
+    assert flung.diverged == [0] and flung.lengths.tolist() == [7]
+    assert flung.episodes[0]["truncated"][-1] and not flung.episodes[0]["terminated"][-1]
+    with pytest.raises(ValueError, match=re.escape("episode 0 ended where the physics "
+                                                   "diverged")):
+        flung.save(tmp_path / "flung.npz")
+    assert list(tmp_path.iterdir()) == []
+    # Saved before datasets refused them, the loader names divergence among the causes
+    # (its options said to be the run's, which takes no max_tcp_step).
+    flung.diverged = []
+    flung.save(tmp_path / "flung.npz", dict(flung.metadata, options={}))
+    _refused(tmp_path / "flung.npz", push_env,
+             f"episode 0 is truncated after 7 steps, and the dataset says its "
+             "episodes were cut at max_episode_steps=50: edited, its metadata damaged, or "
+             "the physics diverged there")
+
+
 def test_a_dataset_that_is_not_there_or_whose_options_are_no_mapping_is_refused(
         recorded, push_env, tmp_path):
     _refused(tmp_path / "missing.npz", push_env, "missing.npz does not exist")
@@ -232,12 +286,16 @@ def test_an_npz_from_before_metadata_is_refused_saying_how_to_record_it_again(re
              f"--control mocap --out {old}")
 
 
-def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env, tmp_path):
+def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env, tmp_path,
+                                                              capfd):
     import shutil
 
     for name, files, message in (
             # What envlogger reads as no episodes at all: it said so, and training went on.
-            ("emptied", "*/*.riegeli", "holds no episodes (its step files empty or damaged?)"),
+            # Its step index emptied, envlogger logs the error naming it (printed, under a
+            # banner saying the env was not closed) and reads on: kept, and said instead.
+            ("emptied", "*/*.riegeli", "is not a readable RLDS dataset (damaged?): envlogger "
+                                       "says NOT_FOUND: Empty steps in "),
             ("cut-index", "*/episode_index.riegeli", "holds no episodes"),
             ("cut-steps", "*/steps.riegeli", "is not a readable RLDS dataset (damaged?): "
                                              "envlogger says TypeError")):
@@ -245,7 +303,10 @@ def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env
         shutil.copytree(recorded / "rlds", path)
         for damaged in path.glob(files):
             damaged.write_bytes(damaged.read_bytes()[:40 if name.startswith("cut") else 0])
-        _refused(path, push_env, message)
+        said = _refused(path, push_env, message)
+        if name == "emptied":
+            assert said.endswith("/step_offsets.riegeli") and str(path) in said
+            assert "forgot" not in capfd.readouterr().err
         with pytest.raises(ValueError, match=re.escape(message)):
             main(["train", "--task", "push", "--demos", str(path), "--out",
                   str(tmp_path / "run")])
@@ -553,6 +614,20 @@ def test_the_documented_recipe_writes_demonstrations_training_takes(push_env, tm
             f"cannot write {tmp_path / 'no' / 'push.npz'}: {tmp_path / 'no'} is not a "
             "folder")):
         trajectories.save(tmp_path / "no" / "push.npz")
+    # numpy's savez added .npz to a name without it (which `load` then did not find), and
+    # wrote a folder's name plus .npz beside it; a path no file can be made at was a
+    # FileNotFoundError naming the hidden partial file.
+    (tmp_path / "folder.npz").mkdir()
+    for path, message in ((tmp_path / "noext", f"an npz dataset's path must end in .npz, got "
+                                                f"{str(tmp_path / 'noext')!r}"),
+                          (tmp_path / "folder.npz", f"an npz dataset is a file, and "
+                                                    f"{tmp_path / 'folder.npz'} is a folder"),
+                          (pathlib.Path("/proc/x.npz"), "cannot write to /proc/x.npz: no file "
+                                                        "can be made in /proc")):
+        with pytest.raises(ValueError, match=re.escape(message)):
+            trajectories.save(path)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["folder.npz", "push.npz",
+                                                                "reference.npz"]
     # A TypeError from comparing the noise with 0 before it was checked.
     with pytest.raises(ValueError, match=re.escape("action_noise must be a finite number "
                                                    ">= 0, got '0.1'")):

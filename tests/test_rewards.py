@@ -1,5 +1,7 @@
 """The reward contract: sparse/dense values, success radius, batch shapes, clear errors."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -53,6 +55,20 @@ def test_unknown_reward_type_and_bad_goal_shape_raise_clear_errors():
         rewards.compute_reward(np.zeros(3), np.zeros(3), "shaped", 0.05)
     with pytest.raises(ValueError, match=r"goals must end in an axis of 3"):
         rewards.compute_reward(np.zeros(2), np.zeros(2), "sparse", 0.05)
+
+
+@pytest.mark.parametrize("metric, size", [("euclidean", 3), ("rotation_angle", 4)])
+def test_goal_batches_that_do_not_pair_up_are_refused_and_one_goal_for_many_is_taken(metric,
+                                                                                     size):
+    """numpy's "operands could not be broadcast together with shapes (3,3) (2,3)"."""
+    with pytest.raises(ValueError, match=re.escape(
+            "achieved and desired goals must come in batches of one shape (or one that "
+            f"broadcasts, such as one goal for many), got shapes (3, {size}) and (2, {size})")):
+        rewards.compute_reward(np.zeros((3, size)), np.ones((2, size)), "dense", 0.05,
+                               metric=metric, size=size)
+    one_for_many = rewards.compute_reward(np.ones((3, size)), np.ones(size), "sparse", 0.05,
+                                          metric=metric, size=size)
+    np.testing.assert_array_equal(one_for_many, [0.0, 0.0, 0.0])
 
 
 def test_a_nan_goal_is_not_a_success_and_gets_the_failure_reward():

@@ -269,6 +269,27 @@ def test_rollout_refuses_a_dm_env_saying_what_it_runs():
         rollout(env, make_expert(env), 1, seed=0)
 
 
+def test_rollout_and_make_expert_refuse_what_is_not_theirs_by_name():
+    """An AttributeError ("has no attribute 'task'") and a TypeError ("'NoneType' object
+    is not callable", after the reset)."""
+    import gymnasium as gym
+
+    from franka_composer.policies import make_expert, rollout
+
+    for other in (gym.make("CartPole-v1"), None):
+        with pytest.raises(ValueError, match=re.escape(
+                "make_expert takes an environment of franka_composer (gym.make of one of its "
+                f"ids, franka_composer.load, or Shimmy's wrapper of that), whose task it "
+                f"reads, got {other!r}")):
+            make_expert(other)
+    env = gym.make("FrankaPushSparse-v0")
+    with pytest.raises(ValueError, match=re.escape(
+            "policy must be a callable from an observation to an action (make_expert(env), "
+            "a trained policy), got None")):
+        rollout(env, None, 1, seed=0)
+    env.close()
+
+
 def test_time_limit_none_removes_the_time_limit():
     env = franka_composer.load("push", seed=0, terminate_on_success=False,
                                distance_threshold=1e-6, time_limit=None)

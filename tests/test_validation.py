@@ -187,6 +187,26 @@ def test_bad_physics_settings_are_refused(field, value, message):
         PhysicsSettings(**{field: value})
 
 
+@pytest.mark.parametrize("field", ["iterations", "noslip_iterations", "ls_iterations"])
+def test_solver_iterations_are_counts_mujoco_takes(field):
+    """Past a C int they reached MuJoCo's MJCF parser ("XML Error: number is too large in
+    attribute"), which takes the largest (compiled alone: a step with so many iterations
+    would take hours)."""
+    import mujoco
+
+    with pytest.raises(ValueError, match=re.escape(
+            f"physics.{field} must be >= {0 if field == 'noslip_iterations' else 1} "
+            f"and <= 2147483647, got 2147483648")):
+        PhysicsSettings(**{field: 2**31})
+    def compiled(count):
+        return mujoco.MjModel.from_xml_string(f'<mujoco><option {field}="{count}"/></mujoco>')
+
+    largest = getattr(PhysicsSettings(**{field: 2**31 - 1}), field)
+    assert getattr(compiled(largest).opt, field) == largest
+    with pytest.raises(ValueError, match="number is too large"):
+        compiled(largest + 1)
+
+
 def test_good_options_are_normalised_to_floats_and_tuples():
     env = franka_composer.load("push", goal_centre=[0.5, 0], distance_threshold=1)
     centre = env.task.workspace.goal_box.centre
@@ -345,6 +365,18 @@ def test_a_pickled_or_copied_env_is_a_fresh_env_with_the_same_options():
             clone.unwrapped.step(np.zeros(3, np.float32))  # No episode came along.
         np.testing.assert_array_equal(clone.reset(seed=4)[0]["observation"],
                                       env.reset(seed=4)[0]["observation"])
+
+
+def test_a_dm_env_is_not_pickled_or_copied_and_says_what_to_do_instead():
+    """Composer failed deep inside: an MJCF element's NotImplementedError ("Cannot copy
+    from elements with attachments"), a weakref's TypeError."""
+    env = franka_composer.load("push", seed=0)
+    for copying in (pickle.dumps, copy.copy, copy.deepcopy):
+        with pytest.raises(TypeError, match=re.escape(
+                "a dm_env environment of franka_composer cannot be pickled or copied (its "
+                "MuJoCo physics and MJCF model cannot): make another with franka_composer.load")):
+            copying(env)
+    assert env.reset().first()  # Untouched.
 
 
 def test_object_options_do_not_apply_to_reach():

@@ -21,6 +21,7 @@ from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
 from franka_composer import render_owner, seeding, suite
+from franka_composer.environment import ended_by_divergence
 from franka_composer.headless_gl import has_display
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
@@ -191,7 +192,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         # 0 the goal reached, or the physics diverged (Composer's discount there), which is
         # no end of the task: a truncation too.
         ended = self._timestep.last()
-        diverged = bool(ended and self._timestep.discount == 0 and not self._task.success)
+        diverged = ended_by_divergence(self._timestep, self._task)
         truncated = bool(ended and (self._timestep.discount > 0 or diverged))
         terminated = bool(ended and not truncated)
         if diverged:

@@ -18,6 +18,7 @@ import gymnasium as gym
 from franka_composer.adapters.registration import env_id
 from franka_composer.atomic_files import folders_made_for
 from franka_composer.datasets.sources import make_policy, source_name
+from franka_composer.episodes import npz_file
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end, recorded_with
 from franka_composer.tasks.config import expand_timing, plain_value, readable_options
@@ -117,16 +118,12 @@ def _check_json_options(options: dict) -> None:
 
 def _check_destination(out: pathlib.Path, format: str, dataset_id: str | None) -> None:
     """Where `record` writes must take a new dataset whole, found out before the episodes
-    are recorded: an npz file's name ends in .npz (numpy would add it); Minari and RLDS
+    are recorded: an npz file (`npz_file.check_destination`); Minari and RLDS
     datasets are folders (not named .npz), and one already there is not added to (envlogger
     would append the new episodes to an RLDS dataset's, Minari refuses at the end); either
     can be written there (`check_writable`)."""
     if format == "npz":
-        if out.suffix != ".npz":
-            raise ValueError(f"an npz dataset's path must end in .npz, got {str(out)!r}")
-        if out.is_dir():
-            raise ValueError(f"an npz dataset is a file, and {out} is a folder")
-        check_writable(out)
+        npz_file.check_destination(out)
         return
     if out.is_file():
         raise ValueError(f"a {format} dataset is a folder, and {out} is a file")

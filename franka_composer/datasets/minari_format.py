@@ -15,6 +15,7 @@ import pathlib
 import warnings
 
 from franka_composer.datasets.folders import removed_if_it_fails
+from franka_composer.episodes import check_not_diverged
 from franka_composer.signals import jax_imported
 
 #: Where Minari keeps datasets (its own variable): `--out` sets it while writing.
@@ -46,6 +47,20 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
     whatever happens; what a dataset that was not finished made is removed
     (`removed_if_it_fails`)."""
     import minari
+    from minari.data_collector.callbacks import StepDataCallback
+
+    recording = {"episode": 0}
+
+    class RefusingDivergence(StepDataCallback):
+        """Minari's step data, for a step the physics did not diverge on (`info`
+        without "diverged"): one that did is refused (`check_not_diverged`) before
+        Minari's buffer meets the key it adds, which it failed on as a "pytree structure
+        error"."""
+
+        def __call__(self, env, **step):
+            if step["info"].get("diverged"):
+                check_not_diverged([recording["episode"]])
+            return super().__call__(env, **step)
 
     jax_imported()  # Minari's first step imports it.
     collector, successes = None, 0
@@ -55,8 +70,10 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
                 # Images stored as they were observed: Minari's default JPEG changed 99.9 %
                 # of their pixels (up to 138 levels) and lost a 32 x 48 image's block and
                 # goal marker.
-                collector = minari.DataCollector(env, record_infos=True, jpeg_encoding=False)
+                collector = minari.DataCollector(env, step_data_callback=RefusingDivergence,
+                                                 record_infos=True, jpeg_encoding=False)
             for index in range(episodes):
+                recording["episode"] = index
                 if hasattr(policy, "reset"):
                     policy.reset()
                 obs, _ = collector.reset(seed=seed + index)

@@ -16,6 +16,7 @@ extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unic
 
 from __future__ import annotations
 
+import logging
 import os
 import pathlib
 
@@ -23,6 +24,8 @@ import numpy as np
 
 from franka_composer import seeding
 from franka_composer.datasets.folders import removed_if_it_fails
+from franka_composer.environment import ended_by_divergence
+from franka_composer.episodes import check_not_diverged
 from franka_composer.policies.rollout import episode_limit
 from franka_composer.signals import held
 
@@ -78,6 +81,8 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
                 timestep = logged.step(
                     policy(adapter.goal_observation(timestep.observation)))
                 steps += 1
+            if ended_by_divergence(timestep, task):
+                check_not_diverged([index])
             successes += bool(task.success)
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
 
@@ -95,6 +100,9 @@ def read(root: pathlib.Path) -> dict:
     if not pathlib.Path(root).is_dir():
         raise ValueError(f"{root} does not exist" if not pathlib.Path(root).exists()
                          else f"{root} is a file, and an RLDS dataset is a folder")
+    logged = _LoggedErrors()
+    absl_logger = logging.getLogger("absl")
+    absl_logger.addFilter(logged)
     try:
         # The backend first: a Reader whose backend fails to open is left without one,
         # and says so again (AttributeError) when it is collected.
@@ -103,10 +111,14 @@ def read(root: pathlib.Path) -> dict:
             metadata = reader.metadata()
             read_episodes = [(list(steps), info) for steps, info in
                              zip(reader.episodes, reader.episode_metadata())]
+        if logged.errors:  # It read on past a damaged file.
+            raise RuntimeError(logged.errors[0])
     except Exception as error:  # envlogger's riegeli reader raises what it meets.
-        first_line = (str(error).splitlines() or [""])[0]
+        said = logged.errors[0] if logged.errors else f"{type(error).__name__}: {error}"
         raise ValueError(f"{root} is not a readable RLDS dataset (damaged?): envlogger "
-                         f"says {type(error).__name__}: {first_line}") from None
+                         f"says {(said.splitlines() or [''])[0]}") from None
+    finally:
+        absl_logger.removeFilter(logged)
     if not read_episodes:
         raise ValueError(f"{root} holds no episodes (its step files empty or damaged?)")
     episodes = []
@@ -120,6 +132,25 @@ def read(root: pathlib.Path) -> dict:
             "terminated": bool(steps[-1].timestep.discount == 0),
         })
     return {"metadata": metadata, "episodes": episodes}
+
+
+class _LoggedErrors(logging.Filter):
+    """Keeps the errors envlogger logs (through absl), instead of printing them: opening a
+    dataset with an emptied or cut step index, it logs the error that names the file
+    ("NOT_FOUND: Empty steps in .../step_offsets.riegeli") under a banner saying the env
+    was not closed, reads on, and fails on something else ("expected bytes, NoneType
+    found")."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.errors: list[str] = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno < logging.ERROR:
+            return True
+        error = record.exc_info[1] if record.exc_info else None
+        self.errors.append(str(error) if error is not None else record.getMessage())
+        return False
 
 
 def _episode_seed(root: pathlib.Path, index: int, info) -> int:

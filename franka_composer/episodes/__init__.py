@@ -5,7 +5,8 @@ Below both the policies that record them and the dataset formats that convert th
 from __future__ import annotations
 
 from franka_composer.episodes.record import (GOAL_KEYS, OBSERVATION_KEYS, STEP_KEYS,
-                                             check_episodes)
+                                             check_episodes, check_not_diverged)
 from franka_composer.episodes.trajectories import Trajectories
 
-__all__ = ["GOAL_KEYS", "OBSERVATION_KEYS", "STEP_KEYS", "Trajectories", "check_episodes"]
+__all__ = ["GOAL_KEYS", "OBSERVATION_KEYS", "STEP_KEYS", "Trajectories", "check_episodes",
+           "check_not_diverged"]

@@ -28,6 +28,7 @@ import numpy as np
 
 from franka_composer.atomic_files import replace_atomically
 from franka_composer.episodes.record import GOAL_KEYS, STEP_KEYS, check_episodes
+from franka_composer.validation import check_writable
 
 #: The key holding `metadata`, a JSON string.
 METADATA_KEY = "metadata"
@@ -50,13 +51,24 @@ def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
     if metadata:
         arrays[METADATA_KEY] = np.array(json.dumps(metadata))
     lengths = np.array([len(e["action"]) for e in episodes], dtype=np.int64)
-    target = pathlib.Path(path)
-    if target.suffix != ".npz":  # Where numpy's savez puts a file named without it.
-        target = target.with_name(target.name + ".npz")
+    target = check_destination(path)
     if not target.parent.is_dir():  # (Else the error names the partial file beside it.)
         raise ValueError(f"cannot write {target}: {target.parent} is not a folder")
     replace_atomically(target, lambda partial: np.savez_compressed(
         partial, episode_length=lengths, **arrays))
+
+
+def check_destination(path) -> pathlib.Path:
+    """`path` as a Path if an npz dataset can be written there, found out before the
+    episodes are recorded: its name ends in .npz (numpy's savez would add it, and `read`
+    would not find the file by the name given), it is no folder, and a file can be made
+    there (`check_writable`: the folders above it may be still to make)."""
+    path = pathlib.Path(path)
+    if path.suffix != ".npz":
+        raise ValueError(f"an npz dataset's path must end in .npz, got {str(path)!r}")
+    if path.is_dir():
+        raise ValueError(f"an npz dataset is a file, and {path} is a folder")
+    return check_writable(path)
 
 
 def read(path: str | os.PathLike) -> tuple[list[dict[str, np.ndarray]], dict]:

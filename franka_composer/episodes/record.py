@@ -24,6 +24,20 @@ STEP_KEYS = ("action", "reward", "is_success", "terminated", "truncated")
 FLAG_KEYS = ("is_success", "terminated", "truncated")
 
 
+def check_not_diverged(diverged) -> None:
+    """A ValueError naming the episodes (their indices, `diverged`) that ended where the
+    physics diverged (`info["diverged"]`): MuJoCo reset the simulation there, so each one's
+    last transition leads to a state it never reached, which a dataset would hand a learner
+    as a real one (and as a truncation its time limit does not explain)."""
+    if len(diverged):
+        which = ", ".join(str(index) for index in diverged)
+        raise ValueError(f"episode{'s' if len(diverged) > 1 else ''} {which} ended where the "
+                         "physics diverged (MuJoCo found the simulation unstable and reset "
+                         "it): a dataset keeps no transition into such a reset; record with "
+                         "options that keep the simulation stable (a smaller max_tcp_step or "
+                         "action_noise, the task's own object sizes and physics)")
+
+
 def check_episodes(path, episodes: list[dict]) -> None:
     """A ValueError naming `path` unless `episodes` is at least one episode, each whole."""
     if not episodes:

@@ -9,6 +9,7 @@ import os
 import numpy as np
 
 from franka_composer.episodes import npz_file
+from franka_composer.episodes.record import check_not_diverged
 
 
 @dataclasses.dataclass
@@ -19,12 +20,15 @@ class Trajectories:
     images in the pixel modes) with T + 1 rows (the reset observation first), and `action`,
     `reward`, `is_success` (the step's `info["is_success"]`), `terminated`, `truncated` with
     T rows. `env_seconds` is the wall time spent inside `env.reset` and `env.step` only;
-    `metadata`, what a loaded file says they were recorded with ({} if it says nothing).
+    `metadata`, what a loaded file says they were recorded with ({} if it says nothing);
+    `diverged`, the indices of the episodes that ended where the physics diverged, which
+    `save` refuses (`record.check_not_diverged`).
     """
 
     episodes: list[dict[str, np.ndarray]]
     env_seconds: float = 0.0
     metadata: dict = dataclasses.field(default_factory=dict)
+    diverged: list[int] = dataclasses.field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.episodes)
@@ -48,6 +52,7 @@ class Trajectories:
         """Writes every episode to a `.npz` file, with `metadata` (what they were recorded
         with; `franka_composer.episodes.npz_file`), by default their own (`rollout`'s:
         the env's task, controller, reward and options)."""
+        check_not_diverged(self.diverged)
         npz_file.write(self.episodes, path, self.metadata if metadata is None else metadata)
 
     @classmethod

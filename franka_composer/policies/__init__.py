@@ -45,7 +45,11 @@ def make_expert(env) -> Expert:
         raise TypeError("make_expert takes the environment, whose layout and options the "
                         f"expert reads, not a task name: make_expert(gym.make(...)), got {env!r}")
     unwrapped = getattr(env, "unwrapped", env)
-    task = unwrapped.task
+    task = getattr(unwrapped, "task", None)
+    if getattr(task, "config", None) is None:
+        raise ValueError("make_expert takes an environment of franka_composer (gym.make of "
+                         "one of its ids, franka_composer.load, or Shimmy's wrapper of that), "
+                         f"whose task it reads, got {env!r}")
     expert = EXPERTS[check_choice("task", task.config.name, tuple(EXPERTS))]
     check_expert_control(task.config.control)
     _check_expert_gripper(task.config)

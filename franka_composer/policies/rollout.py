@@ -32,15 +32,19 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
 
     Episode i is reset with `seed + i` when `seed` is given. `on_step(env, i)` is called after
     every reset and step of episode i (e.g. to render a frame) and `on_episode_end(i)` when it
-    ends (e.g. to advance a progress bar); neither counts in `env_seconds`.
+    ends (e.g. to advance a progress bar); neither counts in `env_seconds`. Episodes that
+    end where the physics diverged are kept, and named in the result's `diverged`.
     """
     check_number("episodes", episodes, minimum=1, integer=True)
+    if not callable(policy):
+        raise ValueError(f"policy must be a callable from an observation to an action "
+                         f"(make_expert(env), a trained policy), got {policy!r}")
     if isinstance(env, dm_env.Environment):
         raise ValueError("rollout runs a Gymnasium env (gym.make(id), or Shimmy's "
                          "DmControlCompatibilityV0 around a dm_env); a dm_env steps with "
                          "timesteps, not (obs, reward, terminated, truncated, info)")
     check_episodes_end(env)
-    collected, env_seconds = [], 0.0
+    collected, diverged, env_seconds = [], [], 0.0
     for index in range(episodes):
         if hasattr(policy, "reset"):
             policy.reset()
@@ -70,9 +74,11 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
         for key in ("is_success", "terminated", "truncated"):
             episode[key] = episode[key].astype(bool)
         collected.append(episode)
+        if info.get("diverged"):
+            diverged.append(index)
         if on_episode_end is not None:
             on_episode_end(index)
-    return Trajectories(collected, env_seconds, metadata=recorded_with(env))
+    return Trajectories(collected, env_seconds, metadata=recorded_with(env), diverged=diverged)
 
 
 def recorded_with(env) -> dict:

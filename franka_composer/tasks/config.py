@@ -84,9 +84,10 @@ class Workspace:
     goal_in_air_probability: float = 0.0
 
 
-#: The most physics steps a control step may take: MuJoCo steps them in one call whose
-#: count is a C int.
-MAX_SUBSTEPS = 2**31 - 1
+#: The largest count MuJoCo takes, a C int's: the physics steps of a control step (stepped
+#: in one call) and the solver's iteration counts (its MJCF parser refuses more: "number is
+#: too large").
+MUJOCO_MAX_COUNT = 2**31 - 1
 
 #: The damping of the paper's reference code's block's free joint (its push and
 #: pick-and-place XML: `<joint type="free" damping="0.01"/>`; its slide's puck has none):
@@ -216,7 +217,8 @@ class PhysicsSettings:
         for name, minimum in (("noslip_iterations", 0), ("iterations", 1),
                               ("ls_iterations", 1)):
             _set(self, name, check_number(f"physics.{name}", getattr(self, name),
-                                          minimum=minimum, integer=True))
+                                          minimum=minimum, maximum=MUJOCO_MAX_COUNT,
+                                          integer=True))
 
 
 #: How an orientation goal (flip) is drawn: "face_up", a face of the cube up at a yaw near
@@ -338,8 +340,8 @@ class TaskConfig:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
                              f"timestep ({self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
-        if round(substeps) > MAX_SUBSTEPS:
-            raise ValueError(f"control_timestep must be at most {MAX_SUBSTEPS:,} physics "
+        if round(substeps) > MUJOCO_MAX_COUNT:
+            raise ValueError(f"control_timestep must be at most {MUJOCO_MAX_COUNT:,} physics "
                              f"steps of {self.physics.timestep:g} s, got "
                              f"{self.control_timestep!r}")
         box = self.workspace.object_box

@@ -29,6 +29,13 @@ def _goals(achieved_goal, desired_goal, size: int | None, what: str):
         expected = f"an axis of {size} ({what})" if size else "the same last axis"
         raise ValueError(f"goals must end in {expected}, got shapes {achieved_goal.shape} "
                          f"and {desired_goal.shape}")
+    if achieved_goal.shape != desired_goal.shape:  # (Pairs of one shape: the step's, HER's.)
+        try:
+            np.broadcast_shapes(achieved_goal.shape, desired_goal.shape)
+        except ValueError:
+            raise ValueError(f"achieved and desired goals must come in batches of one shape "
+                             f"(or one that broadcasts, such as one goal for many), got shapes "
+                             f"{achieved_goal.shape} and {desired_goal.shape}") from None
     return achieved_goal, desired_goal
 
 

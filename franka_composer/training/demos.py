@@ -154,7 +154,9 @@ def _check_episode_limit(path, recorded: dict, episodes: list[dict]) -> None:
                              "edited, or its metadata damaged?")
         if bool(episode["truncated"][-1]) and steps != limit:
             raise ValueError(f"{path}: episode {index} is truncated after {steps} steps, "
-                             f"and {said}: edited, or its metadata damaged?")
+                             f"and {said}: edited, its metadata damaged, or the physics "
+                             "diverged there (recorded before datasets refused such "
+                             "episodes)?")
 
 
 #: The task options, besides the timing's and damping's (`_dynamics`), that change what a
