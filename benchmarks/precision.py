@@ -21,20 +21,11 @@ import time
 from franka_composer.cli.options import positive_int
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training import ALGOS, PRECISIONS, hyperparameters
+from franka_composer.training.machine import bf16_units
 from franka_composer.training.models import DEVICES, build_model, make_env, quiet_logger
 from franka_composer.training.precision import autocast
 
 FILL_STEPS = 1000
-
-
-def cpu_has_bf16() -> bool:
-    """Whether the CPU reports bf16 instructions (AVX512-BF16 or AMX-BF16)."""
-    try:
-        with open("/proc/cpuinfo") as cpuinfo:
-            flags = cpuinfo.read()
-    except OSError:
-        return False
-    return "avx512_bf16" in flags or "amx_bf16" in flags
 
 
 def time_gradient_steps(task: str, algo: str, steps: int, rounds: int,
@@ -82,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     device = args.device
     torch.set_num_threads(args.threads)
     where = torch.cuda.get_device_name() if device == "cuda" else "CPU"
-    print(f"{where}; CPU bf16 units: {'yes' if cpu_has_bf16() else 'no'}; torch "
+    units = {True: "yes", False: "no", None: "unknown"}[bf16_units()]
+    print(f"{where}; CPU bf16 units: {units}; torch "
           f"{torch.__version__}; {args.threads} thread(s); {args.task}, Table I networks and "
           f"batch")
     print("\n| algorithm | fp32 ms/step | bf16 ms/step | fp32 / bf16 |\n|---|---|---|---|")

@@ -135,13 +135,14 @@ def ended_by_divergence(timestep: dm_env.TimeStep, task) -> bool:
 
 
 def check_time_limit(time_limit) -> float:
-    """`time_limit` as seconds (None: `NO_LIMIT`), or a ValueError saying what it may be."""
+    """`time_limit` as seconds (None, or inf as in Composer: `NO_LIMIT`), or a ValueError
+    saying what it may be."""
     if time_limit is None:
         return NO_LIMIT
     if (isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real)
             or not time_limit > 0):
-        raise ValueError(f"time_limit must be a number of seconds > 0, or None for no limit, "
-                         f"got {time_limit!r}")
+        raise ValueError(f"time_limit must be a number of seconds > 0, or None (or inf, as "
+                         f"in Composer) for no limit, got {time_limit!r}")
     try:
         return float(time_limit)
     except OverflowError:  # An int past a float's range: longer than any episode.

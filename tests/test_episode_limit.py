@@ -82,7 +82,7 @@ def test_a_bad_time_limit_is_refused_before_anything_is_built(time_limit, monkey
     monkeypatch.setattr(franka_composer.suite, "build_task",
                         lambda *args, **kwargs: pytest.fail("a task was built"))
     with pytest.raises(ValueError, match=r"time_limit must be a number of seconds > 0, or None "
-                                         r"for no limit, got"):
+                                         r"\(or inf, as in Composer\) for no limit, got"):
         franka_composer.load("push", time_limit=time_limit)
 
 
@@ -92,6 +92,7 @@ def test_control_steps_round_up_to_whole_steps_despite_float_division():
     assert environment.control_steps(2.1, 0.3) == 7
     assert environment.control_steps(2.11, 0.3) == 8
     assert environment.check_time_limit(None) == environment.NO_LIMIT
+    assert environment.check_time_limit(float("inf")) == environment.NO_LIMIT
     assert environment.check_time_limit(10**400) == environment.NO_LIMIT  # No float holds it.
     assert environment.control_steps(environment.NO_LIMIT, 0.1) == float("inf")
     assert environment.composer_time_limit(50, 0.05) == pytest.approx(2.475)

@@ -37,6 +37,22 @@ def test_without_cpuinfo_the_vector_instruction_sets_are_unknown(tmp_path, monke
     assert found["vector_isa"] is None and found["cpu"]
 
 
+@pytest.mark.parametrize("cpuinfo, units", [
+    (CPUINFO, True),  # Zen 4: AVX512-BF16.
+    (CPUINFO.replace(" avx512f avx512_bf16", ""), False),  # AVX2 only: torch emulates bf16.
+    ("flags\t\t: sse avx2 amx_bf16 amx_tile\n", True),
+    ("processor\t: 0\nFeatures\t: fp asimd sve bf16 i8mm\n", True),  # Arm Neoverse V1.
+    ("processor\t: 0\nFeatures\t: fp asimd\n", False),
+    ("processor\t: 0\n", None),
+    (None, None)])
+def test_bf16_units_are_read_from_the_cpus_flags(tmp_path, monkeypatch, cpuinfo, units):
+    path = tmp_path / "cpuinfo"
+    if cpuinfo is not None:
+        path.write_text(cpuinfo)
+    monkeypatch.setattr(machine, "_CPUINFO", path)
+    assert machine.bf16_units() is units
+
+
 BASE = {"cpu": "AMD EPYC", "vector_isa": ["avx2", "avx512f", "fma"], "python": "3.11.7",
         "libraries": {"numpy": "2.4.6", "torch": "2.13.0+cpu", "sbx-rl": "0.28.0"}}
 

@@ -1466,8 +1466,15 @@ def test_precision_sets_the_gradient_steps_and_nothing_else(tmp_path, monkeypatc
         return model
 
     monkeypatch.setattr(loop, "build_model", build_and_watch)
+    monkeypatch.setattr(machine, "bf16_units", lambda: False)  # As on an AVX2 CPU.
     out = tmp_path / precision
-    assert _train(out, "sac", 300, "--precision", precision, "--device", device) == 0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert _train(out, "sac", 300, "--precision", precision, "--device", device) == 0
+    # Emulated bf16 (17x fp32's step there) is said, on the CPU only.
+    emulated = [str(w.message) for w in caught if "this CPU has no bf16 units" in str(w.message)]
+    assert len(emulated) == (precision == "bf16" and device == "cpu")
+    assert all("--precision fp32 trains the same settings in fp32" in m for m in emulated)
     assert not torch.is_autocast_enabled(device)
     assert RunDir(out).read_config().precision == precision
     assert json.loads(RunDir(out).config_path.read_text())["precision"] == precision

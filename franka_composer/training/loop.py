@@ -26,7 +26,7 @@ from franka_composer.training.callbacks import (Evaluation, LatestCheckpoint,
                                                 StoppingRule, WallClock)
 from franka_composer.training.models import build_model, load_model, make_env, quiet_logger
 from franka_composer.training.policy_file import save_policy
-from franka_composer.training.precision import GradientStepPrecision
+from franka_composer.training.precision import GradientStepPrecision, warn_if_emulated
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, unpickling
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunDir, run_finished,
@@ -224,6 +224,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     checkpoint = LatestCheckpoint(run, clock, every=checkpoint_every, stream=stream,
                                   config=config, threads=threads,
                                   fresh_streams=fresh_streams, machines=machines)
+    warn_if_emulated(config.precision, model.device)
     precision = GradientStepPrecision(config.precision)
     # The loop's own bar, not learn(progress_bar=True)'s: an interrupt skips SB3's closing
     # of it, and a bar left open is closed at interpreter shutdown, where rich fails.

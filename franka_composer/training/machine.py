@@ -39,6 +39,19 @@ def fingerprint() -> dict:
             "libraries": {name: _version(name) for name in LIBRARIES}}
 
 
+def bf16_units() -> bool | None:
+    """Whether this CPU multiplies in bfloat16 (AVX512-BF16, AMX-BF16, Arm's BF16): without
+    them torch emulates bf16 (`precision`); None where /proc/cpuinfo does not say."""
+    if not _CPUINFO.is_file():
+        return None
+    flags = set()
+    for line in _CPUINFO.read_text().splitlines():
+        name, _, listed = line.partition(":")
+        if name.strip() in ("flags", "Features"):
+            flags.update(listed.split())
+    return bool(flags & {"avx512_bf16", "amx_bf16", "bf16"}) if flags else None
+
+
 def _version(package: str) -> str | None:
     try:
         return importlib.metadata.version(package)

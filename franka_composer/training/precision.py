@@ -14,8 +14,34 @@ loads) stay fp32.
 from __future__ import annotations
 
 import contextlib
+import warnings
 
 from stable_baselines3.common.callbacks import BaseCallback
+
+
+#: SAC's gradient step on pick_and_place (Table I), ms in fp32 and bf16 on a CPU without
+#: bf16 units (AMD EPYC, AVX2): `python benchmarks/precision.py --task pick_and_place
+#: --algos sac --steps 20 --rounds 2`, 2026-11-30.
+_EMULATED_MS = (41.8, 706.7)
+
+
+def warn_if_emulated(precision: str, device) -> None:
+    """A RuntimeWarning where a run computes in bf16 on a CPU without bf16 units
+    (`machine.bf16_units`): torch emulates them there, and bf16, the fast option elsewhere
+    (and `--preset fast`'s), trains many times slower than fp32."""
+    import torch
+
+    from franka_composer.training.machine import bf16_units
+
+    if precision == "fp32" or torch.device(device).type != "cpu" or bf16_units() is not False:
+        return
+    fp32, bf16 = _EMULATED_MS
+    warnings.warn(f"this run's gradient steps are in bf16 and this CPU has no bf16 units "
+                  "(AVX512-BF16, AMX-BF16 or Arm's BF16): torch emulates them, and a step "
+                  f"takes many times fp32's ({bf16 / fp32:.0f}x with SAC on pick_and_place on "
+                  "an AVX2 EPYC; `python benchmarks/precision.py` measures it here); "
+                  "--precision fp32 trains the same settings in fp32 (after --preset fast "
+                  "too)", RuntimeWarning, stacklevel=2)
 
 
 def autocast(precision: str, device):
