@@ -57,6 +57,20 @@ for before, after in zip(noted, noted[1:]):
 PY
 }
 
+# refuse_emulated_bf16 WHAT: fails, saying why, on a CPU without bf16 units
+# (`machine.bf16_units`), where torch emulates bf16: WHAT (runs in bf16) would take many
+# times their time on a machine with them (SAC's gradient step 17x fp32's on an AVX2 EPYC:
+# `python benchmarks/precision.py`). Run with the repository's own package.
+refuse_emulated_bf16() {
+  "$BIN/python" -c 'import sys
+from franka_composer.training.machine import bf16_units
+sys.exit(bf16_units() is False)' && return 0
+  echo "$1 train in bf16, and this CPU has no bf16 units (AVX512-BF16, AMX-BF16): torch" \
+    "emulates them there, many times slower than fp32 (python benchmarks/precision.py" \
+    "measures it); run them on a machine that has them" >&2
+  return 1
+}
+
 # lower_session_priority: where Linux groups processes by session (autogroup), nice acts
 # only within the group, and the group's own niceness is what leaves the machine to other
 # work. Only a session of the script's own (`setsid SCRIPT run`), not the caller's terminal.

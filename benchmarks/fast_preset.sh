@@ -27,6 +27,7 @@ case "$task" in
 esac
 shift
 read -ra seeds <<< "${*:-0 1 2}"
+refuse_emulated_bf16 "The fast preset's runs" || exit 1
 if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
 mkdir -p "$RUNS"
 for seed in "${seeds[@]}"; do

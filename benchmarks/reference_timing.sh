@@ -80,6 +80,7 @@ PY
 }
 
 if [ "$1" = run ]; then  # A cell sync kept as finished is done (its runs may be gone).
+  [ "$ALGO" != sac ] || refuse_emulated_bf16 "SAC's cells (--precision bf16)" || exit 1
   by_algorithm=$(finished_algorithms) || exit 1
   { read -r _; read -r finished; } <<< "$by_algorithm"
   unfinished=()

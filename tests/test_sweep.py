@@ -937,3 +937,26 @@ def test_a_cell_another_process_is_training_is_refused_before_the_sweep_starts(t
     finally:
         holder.kill()
         holder.wait()
+
+
+@pytest.mark.parametrize("flags, refused", [
+    ("fpu sse avx avx2 fma f16c", True),  # An AVX2 EPYC: torch emulates bf16.
+    ("fpu sse avx avx2 fma f16c avx512f avx512_bf16", False)])  # Zen 4.
+def test_campaign_scripts_refuse_bf16_runs_on_a_cpu_without_bf16_units(tmp_path, flags,
+                                                                      refused):
+    """The background scripts' `refuse_emulated_bf16` (SAC's reference-timing cells, the
+    fast preset's runs) reads the CPU's flags as `machine.bf16_units` does; here from a
+    cpuinfo of our own, put in place by a sitecustomize."""
+    (tmp_path / "cpuinfo").write_text(f"processor\t: 0\nflags\t\t: {flags}\n")
+    (tmp_path / "sitecustomize.py").write_text(
+        "import pathlib\nfrom franka_composer.training import machine\n"
+        f"machine._CPUINFO = pathlib.Path({str(tmp_path / 'cpuinfo')!r})\n")
+    bin_dir = pathlib.Path(sys.executable).parent
+    script = ("source benchmarks/background_sweep.sh && sweep_settings \"$RUNS_HERE\" && "
+              "refuse_emulated_bf16 \"SAC's cells\"")
+    done = subprocess.run(["bash", "-c", script], cwd=REPO, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(tmp_path),
+                               "BIN": str(bin_dir), "RUNS_HERE": str(tmp_path / "runs")})
+    assert done.returncode == (1 if refused else 0), done.stderr
+    assert ("SAC's cells train in bf16, and this CPU has no bf16 units" in done.stderr) == refused
+    assert not (tmp_path / "runs").exists()
