@@ -990,3 +990,40 @@ def test_demonstrations_of_another_task_setting_are_refused(recorded_with, messa
         assert len(demos.load_episodes(out, same)) == 1  # Taken by a run of that setting.
     finally:
         same.close()
+
+
+def test_a_changed_number_in_a_minari_dataset_is_refused_by_its_episodes_digest(
+        recorded, push_env, tmp_path):
+    """Minari's HDF5 keeps no checksum: one byte changed inside an observation read as
+    another number (-0.000150921557298 for -0.000150921557326), where npz and RLDS files
+    fail to read. `record` gives each episode a SHA-256 of its arrays, which the loader
+    checks; an episode without one (Minari's own, or from before) passes."""
+    import shutil
+
+    import h5py
+
+    from franka_composer.datasets import minari_format
+
+    dataset = tmp_path / "push"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", dataset)
+    data = dataset / "data" / "main_data.hdf5"
+    with h5py.File(data, "r") as file:
+        digests = [file[f"episode_{i}"].attrs[minari_format.DIGEST_ATTRIBUTE] for i in (0, 1)]
+        observation = file["episode_1/observations/observation"]
+        offset = observation.id.get_chunk_info(0).byte_offset
+        before = observation[5, 3]
+        row = observation.shape[1]
+    assert len(set(digests)) == 2 and all(len(d) == 64 for d in digests)
+    assert len(demos.load_episodes(dataset, push_env)) == 2
+    content = bytearray(data.read_bytes())
+    content[offset + (5 * row + 3) * 8 + 2] ^= 0x10  # A low byte of observation[5, 3].
+    data.write_bytes(bytes(content))
+    with h5py.File(data, "r") as file:
+        after = file["episode_1/observations/observation"][5, 3]
+    assert after != before and np.isfinite(after) and abs(after - before) < 1e-9
+    _refused(dataset, push_env, "the data of episode 1 is not what was recorded (its SHA-256 "
+                                "differs from the one recorded in its main_data.hdf5): "
+                                "damaged or edited since; record it again")
+    with h5py.File(data, "r+") as file:
+        del file["episode_1"].attrs[minari_format.DIGEST_ATTRIBUTE]
+    assert len(demos.load_episodes(dataset, push_env)) == 2

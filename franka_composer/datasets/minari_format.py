@@ -1,7 +1,8 @@
 """Minari datasets (Gymnasium's offline-RL format), written through `minari.DataCollector`.
 
 Each episode holds the full goal-dict observations, actions, rewards, terminations,
-truncations and the `is_success` infos, with its reset seed in the episode metadata; the
+truncations and the `is_success` infos, with its reset seed and a SHA-256 of its arrays
+(`add_digests`: Minari's HDF5 keeps no checksum) in the episode metadata; the
 dataset holds the env spec with the options it was made with, so
 `minari.load_dataset(id).recover_environment()` gives back the same env.
 """
@@ -9,10 +10,13 @@ dataset holds the env spec with the options it was made with, so
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import importlib.metadata
 import os
 import pathlib
 import warnings
+
+import numpy as np
 
 from franka_composer.datasets.folders import removed_if_it_fails
 from franka_composer.episodes import check_not_diverged
@@ -96,8 +100,69 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, dataset_id:
         finally:
             if collector is not None:
                 collector.close()
+        add_digests(pathlib.Path(root) / dataset_id / "data")
     return {"episodes": dataset.total_episodes, "steps": dataset.total_steps,
             "success_rate": successes / episodes}
+
+
+#: The attribute of each episode's HDF5 group that `add_digests` sets: a SHA-256 of its
+#: arrays. Minari's HDF5 files keep no checksum, and a changed byte in an array read as
+#: another number, where npz files (zip's CRC-32) and RLDS files (riegeli's) fail to read.
+DIGEST_ATTRIBUTE = "franka_composer_sha256"
+#: The HDF5 file of a Minari dataset's data folder (its default storage; the arrow
+#: storage writes folders of its own).
+HDF5_FILE = "main_data.hdf5"
+
+
+def add_digests(data: pathlib.Path) -> None:
+    """Gives each episode of the Minari dataset whose data folder is `data` its digest
+    (`DIGEST_ATTRIBUTE`, which Minari reads as one more key of its episode metadata)."""
+    import h5py
+
+    with h5py.File(data / HDF5_FILE, "r+") as file:
+        for name in _episode_groups(file):
+            file[name].attrs[DIGEST_ATTRIBUTE] = _digest(file[name])
+
+
+def check_digests(path, data: pathlib.Path) -> None:
+    """A ValueError naming `path` and the episodes whose arrays are not those `write`
+    recorded (their digest differs). Episodes without one pass: added by Minari itself,
+    or by a version that wrote none; so does a dataset in Minari's arrow storage."""
+    if not (data / HDF5_FILE).is_file():
+        return
+    import h5py
+
+    with h5py.File(data / HDF5_FILE, "r") as file:
+        changed = [name.removeprefix("episode_") for name in _episode_groups(file)
+                   if DIGEST_ATTRIBUTE in file[name].attrs
+                   and file[name].attrs[DIGEST_ATTRIBUTE] != _digest(file[name])]
+    if changed:
+        raise ValueError(f"{path}: the data of episode{'s' if len(changed) > 1 else ''} "
+                         f"{', '.join(changed)} is not what was recorded (its SHA-256 "
+                         f"differs from the one recorded in its {HDF5_FILE}): damaged or "
+                         "edited since; record it again")
+
+
+def _episode_groups(file) -> list[str]:
+    """The names of an HDF5 file's episode groups, in episode order."""
+    return sorted((name for name in file if name.startswith("episode_")),
+                  key=lambda name: int(name.removeprefix("episode_")))
+
+
+def _digest(group) -> str:
+    """A SHA-256 of every array under an episode's HDF5 group: each one's path, dtype,
+    shape and bytes, in path order."""
+    import h5py
+
+    names = []
+    group.visititems(lambda name, item: names.append(name)
+                     if isinstance(item, h5py.Dataset) else None)
+    digest = hashlib.sha256()
+    for name in sorted(names):
+        array = np.ascontiguousarray(group[name][()])
+        digest.update(f"{name} {array.dtype.str} {array.shape}\n".encode())
+        digest.update(array.tobytes())
+    return digest.hexdigest()
 
 
 def _version() -> str:

@@ -306,6 +306,8 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
     says."""
     import minari
 
+    from franka_composer.datasets import minari_format
+
     data = path / "data" if (path / "data").is_dir() else path
     try:
         dataset = minari.MinariDataset(data)
@@ -328,6 +330,7 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
         stored = _stored_minari_episodes(data)
     except Exception as error:
         raise _unreadable_minari(path, error) from None
+    minari_format.check_digests(path, data)
     steps = sum(len(episode["action"]) for episode in episodes)
     if (dataset.total_episodes, dataset.total_steps) != (stored, steps):
         # Minari reads as many episodes as metadata.json counts: the others were dropped.
