@@ -1464,9 +1464,9 @@ def test_actor_saturation_refuses_a_threshold_that_is_not_a_positive_number(tmp_
 
 def test_held_rays_counts_what_docs_give_for_the_experts():
     """docs/guide/physics.md's count, as `held_rays.py --expert stack pick_and_place`
-    measures it: over 30 episodes of stack's expert, 193 of the guard's 595 probes from the
+    measures it: over 30 episodes of stack's expert, 166 of the guard's 383 probes from the
     hand meet the block it holds, in each the nearest surface found (29 episodes succeed);
-    with held bodies left out of the rays, 62 of 398 meet it and 30 succeed. Pick-and-place's expert
+    with held bodies left out of the rays, 47 of 261 meet it and 30 succeed. Pick-and-place's expert
     meets none. The guard's own ray cast is back once the script is done."""
     from franka_composer.surface_guard import BoundSurfaceGuard
 
@@ -1479,6 +1479,6 @@ def test_held_rays_counts_what_docs_give_for_the_experts():
     with module.watching_rays(probes, exclude_held=True):
         excluded = module.expert_rows("stack", 30, 0, probes)
     assert BoundSurfaceGuard._lowest_hit is original
-    assert stack.sum(axis=0).tolist() == [595, 193, 193, 29]
+    assert stack.sum(axis=0).tolist() == [383, 166, 166, 29]
     assert pick.sum(axis=0).tolist() == [102, 0, 0, 30]
-    assert excluded.sum(axis=0).tolist() == [398, 62, 62, 30]
+    assert excluded.sum(axis=0).tolist() == [261, 47, 47, 30]

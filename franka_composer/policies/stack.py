@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.pick_and_place import PickAndPlaceExpert
+from franka_composer.policies.pick_and_place import (GRASP_DEPTH, HOLD_TOLERANCE,
+                                                      PickAndPlaceExpert)
 
 #: How close (m) a block's centre must be to its goal to count as placed: then it is
 #: released and the next block fetched.
@@ -14,6 +15,9 @@ PLACED = 0.012
 CLEARANCE = 0.03
 #: How far (m) the hand rises, open, once both blocks are placed.
 RETREAT = 0.05
+#: How much wider (m) than a block the fingers open, in place, before the hand leaves a
+#: placed block: rising or moving off as they open lifted or dragged it off its goal.
+LET_GO = 0.01
 
 
 class StackExpert(PickAndPlaceExpert):
@@ -25,8 +29,12 @@ class StackExpert(PickAndPlaceExpert):
         tcp = self.layout.read(vector, "tcp_position")
         width = float(self.layout.read(vector, "finger_width")[0])
         goals = np.asarray(obs["desired_goal"], dtype=np.float64).reshape(-1, 3)
+        across = 2 * self.config.objects[0].half_size
         for index, goal in enumerate(goals):
             block = self.layout.read(vector, f"object{index + 1}_position")
             if np.linalg.norm(block - goal) > PLACED:
                 return self.fetch(tcp, width, block, goal, carry_height=goal[2] + CLEARANCE)
+            if width < across + LET_GO and np.linalg.norm(
+                    block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE:
+                return np.array([0.0, 0.0, 0.0, 1.0])  # Placed: let go before leaving it.
         return np.array([*self.move_towards(tcp, tcp + [0.0, 0.0, RETREAT]), 1.0])
