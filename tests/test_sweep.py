@@ -647,8 +647,24 @@ def test_bad_seeds_and_refresh_periods_are_refused_by_the_parser(tmp_path, capsy
     assert not (tmp_path / "s").exists()
 
 
+#: A Zen 4's vector flags: bf16 units, so the scripts that train in bf16 start.
+ZEN_4_FLAGS = "fpu sse avx avx2 fma f16c avx512f avx512_bf16"
+
+
+def _cpu_with_flags(folder: pathlib.Path, flags: str) -> pathlib.Path:
+    """A folder whose sitecustomize makes `machine` read a cpuinfo with `flags` (put on
+    PYTHONPATH: the scripts' Python then sees that CPU, whatever this machine's is)."""
+    folder.mkdir(exist_ok=True)
+    (folder / "cpuinfo").write_text(f"processor\t: 0\nflags\t\t: {flags}\n")
+    (folder / "sitecustomize.py").write_text(
+        "import pathlib\nfrom franka_composer.training import machine\n"
+        f"machine._CPUINFO = pathlib.Path({str(folder / 'cpuinfo')!r})\n")
+    return folder
+
+
 def _benchmark_sh(tmp_path, script, command, **env):
-    """benchmarks/SCRIPT COMMAND, its franka-composer one that prints its arguments."""
+    """benchmarks/SCRIPT COMMAND, its franka-composer one that prints its arguments, on a
+    CPU with bf16 units (`ZEN_4_FLAGS`)."""
     bin_dir = tmp_path / "bin"
     if not bin_dir.exists():
         bin_dir.mkdir()
@@ -656,10 +672,11 @@ def _benchmark_sh(tmp_path, script, command, **env):
                            ("franka-composer", 'echo "franka-composer $*"')):
             (bin_dir / name).write_text(f"#!/bin/sh\n{body}\n")
             (bin_dir / name).chmod(0o755)
+    cpu = _cpu_with_flags(tmp_path / "zen4", ZEN_4_FLAGS)
     return subprocess.run(
         [str(REPO / "benchmarks" / script), command], capture_output=True, text=True,
         env={**os.environ, "BIN": str(bin_dir), "RUNS": str(tmp_path / "runs"),
-             "KEPT": str(tmp_path / "kept"), **env})
+             "KEPT": str(tmp_path / "kept"), "PYTHONPATH": str(cpu), **env})
 
 
 def _sweep_cells(output):
@@ -941,21 +958,17 @@ def test_a_cell_another_process_is_training_is_refused_before_the_sweep_starts(t
 
 @pytest.mark.parametrize("flags, refused", [
     ("fpu sse avx avx2 fma f16c", True),  # An AVX2 EPYC: torch emulates bf16.
-    ("fpu sse avx avx2 fma f16c avx512f avx512_bf16", False)])  # Zen 4.
+    (ZEN_4_FLAGS, False)])
 def test_campaign_scripts_refuse_bf16_runs_on_a_cpu_without_bf16_units(tmp_path, flags,
                                                                       refused):
     """The background scripts' `refuse_emulated_bf16` (SAC's reference-timing cells, the
-    fast preset's runs) reads the CPU's flags as `machine.bf16_units` does; here from a
-    cpuinfo of our own, put in place by a sitecustomize."""
-    (tmp_path / "cpuinfo").write_text(f"processor\t: 0\nflags\t\t: {flags}\n")
-    (tmp_path / "sitecustomize.py").write_text(
-        "import pathlib\nfrom franka_composer.training import machine\n"
-        f"machine._CPUINFO = pathlib.Path({str(tmp_path / 'cpuinfo')!r})\n")
+    fast preset's runs) reads the CPU's flags as `machine.bf16_units` does."""
+    cpu = _cpu_with_flags(tmp_path / "cpu", flags)
     bin_dir = pathlib.Path(sys.executable).parent
     script = ("source benchmarks/background_sweep.sh && sweep_settings \"$RUNS_HERE\" && "
               "refuse_emulated_bf16 \"SAC's cells\"")
     done = subprocess.run(["bash", "-c", script], cwd=REPO, capture_output=True, text=True,
-                          env={**os.environ, "PYTHONPATH": str(tmp_path),
+                          env={**os.environ, "PYTHONPATH": str(cpu),
                                "BIN": str(bin_dir), "RUNS_HERE": str(tmp_path / "runs")})
     assert done.returncode == (1 if refused else 0), done.stderr
     assert ("SAC's cells train in bf16, and this CPU has no bf16 units" in done.stderr) == refused
