@@ -120,7 +120,7 @@ def add_digests(data: pathlib.Path) -> None:
     import h5py
 
     with h5py.File(data / HDF5_FILE, "r+") as file:
-        for name in _episode_groups(file):
+        for name in episode_groups(file):
             file[name].attrs[DIGEST_ATTRIBUTE] = _digest(file[name])
 
 
@@ -133,7 +133,7 @@ def check_digests(path, data: pathlib.Path) -> None:
     import h5py
 
     with h5py.File(data / HDF5_FILE, "r") as file:
-        changed = [name.removeprefix("episode_") for name in _episode_groups(file)
+        changed = [name.removeprefix("episode_") for name in episode_groups(file)
                    if DIGEST_ATTRIBUTE in file[name].attrs
                    and file[name].attrs[DIGEST_ATTRIBUTE] != _digest(file[name])]
     if changed:
@@ -143,10 +143,11 @@ def check_digests(path, data: pathlib.Path) -> None:
                          "edited since; record it again")
 
 
-def _episode_groups(file) -> list[str]:
-    """The names of an HDF5 file's episode groups, in episode order."""
+def episode_groups(file) -> list[str]:
+    """The names of a Minari HDF5 file's episode groups (episode_0, ...), in episode
+    order."""
     return sorted((name for name in file if name.startswith("episode_")),
-                  key=lambda name: int(name.removeprefix("episode_")))
+                  key=lambda name: (len(name), name))
 
 
 def _digest(group) -> str:

@@ -47,9 +47,8 @@ class PickAndPlaceExpert(Expert):
               carry_height: float = CARRY_HEIGHT) -> np.ndarray:
         """The action that grasps `block` (or carries it, once held) to `goal`, its centre
         no lower than `carry_height` on the way (m, world frame)."""
-        block_in_hand = np.linalg.norm(block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE
-        across = 2 * self.config.objects[0].half_size  # Every block's: one option sets them.
-        if block_in_hand and across - HOLDING_BELOW < width < across + HOLDING_ABOVE:
+        across = self.block_width
+        if self.in_hand(tcp, block) and across - HOLDING_BELOW < width < across + HOLDING_ABOVE:
             if self._closing_steps >= CLOSING_STEPS:
                 return np.array([*self._carry(tcp, block, goal, carry_height), -1.0])
             self._closing_steps += 1
@@ -76,6 +75,16 @@ class PickAndPlaceExpert(Expert):
         if self.config.control.max_finger_step < MAX_FINGER_WIDTH:  # It may take some.
             self._closing_from = width
         return np.array([*self.move_towards(tcp, grasp), -1.0])
+
+    @property
+    def block_width(self) -> float:
+        """Every block's width (m): one option sets them all."""
+        return 2 * self.config.objects[0].half_size
+
+    @staticmethod
+    def in_hand(tcp: np.ndarray, block: np.ndarray) -> bool:
+        """Whether `block` sits where the hand holds the block it grasps."""
+        return bool(np.linalg.norm(block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE)
 
     def _carry(self, tcp: np.ndarray, block: np.ndarray, goal: np.ndarray,
                carry_height: float) -> np.ndarray:

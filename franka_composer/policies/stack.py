@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from franka_composer.policies.pick_and_place import (GRASP_DEPTH, HOLD_TOLERANCE,
-                                                      PickAndPlaceExpert)
+from franka_composer.policies.pick_and_place import PickAndPlaceExpert
 
 #: How close (m) a block's centre must be to its goal to count as placed: then it is
 #: released and the next block fetched.
@@ -29,12 +28,10 @@ class StackExpert(PickAndPlaceExpert):
         tcp = self.layout.read(vector, "tcp_position")
         width = float(self.layout.read(vector, "finger_width")[0])
         goals = np.asarray(obs["desired_goal"], dtype=np.float64).reshape(-1, 3)
-        across = 2 * self.config.objects[0].half_size
         for index, goal in enumerate(goals):
             block = self.layout.read(vector, f"object{index + 1}_position")
             if np.linalg.norm(block - goal) > PLACED:
                 return self.fetch(tcp, width, block, goal, carry_height=goal[2] + CLEARANCE)
-            if width < across + LET_GO and np.linalg.norm(
-                    block - tcp + [0, 0, GRASP_DEPTH]) < HOLD_TOLERANCE:
+            if width < self.block_width + LET_GO and self.in_hand(tcp, block):
                 return np.array([0.0, 0.0, 0.0, 1.0])  # Placed: let go before leaving it.
         return np.array([*self.move_towards(tcp, tcp + [0.0, 0.0, RETREAT]), 1.0])

@@ -345,12 +345,14 @@ def _stored_minari_episodes(data: pathlib.Path) -> int:
     """How many episodes a Minari dataset's data holds: in its hdf5 file (the groups
     episode_0, ...; what `record` writes) or, in Minari's arrow format, its episode
     folders (0/, 1/, ...)."""
-    if not (data / "main_data.hdf5").is_file():
+    from franka_composer.datasets.minari_format import HDF5_FILE, episode_groups
+
+    if not (data / HDF5_FILE).is_file():
         return sum(path.is_dir() and path.name.isdigit() for path in data.iterdir())
     import h5py
 
-    with h5py.File(data / "main_data.hdf5", "r") as file:
-        return sum(name.startswith("episode_") for name in file)
+    with h5py.File(data / HDF5_FILE, "r") as file:
+        return len(episode_groups(file))
 
 
 def _recorded_by_spec(env_spec) -> dict:

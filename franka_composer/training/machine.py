@@ -26,30 +26,37 @@ def fingerprint() -> dict:
     """{"cpu", "vector_isa", "python", "libraries"} of this machine: its CPU's model name,
     the vector instruction sets it offers (None where /proc/cpuinfo does not say), and the
     versions of Python and of `LIBRARIES` (None for one not installed)."""
-    cpu, flags = platform.processor() or platform.machine(), None
-    if _CPUINFO.is_file():
-        fields = dict(line.split(":", 1) for line in _CPUINFO.read_text().splitlines()
-                      if ":" in line)  # Every processor's lines alike: the last one's stand.
-        fields = {key.strip(): value.strip() for key, value in fields.items()}
-        cpu = fields.get("model name", cpu)
-        listed = fields.get("flags", fields.get("Features"))
-        if listed is not None:
-            flags = sorted(flag for flag in listed.split() if _VECTOR_FLAG.match(flag))
-    return {"cpu": cpu, "vector_isa": flags, "python": platform.python_version(),
+    fields = _cpuinfo()
+    flags = _flags(fields)
+    return {"cpu": fields.get("model name", platform.processor() or platform.machine()),
+            "vector_isa": (None if flags is None else
+                           sorted(flag for flag in flags if _VECTOR_FLAG.match(flag))),
+            "python": platform.python_version(),
             "libraries": {name: _version(name) for name in LIBRARIES}}
 
 
 def bf16_units() -> bool | None:
     """Whether this CPU multiplies in bfloat16 (AVX512-BF16, AMX-BF16, Arm's BF16): without
     them torch emulates bf16 (`precision`); None where /proc/cpuinfo does not say."""
+    flags = _flags(_cpuinfo())
+    return bool(set(flags) & {"avx512_bf16", "amx_bf16", "bf16"}) if flags else None
+
+
+def _cpuinfo() -> dict[str, str]:
+    """/proc/cpuinfo's fields ({} without it): every processor's lines alike, the last
+    one's stand."""
     if not _CPUINFO.is_file():
-        return None
-    flags = set()
-    for line in _CPUINFO.read_text().splitlines():
-        name, _, listed = line.partition(":")
-        if name.strip() in ("flags", "Features"):
-            flags.update(listed.split())
-    return bool(flags & {"avx512_bf16", "amx_bf16", "bf16"}) if flags else None
+        return {}
+    fields = dict(line.split(":", 1) for line in _CPUINFO.read_text().splitlines()
+                  if ":" in line)
+    return {key.strip(): value.strip() for key, value in fields.items()}
+
+
+def _flags(fields: dict[str, str]) -> list[str] | None:
+    """The CPU's flags (x86's `flags`, Arm's `Features`) among `_cpuinfo`'s fields; None
+    where they are not listed."""
+    listed = fields.get("flags", fields.get("Features"))
+    return None if listed is None else listed.split()
 
 
 def _version(package: str) -> str | None:
