@@ -117,6 +117,53 @@ def test_an_object_box_too_small_for_its_objects_is_refused_when_made(options):
         gym.make("FrankaStackSparse-v1", **options)
 
 
+@pytest.mark.parametrize("task, options, message", [
+    ("push", dict(block_half_size=0.5), "push's block is 1 m tall (block_half_size=0.5), and "
+     "where it can start the hand's lowest point is 0.189 m above the floor at the neutral "
+     "pose: it would start inside the hand. Give an object under 0.179 m tall"),
+    ("push", dict(block_half_size=0.09), "push's block is 0.18 m tall"),
+    ("slide", dict(puck_half_height=0.1), "slide's puck is 0.2 m tall (puck_radius=0.03, "
+     "puck_half_height=0.1)"),
+    ("pick_and_place", dict(block_half_size=0.04), "pick_and_place's block is 0.08 m across "
+     "(block_half_size=0.04), and the open hand is 0.08 m wide: it cannot be grasped, and its "
+     "goals need it lifted (goals up to 0.2 m in the air 70% of the time)"),
+    ("stack", dict(block_half_size=0.045), "stack's block1 is 0.09 m across"),
+    ("pick_and_place", dict(actuated_gripper=False), "pick_and_place's goals need its "
+     "objects lifted (goals up to 0.2 m in the air 70% of the time), and "
+     "actuated_gripper=False holds the fingers closed: nothing can lift them"),
+    ("stack", dict(actuated_gripper=False), "stack's goals need its objects lifted (one "
+     "block stacked on the other), and actuated_gripper=False"),
+])
+def test_an_object_the_hand_could_never_start_clear_of_or_lift_is_refused(task, options,
+                                                                          message):
+    """Each was taken without a word: push's 1 m block, starting inside the hand, was thrown
+    to z = 19.96 m within 10 steps, no divergence flagged; pick-and-place's 12 cm block
+    could never be grasped, nor any block by locked fingers."""
+    with pytest.raises(ValueError, match=re.escape(message)):
+        franka_composer.load(task, **options)
+
+
+def test_objects_just_inside_the_bounds_start_at_rest_and_are_lifted():
+    """The bounds are the hand's: a 17.9 cm block (1 cm below the fingertips) rests where
+    it starts, a tall one away from the hand is taken, and the expert lifts a 7.9 cm block
+    to every goal, as the open fingers (8 cm) let it; goals on the floor need no grasp."""
+    from franka_composer.datasets import rollout
+    from franka_composer.policies import make_expert
+
+    env = franka_composer.load("push", block_half_size=0.0895, seed=0)
+    start = env.reset().observation["block/position"].copy()
+    for _ in range(10):
+        timestep = env.step(np.zeros(3))
+    assert start[2] == pytest.approx(0.0895, abs=1e-4)
+    assert np.abs(timestep.observation["block/position"] - start).max() < 1e-3
+    franka_composer.load("push", block_half_size=0.12, object_centre=(0.3, 0.4),
+                         object_range=(0.05, 0.05))
+    franka_composer.load("pick_and_place", actuated_gripper=False, goal_in_air_probability=0)
+    franka_composer.load("flip", block_half_size=0.05)  # Tipped by pushes, never lifted.
+    env = gym.make("FrankaPickAndPlaceSparse-v0", block_half_size=0.0395)
+    assert rollout(env, make_expert(env), 5, seed=0).success_rate == 1.0
+
+
 def test_the_object_box_check_simulates_the_placement_episodes_use():
     """The boundary: two 5.66 cm footprints 1 cm apart need 6.66 cm between centres. A box
     along x as long as that places them only at its two ends: refused; twice as long

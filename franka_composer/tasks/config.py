@@ -24,10 +24,11 @@ from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
                                                   WELD_TIME_CONSTANT)
 from franka_composer.entities import Block, Prop, Puck
 from franka_composer.entities.props import MIN_MASS
-from franka_composer.entities.panda import NEUTRAL_ARM_QPOS
+from franka_composer.entities.panda import MAX_FINGER_WIDTH, NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.randomization.parameters import unread_parameter
 from franka_composer.randomization.settings import from_a_preset
+from franka_composer.tasks.clearance import check_clearance
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -120,6 +121,19 @@ class BlockSpec:
         """The radius (m) of the circle its upright footprint fits in."""
         return float(np.hypot(self.half_size, self.half_size))
 
+    @property
+    def height(self) -> float:
+        return 2 * self.half_size
+
+    @property
+    def grasp_width(self) -> float:
+        """How far (m) the fingers must open to close on it, as it starts (square to them)."""
+        return 2 * self.half_size
+
+    @property
+    def size_options(self) -> str:
+        return f"block_half_size={self.half_size:g}"
+
     def make(self) -> Prop:
         return Block(half_size=self.half_size, mass=self.mass, friction=self.friction,
                      name=self.entity_name, rgba=self.rgba,
@@ -142,6 +156,19 @@ class PuckSpec:
     def footprint_radius(self) -> float:
         """The radius (m) of the circle its upright footprint fits in."""
         return self.radius
+
+    @property
+    def height(self) -> float:
+        return 2 * self.half_height
+
+    @property
+    def grasp_width(self) -> float:
+        """How far (m) the fingers must open to close on it."""
+        return 2 * self.radius
+
+    @property
+    def size_options(self) -> str:
+        return f"puck_radius={self.radius:g}, puck_half_height={self.half_height:g}"
 
     def make(self) -> Prop:
         return Puck(radius=self.radius, half_height=self.half_height, mass=self.mass,
@@ -334,7 +361,8 @@ class TaskConfig:
     def check(self) -> None:
         """Checks what no single option can: the timestep ratio, a whole number of physics
         steps (to within Composer's own 1e-6 of a step, which it checks again) that MuJoCo's
-        step count (a C int) holds."""
+        step count (a C int) holds; room to place the objects apart; objects that start
+        clear of the hand and can be grasped where goals need them lifted (`clearance`)."""
         substeps = self.control_timestep / self.physics.timestep
         if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
@@ -355,6 +383,29 @@ class TaskConfig:
                              f"them; of {CHECKED_PLACEMENTS} simulated starts, one found no "
                              f"room in {MAX_ATTEMPTS} draws): give a wider object_range or "
                              "smaller objects")
+        check_clearance(self)
+
+    @property
+    def initial_finger_width(self) -> float:
+        """The fingers' opening (m) at reset: open where the gripper is actuated, closed
+        where it is locked."""
+        return MAX_FINGER_WIDTH if self.control.actuated_gripper else 0.0
+
+    @property
+    def lifts_objects(self) -> bool:
+        """Whether goals need an object lifted: stacked, or lifted into the air."""
+        return bool(self.objects) and (self.goal == "stacked" or (
+            self.goal in LIFTED_GOALS and self.workspace.goal_max_height > 0
+            and self.workspace.goal_in_air_probability > 0))
+
+    @property
+    def lifting_goals(self) -> str:
+        """What in the goals needs an object lifted (where `lifts_objects`), for errors."""
+        if self.goal == "stacked":
+            return "one block stacked on the other"
+        workspace = self.workspace
+        return (f"goals up to {workspace.goal_max_height:g} m in the air "
+                f"{workspace.goal_in_air_probability:.0%} of the time")
 
     @property
     def time_limit(self) -> float:

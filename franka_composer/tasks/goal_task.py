@@ -16,7 +16,7 @@ from dm_control.mujoco import wrapper
 from franka_composer.arenas import FloorArena
 from franka_composer.controllers import Controller, make_controller
 from franka_composer.entities import Panda, Prop
-from franka_composer.entities.panda import COLLISION_GROUP, MAX_FINGER_WIDTH, VISUAL_GROUP
+from franka_composer.entities.panda import COLLISION_GROUP, VISUAL_GROUP
 from franka_composer.randomization import Randomizer
 from franka_composer.randomization.parameters import noise_parameter
 from franka_composer.tasks import rewards
@@ -44,9 +44,7 @@ class GoalTask(composer.Task):
         self._arena, self._panda, self._props = arena, panda, list(props)
         self._config = config
         self._neutral_arm_qpos = np.asarray(config.neutral_arm_qpos, dtype=np.float64)
-        # The hand starts open when it can grasp, closed when it is locked.
-        self._initial_finger_width = (MAX_FINGER_WIDTH if config.control.actuated_gripper
-                                      else 0.0)
+        self._initial_finger_width = config.initial_finger_width
         # Goal distance at the end of the last step or reset: computed once per step
         # (`after_step`) for the reward, the discount, termination and the adapter's success.
         self._distance = np.float64(np.inf)
