@@ -47,6 +47,17 @@ def _copy(source, destination):
     return destination
 
 
+def _undigested_copy(rlds, destination):
+    """A copy of the RLDS dataset `rlds` without the file digests `record` adds, as
+    envlogger logs one itself: its damage is for envlogger's reader to find."""
+    import shutil
+
+    from franka_composer.datasets.rlds_format import DIGESTS_FILE
+
+    shutil.copytree(rlds, destination)
+    (destination / DIGESTS_FILE).unlink()
+
+
 def _refused(path, env, message):
     with pytest.raises(ValueError, match=re.escape(message)) as error:
         demos.load_episodes(path, env)
@@ -288,8 +299,6 @@ def test_an_npz_from_before_metadata_is_refused_saying_how_to_record_it_again(re
 
 def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env, tmp_path,
                                                               capfd):
-    import shutil
-
     for name, files, message in (
             # What envlogger reads as no episodes at all: it said so, and training went on.
             # Its step index emptied, envlogger logs the error naming it (printed, under a
@@ -300,7 +309,7 @@ def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env
             ("cut-steps", "*/steps.riegeli", "is not a readable RLDS dataset (damaged?): "
                                              "envlogger says TypeError")):
         path = tmp_path / name
-        shutil.copytree(recorded / "rlds", path)
+        _undigested_copy(recorded / "rlds", path)
         for damaged in path.glob(files):
             damaged.write_bytes(damaged.read_bytes()[:40 if name.startswith("cut") else 0])
         said = _refused(path, push_env, message)
@@ -320,16 +329,57 @@ def test_a_damaged_rlds_dataset_is_an_error_not_zero_episodes(recorded, push_env
             ("episode_index.riegeli", ": episode 0 is not whole (a FIRST step, then steps, "
                                       "then a LAST one")):
         path = tmp_path / index_file
-        shutil.copytree(recorded / "rlds", path)
+        _undigested_copy(recorded / "rlds", path)
         for damaged in path.glob(f"*/{index_file}"):
             damaged.write_bytes(damaged.read_bytes()[:len(damaged.read_bytes()) * 9 // 10])
         with pytest.raises(ValueError, match=f"^{re.escape(str(path) + message)}"):
             demos.load_episodes(path, push_env)
     garbage = tmp_path / "garbage"
-    shutil.copytree(recorded / "rlds", garbage)
+    _undigested_copy(recorded / "rlds", garbage)
     (garbage / "metadata.riegeli").write_bytes(b"garbage" * 10)
     _refused(garbage, push_env, "is not a readable RLDS dataset (damaged?): envlogger says "
                                 "RuntimeError: INTERNAL: Failed to parse riegeli record")
+
+
+def test_a_changed_or_missing_rlds_file_is_refused_by_name(recorded, push_env, tmp_path):
+    """envlogger's reader refused a changed byte as whatever it met next: "TypeError:
+    expected bytes, NoneType found" for one in the steps, "Empty steps" for one in the step
+    offsets, no episodes at all for one in the episode index; never naming the file."""
+    import shutil
+
+    from franka_composer.datasets.rlds_format import DIGESTS_FILE
+
+    files = sorted(path.relative_to(recorded / "rlds")
+                   for path in (recorded / "rlds").rglob("*.riegeli"))
+    assert [file.name for file in files] == [
+        "episode_index.riegeli", "episode_metadata.riegeli", "step_offsets.riegeli",
+        "steps.riegeli", "metadata.riegeli"]
+    for index, file in enumerate(files):
+        path = tmp_path / f"changed-{index}"
+        shutil.copytree(recorded / "rlds", path)
+        raw = bytearray((path / file).read_bytes())
+        raw[len(raw) // 3] ^= 0x10
+        (path / file).write_bytes(bytes(raw))
+        _refused(path, push_env, f"{path / file} is not what was recorded: its SHA-256 "
+                                 f"differs from the one {DIGESTS_FILE} keeps")
+    with pytest.raises(ValueError, match=re.escape(f"{path / file} is not what was")):
+        main(["train", "--task", "push", "--demos", str(path), "--out", str(tmp_path / "run")])
+    assert not (tmp_path / "run").exists()
+    missing = tmp_path / "missing"
+    shutil.copytree(recorded / "rlds", missing)
+    (missing / files[0]).unlink()
+    _refused(missing, push_env, f"{missing / files[0]} is missing: {DIGESTS_FILE} lists it")
+    added = tmp_path / "added"  # A second recording's shard, copied in: more episodes.
+    shutil.copytree(recorded / "rlds", added)
+    shutil.copytree(added / files[0].parent, added / "20990101T000000000000")
+    _refused(added, push_env, f"{added / '20990101T000000000000' / files[0].name} was not "
+                              f"part of the recording ({DIGESTS_FILE} does not list it)")
+    listing = tmp_path / "listing"
+    shutil.copytree(recorded / "rlds", listing)
+    (listing / DIGESTS_FILE).write_text("[1, 2]")
+    _refused(listing, push_env, f"{listing / DIGESTS_FILE} is damaged (not a mapping of file "
+                                "names to digests)")
+    assert len(demos.load_episodes(recorded / "rlds", push_env)) == 2
 
 
 def test_an_unreadable_rlds_dataset_says_so_once(recorded, tmp_path, monkeypatch):
@@ -337,7 +387,6 @@ def test_an_unreadable_rlds_dataset_says_so_once(recorded, tmp_path, monkeypatch
     again when collected ("Exception ignored in: Reader.__del__ ... no attribute
     '_backend'") after the error."""
     import gc
-    import shutil
     import sys
 
     from franka_composer.datasets import rlds_format
@@ -345,7 +394,7 @@ def test_an_unreadable_rlds_dataset_says_so_once(recorded, tmp_path, monkeypatch
     ignored = []
     monkeypatch.setattr(sys, "unraisablehook", ignored.append)
     emptied = tmp_path / "emptied"
-    shutil.copytree(recorded / "rlds", emptied)
+    _undigested_copy(recorded / "rlds", emptied)
     (emptied / "metadata.riegeli").write_bytes(b"")
     with pytest.raises(ValueError, match="is not a readable RLDS dataset"):
         rlds_format.read(emptied)
@@ -675,8 +724,6 @@ def test_rlds_episodes_without_their_seed_are_refused_by_name(recorded, push_env
     """Episode metadata cut short or flipped (envlogger reads None), or a dataset logged
     by envlogger around `load` as acme logs (no episode metadata): a TypeError from deep in
     the reader, by `read` and by `train --demos`."""
-    import shutil
-
     import franka_composer
     from franka_composer.datasets import rlds_format
 
@@ -686,7 +733,7 @@ def test_rlds_episodes_without_their_seed_are_refused_by_name(recorded, push_env
                       ("flipped", lambda raw: raw[:len(raw) // 2] + bytes(
                           [raw[len(raw) // 2] ^ 0xFF]) + raw[len(raw) // 2 + 1:])):
         path = tmp_path / name
-        shutil.copytree(recorded / "rlds", path)
+        _undigested_copy(recorded / "rlds", path)
         (damaged,) = path.glob("*/episode_metadata.riegeli")
         damaged.write_bytes(cut(damaged.read_bytes()))
         _refused(path, push_env, ": episode 0 has no seed in its episode metadata (found "

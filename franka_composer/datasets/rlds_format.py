@@ -16,6 +16,8 @@ extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unic
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import os
 import pathlib
@@ -23,6 +25,7 @@ import pathlib
 import numpy as np
 
 from franka_composer import seeding
+from franka_composer.atomic_files import replace_atomically
 from franka_composer.datasets.folders import removed_if_it_fails
 from franka_composer.environment import ended_by_divergence
 from franka_composer.episodes import check_not_diverged
@@ -55,7 +58,8 @@ def import_envlogger():
 def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: dict) -> dict:
     """Records `episodes` episodes of `policy` (acting on goal observations) in the Composer
     environment under the Gymnasium `env`, episode i reset with seed + i and run to its
-    LAST step, into the RLDS directory `root`; returns its size and success rate."""
+    LAST step, into the RLDS directory `root`, with its files' digests (`add_digests`);
+    returns its size and success rate."""
     envlogger = import_envlogger()
     adapter = env.unwrapped
     composer_env, task = adapter.composer_env, adapter.task
@@ -68,29 +72,87 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     steps = successes = 0
     # A recording cut short is no dataset: nothing of it is left behind, in a folder it made
     # or in the empty one it was given (`record` takes no other).
-    with removed_if_it_fails(root), envlogger.EnvLogger(
-            composer_env, data_directory=str(root), metadata=metadata,
-            episode_fn=lambda timestep, action, env: dict(episode)) as logged:
-        for index in range(episodes):
-            episode["seed"] = seed + index
-            if hasattr(policy, "reset"):
-                policy.reset()
-            seeding.reseed(composer_env.random_state, seed + index)  # As reset(seed=...).
-            timestep = logged.reset()
-            while not timestep.last():
-                timestep = logged.step(
-                    policy(adapter.goal_observation(timestep.observation)))
-                steps += 1
-            if ended_by_divergence(timestep, task):
-                check_not_diverged([index])
-            successes += bool(task.success)
+    with removed_if_it_fails(root):
+        with envlogger.EnvLogger(
+                composer_env, data_directory=str(root), metadata=metadata,
+                episode_fn=lambda timestep, action, env: dict(episode)) as logged:
+            for index in range(episodes):
+                episode["seed"] = seed + index
+                if hasattr(policy, "reset"):
+                    policy.reset()
+                seeding.reseed(composer_env.random_state, seed + index)  # As reset(seed=...).
+                timestep = logged.reset()
+                while not timestep.last():
+                    timestep = logged.step(
+                        policy(adapter.goal_observation(timestep.observation)))
+                    steps += 1
+                if ended_by_divergence(timestep, task):
+                    check_not_diverged([index])
+                successes += bool(task.success)
+        add_digests(root)  # Of its files as closed.
     return {"episodes": episodes, "steps": steps, "success_rate": successes / episodes}
+
+
+#: The file beside an RLDS dataset's own that `write` keeps the SHA-256 of each of them in.
+#: A changed byte was refused by envlogger's riegeli reader, but as whatever it met next,
+#: never naming the file ("TypeError: expected bytes, NoneType found"; one in an episode
+#: index read as no episodes at all).
+DIGESTS_FILE = "franka_composer_sha256.json"
+
+
+def add_digests(root: pathlib.Path) -> None:
+    """Writes `DIGESTS_FILE` in `root`: every file of the dataset by its path there, with
+    its SHA-256."""
+    digests = {str(path.relative_to(root)): _file_digest(path)
+               for path in sorted(root.rglob("*.riegeli"))}
+    replace_atomically(root / DIGESTS_FILE,
+                       lambda partial: partial.write_text(json.dumps(digests, indent=1)))
+
+
+def check_digests(root: pathlib.Path) -> None:
+    """A ValueError naming the first file of the dataset under `root` that is not what
+    `write` recorded: changed, missing, or a riegeli file it did not write. A dataset
+    without `DIGESTS_FILE` passes (logged by envlogger itself, or by a version that wrote
+    none)."""
+    listing = root / DIGESTS_FILE
+    if not listing.is_file():
+        return
+    try:
+        digests = json.loads(listing.read_text())
+        if not (isinstance(digests, dict) and all(isinstance(v, str) for v in digests.values())):
+            raise ValueError("not a mapping of file names to digests")
+    except (ValueError, UnicodeDecodeError) as error:
+        raise ValueError(f"{listing} is damaged ({error}): it should list the SHA-256 of "
+                         "each file of the dataset") from None
+    for name, digest in digests.items():
+        path = root / name
+        if not path.is_file():
+            raise ValueError(f"{path} is missing: {DIGESTS_FILE} lists it as part of the "
+                             "dataset (damaged, or not copied whole?)")
+        if _file_digest(path) != digest:
+            raise ValueError(f"{path} is not what was recorded: its SHA-256 differs from "
+                             f"the one {DIGESTS_FILE} keeps (damaged or edited since?): "
+                             "record the dataset again")
+    for path in sorted(root.rglob("*.riegeli")):
+        if str(path.relative_to(root)) not in digests:
+            raise ValueError(f"{path} was not part of the recording ({DIGESTS_FILE} does "
+                             "not list it): envlogger would read its episodes as the "
+                             "dataset's")
+
+
+def _file_digest(path: pathlib.Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as file:
+        for block in iter(lambda: file.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def read(root: pathlib.Path) -> dict:
     """The dataset under `root`: its metadata, and per episode its seed, observations (the
     reset's first), actions, rewards and whether it ended on the goal (`terminated`: its
-    LAST step's discount is 0) rather than at the time limit (discount 1). A dataset
+    LAST step's discount is 0) rather than at the time limit (discount 1). A file that is
+    not what `write` recorded (`check_digests`) is a ValueError naming it; a dataset
     envlogger cannot read, that holds no episodes (its step files emptied or cut short
     read as none), or an episode that is not one FIRST step, MID steps and one LAST step
     (its index files cut short join or split episodes), is a ValueError naming `root`."""
@@ -100,6 +162,7 @@ def read(root: pathlib.Path) -> dict:
     if not pathlib.Path(root).is_dir():
         raise ValueError(f"{root} does not exist" if not pathlib.Path(root).exists()
                          else f"{root} is a file, and an RLDS dataset is a folder")
+    check_digests(pathlib.Path(root))
     logged = _LoggedErrors()
     absl_logger = logging.getLogger("absl")
     absl_logger.addFilter(logged)
