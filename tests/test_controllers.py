@@ -56,12 +56,15 @@ def test_bad_controls_and_actions_are_refused_clearly():
     with pytest.raises(ValueError, match="scripted experts act on dx, dy, dz, which the "
                                          "joints controller does not take"):
         make_expert(gym.make("FrankaPushJointsSparse-v1"))
-    # Its actions were of the wrong length, a broadcast error at the first step.
-    for id_, actuated in (("FrankaPushSparse-v0", True), ("FrankaPickAndPlaceSparse-v0", False)):
+    # Its actions were of the wrong length, a broadcast error at the first step. (Locked
+    # fingers on pick-and-place: with its goals on the floor, none needing a grasp.)
+    for id_, actuated, options in (
+            ("FrankaPushSparse-v0", True, {}),
+            ("FrankaPickAndPlaceSparse-v0", False, dict(goal_in_air_probability=0.0))):
         with pytest.raises(ValueError, match=re.escape(
                 f"expert acts with the gripper {'locked' if actuated else 'actuated'}, as the "
                 f"task defines it, and this env has actuated_gripper={actuated}")):
-            make_expert(gym.make(id_, actuated_gripper=actuated))
+            make_expert(gym.make(id_, actuated_gripper=actuated, **options))
 
 
 def test_osc_motors_have_the_real_panda_torque_limits():

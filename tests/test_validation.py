@@ -133,12 +133,19 @@ def test_an_object_box_too_small_for_its_objects_is_refused_when_made(options):
      "actuated_gripper=False holds the fingers closed: nothing can lift them"),
     ("stack", dict(actuated_gripper=False), "stack's goals need its objects lifted (one "
      "block stacked on the other), and actuated_gripper=False"),
+    ("push", dict(goal_max_height=0.2, goal_in_air_probability=0.5), "push's goals need "
+     "its objects lifted (goals up to 0.2 m in the air 50% of the time), and "
+     "actuated_gripper=False"),
+    ("reach", dict(neutral_arm_qpos=(0.0, 1.3, 0.0, -1.0, 0.0, 2.26, 0.79)),
+     "neutral_arm_qpos puts the hand 0.0803 m into the floor (its lowest point at z = "
+     "-0.0803 m): give a pose with the hand above it"),
 ])
 def test_an_object_the_hand_could_never_start_clear_of_or_lift_is_refused(task, options,
                                                                           message):
     """Each was taken without a word: push's 1 m block, starting inside the hand, was thrown
     to z = 19.96 m within 10 steps, no divergence flagged; pick-and-place's 12 cm block
-    could never be grasped, nor any block by locked fingers."""
+    could never be grasped, nor any block by locked fingers; a hand starting in the floor
+    was reported there at reset and thrown out of it by the first step."""
     with pytest.raises(ValueError, match=re.escape(message)):
         franka_composer.load(task, **options)
 
@@ -200,7 +207,8 @@ def test_a_box_that_just_passes_resets_without_composer_logging_errors(caplog):
 
 @pytest.mark.parametrize("env_id, options", [
     ("FrankaPushSparse-v0", dict(max_finger_step=0.1, actuated_gripper=True)),
-    ("FrankaPushSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5)),
+    ("FrankaPushSparse-v0", dict(goal_max_height=0.2, goal_in_air_probability=0.5,
+                                 actuated_gripper=True)),  # (Locked fingers lift nothing.)
     ("FrankaPickAndPlaceSparse-v0", dict(goal_in_air_probability=0.0, max_finger_step=0.1)),
     ("FrankaReachJointsSparse-v1", dict(max_joint_step=0.1, goal_max_height=0.1)),
     ("FrankaPushOscSparse-v0", dict(timing="reference")),  # Its weld: unread by design.

@@ -20,6 +20,5 @@ def build_task(config: TaskConfig, *, renderable: bool | None = True) -> GoalTas
                          "camera observations: renderable=False leaves them out")
     panda = Panda(visual_meshes=renderable,
                   arm_actuation=CONTROLLERS[config.control.kind].ARM_ACTUATION)
-    panda.check_arm_qpos("neutral_arm_qpos", config.neutral_arm_qpos)
     return GoalTask(FloorArena(friction=config.floor_friction), panda,
                     [spec.make() for spec in config.objects], config)

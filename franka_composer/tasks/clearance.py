@@ -6,7 +6,8 @@ block starting inside the hand is thrown out by the contact solver (push with
 `block_half_size=0.5` sent it to z = 19.96 m within 10 steps, no divergence flagged), and
 a block wider than the open hand (`block_half_size=0.06` on pick-and-place) can never be
 lifted. Both are refused as the options are set (`TaskConfig.check`), with the size that
-fits.
+fits; so is a neutral pose that puts the hand into the floor (reported there at reset, and
+thrown out of it by the first step).
 """
 
 from __future__ import annotations
@@ -26,14 +27,20 @@ HAND_CLEARANCE = 0.01
 def check_clearance(config) -> None:
     """A ValueError unless every object of `config` (a `TaskConfig`) starts, anywhere in its
     square, `HAND_CLEARANCE` below the hand and fingers at the neutral pose, and unless
-    objects that the goals need lifted fit between the open fingers."""
+    objects that the goals need lifted fit between the open fingers; and unless the hand
+    starts above the floor."""
+    boxes = hand_boxes(tuple(map(float, config.neutral_arm_qpos)),
+                       float(config.initial_finger_width))
+    lowest = min(z for _, _, z in boxes)
+    if lowest < 0:
+        raise ValueError(f"neutral_arm_qpos puts the hand {-lowest:.3g} m into the floor (its "
+                         f"lowest point at z = {lowest:.3g} m): give a pose with the hand "
+                         "above it")
     if not config.objects:
         return
     if config.lifts_objects:
         _check_graspable(config)
     box = config.workspace.object_box
-    boxes = hand_boxes(tuple(map(float, config.neutral_arm_qpos)),
-                       float(config.initial_finger_width))
     for spec in config.objects:
         low, high = box.low - spec.footprint_radius, box.high + spec.footprint_radius
         above = [z for (xy_low, xy_high, z) in boxes
@@ -68,8 +75,10 @@ def _check_graspable(config) -> None:
 def hand_boxes(arm_qpos: tuple, finger_width: float) -> tuple:
     """(low xy, high xy, lowest z) of each geom of the Panda that touches objects (the hand
     and fingers), as world-aligned boxes around it, with the arm at `arm_qpos` and the
-    fingers `finger_width` apart. Compiles a bare Panda (~40 ms), once per pose."""
+    fingers `finger_width` apart (an angle outside its joint's range a ValueError naming
+    it). Compiles a bare Panda (~40 ms), once per pose."""
     panda = Panda(visual_meshes=False)
+    panda.check_arm_qpos("neutral_arm_qpos", arm_qpos)
     physics = mjcf.Physics.from_mjcf_model(panda.mjcf_model)
     panda.configure_joints(physics, arm_qpos, finger_width)
     physics.forward()
