@@ -15,6 +15,7 @@ import threading
 import weakref
 
 from franka_composer import headless_gl
+from franka_composer.signals import held
 
 # environment -> (process id, thread) of the thread that renders it.
 _OWNERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -43,6 +44,11 @@ def claim(environment) -> None:
         # from another thread, dm_control printed EGL errors, in collection and at exit).
         _FINALIZERS[environment] = weakref.finalize(
             environment, _set_aside_elsewhere, environment.physics, os.getpid(), here)
+        # Made whole or not begun: Ctrl-C while dm_control made them left a context without
+        # its pointer, and a stopped demo printed "Exception ignored in MjrContext.__del__"
+        # after its own message.
+        with held():
+            environment.physics.contexts  # noqa: B018 (Makes them.)
     elif owner[1] is not here:
         raise RenderThreadError(
             f"this environment renders on thread {owner[1].name!r}, which rendered it first "
