@@ -361,8 +361,9 @@ class TaskConfig:
     def check(self) -> None:
         """Checks what no single option can: the timestep ratio, a whole number of physics
         steps (to within Composer's own 1e-6 of a step, which it checks again) that MuJoCo's
-        step count (a C int) holds; room to place the objects apart; objects that start
-        clear of the hand and can be grasped where goals need them lifted (`clearance`)."""
+        step count (a C int) holds; room to place the objects apart; a neutral pose within
+        the joints' ranges with the hand above the floor, objects that start clear of the
+        hand, and that can be grasped where goals need them lifted (`clearance`)."""
         substeps = self.control_timestep / self.physics.timestep
         if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
