@@ -120,13 +120,16 @@ def test_an_object_box_too_small_for_its_objects_is_refused_when_made(options):
 @pytest.mark.parametrize("task, options, message", [
     ("push", dict(block_half_size=0.5), "push's block is 1 m tall (block_half_size=0.5), and "
      "where it can start the hand's lowest point is 0.189 m above the floor at the neutral "
-     "pose: it would start inside the hand. Give an object under 0.179 m tall"),
+     "pose: it would start inside the hand. Give a block_half_size under 0.08958 (0.01 m "
+     "clear of the hand), or an object_centre/object_range away from the hand"),
     ("push", dict(block_half_size=0.09), "push's block is 0.18 m tall"),
-    ("slide", dict(puck_half_height=0.1), "slide's puck is 0.2 m tall (puck_radius=0.03, "
-     "puck_half_height=0.1)"),
+    ("slide", dict(puck_half_height=0.1), "slide's puck is 0.2 m tall (puck_half_height=0.1), "
+     "and where it can start the hand's lowest point is 0.189 m above the floor at the "
+     "neutral pose: it would start inside the hand. Give a puck_half_height under 0.08958"),
     ("pick_and_place", dict(block_half_size=0.04), "pick_and_place's block is 0.08 m across "
      "(block_half_size=0.04), and the open hand is 0.08 m wide: it cannot be grasped, and its "
-     "goals need it lifted (goals up to 0.2 m in the air 70% of the time)"),
+     "goals need it lifted (goals up to 0.2 m in the air 70% of the time). Give a "
+     "block_half_size under 0.04"),
     ("stack", dict(block_half_size=0.045), "stack's block1 is 0.09 m across"),
     ("pick_and_place", dict(actuated_gripper=False), "pick_and_place's goals need its "
      "objects lifted (goals up to 0.2 m in the air 70% of the time), and "

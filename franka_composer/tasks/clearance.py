@@ -49,10 +49,11 @@ def check_clearance(config) -> None:
             room = min(above) - HAND_CLEARANCE
             raise ValueError(
                 f"{config.name}'s {spec.entity_name} is {spec.height:.3g} m tall "
-                f"({spec.size_options}), and where it can start the hand's lowest point is "
-                f"{min(above):.3g} m above the floor at the neutral pose: it would start "
-                f"inside the hand. Give an object under {room:.3g} m tall ({HAND_CLEARANCE} "
-                "m clear of the hand), or an object_centre/object_range away from the hand")
+                f"({spec.height_option}={spec.height / 2:g}), and where it can start the "
+                f"hand's lowest point is {min(above):.3g} m above the floor at the neutral "
+                f"pose: it would start inside the hand. Give a {spec.height_option} under "
+                f"{room / 2:.4g} ({HAND_CLEARANCE} m clear of the hand), or an "
+                "object_centre/object_range away from the hand")
 
 
 def _check_graspable(config) -> None:
@@ -65,10 +66,10 @@ def _check_graspable(config) -> None:
         if spec.grasp_width >= MAX_FINGER_WIDTH:
             raise ValueError(
                 f"{config.name}'s {spec.entity_name} is {spec.grasp_width:.3g} m across "
-                f"({spec.size_options}), and the open hand is {MAX_FINGER_WIDTH} m wide: "
-                f"it cannot be grasped, and its goals need it lifted "
-                f"({config.lifting_goals}). Give an object under {MAX_FINGER_WIDTH} m "
-                "across")
+                f"({spec.grasp_option}={spec.grasp_width / 2:g}), and the open hand is "
+                f"{MAX_FINGER_WIDTH} m wide: it cannot be grasped, and its goals need it "
+                f"lifted ({config.lifting_goals}). Give a {spec.grasp_option} under "
+                f"{MAX_FINGER_WIDTH / 2:g}")
 
 
 @functools.lru_cache(maxsize=16)

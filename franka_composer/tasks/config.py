@@ -121,6 +121,9 @@ class BlockSpec:
         """The radius (m) of the circle its upright footprint fits in."""
         return float(np.hypot(self.half_size, self.half_size))
 
+    #: The options that set half its height and half its width across the grasp.
+    height_option = grasp_option = "block_half_size"
+
     @property
     def height(self) -> float:
         return 2 * self.half_size
@@ -129,10 +132,6 @@ class BlockSpec:
     def grasp_width(self) -> float:
         """How far (m) the fingers must open to close on it, as it starts (square to them)."""
         return 2 * self.half_size
-
-    @property
-    def size_options(self) -> str:
-        return f"block_half_size={self.half_size:g}"
 
     def make(self) -> Prop:
         return Block(half_size=self.half_size, mass=self.mass, friction=self.friction,
@@ -157,6 +156,9 @@ class PuckSpec:
         """The radius (m) of the circle its upright footprint fits in."""
         return self.radius
 
+    #: The options that set half its height and half its width across the grasp.
+    height_option, grasp_option = "puck_half_height", "puck_radius"
+
     @property
     def height(self) -> float:
         return 2 * self.half_height
@@ -165,10 +167,6 @@ class PuckSpec:
     def grasp_width(self) -> float:
         """How far (m) the fingers must open to close on it."""
         return 2 * self.radius
-
-    @property
-    def size_options(self) -> str:
-        return f"puck_radius={self.radius:g}, puck_half_height={self.half_height:g}"
 
     def make(self) -> Prop:
         return Puck(radius=self.radius, half_height=self.half_height, mass=self.mass,
