@@ -220,6 +220,8 @@ def test_ctrl_c_while_the_gl_contexts_are_made_waits_until_they_are_whole():
         from dm_control.mujoco.wrapper import core
         import franka_composer
 
+        # As at a terminal: a job started in the background (CI's) ignores SIGINT.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         made = core.MjrContext.__init__
 
         def interrupted(context, *args, **kwargs):
