@@ -119,7 +119,8 @@ def check_digests(root: pathlib.Path) -> None:
         return
     try:
         digests = json.loads(listing.read_text())
-        if not (isinstance(digests, dict) and all(isinstance(v, str) for v in digests.values())):
+        if not (isinstance(digests, dict)
+                and all(isinstance(digest, str) for digest in digests.values())):
             raise ValueError("not a mapping of file names to digests")
     except (ValueError, UnicodeDecodeError) as error:
         raise ValueError(f"{listing} is damaged ({error}): it should list the SHA-256 of "
