@@ -109,7 +109,7 @@ def test_a_full_action_lands_at_rest_only_at_the_reference_timing(timing):
         assert hand_tilt_degrees(env) < 0.05  # Measured 0.005.
     else:
         # The same page: 4.73 cm, still moving at 1.08 cm per step, the fingers at 13.9 mm,
-        # the hand within 0.6°.
+        # the hand within 0.6° (this step is along x; 0.9° bounds every direction).
         assert moved == pytest.approx(0.0473, abs=1e-4)
         assert velocity[0] == pytest.approx(0.0108, abs=1e-4)
         assert width == pytest.approx(0.0139, abs=1e-4)

@@ -19,7 +19,7 @@ from franka_composer.controllers.base import Controller, TcpTargetLaw
 # hand pressing an object onto the floor was 100x stiffer than MuJoCo's default contacts
 # and crushed them (objects 3-5 cm into the floor, then launched). In free space, though, a
 # fraction 1 - d of the arm's own passive acceleration leaks past the weld: measured tilt of
-# the hand after one full step 5.2 deg at d = 0.1, 3.3 at 0.5, 0.6 at 0.9, 0.14 at 0.99.
+# the hand after one full step along x 5.2 deg at d = 0.1, 3.3 at 0.5, 0.6 at 0.9, 0.14 at 0.99.
 # 0.9 keeps the hand top-down and tracking (94 % of a full step), and makes a blocked weld
 # 10x softer than before, while the contacts (`contacts.py`) are stiffer still; how deep the
 # target may go into a surface, hence the force, is bounded by `SurfaceGuard`.

@@ -24,6 +24,6 @@ STACK = TaskConfig(
         "of the hand for the surface guard, not a surface beneath it: v0's rays from the "
         "fingertips met the underside of a block held low in the grip, and a full downward "
         "command carrying it moved the hand 2.5-3.3 mm a step, not 47 mm "
-        "(`guard_ignores_carried`; the expert 96 -> 99 of 100 episodes). "
+        "(`guard_ignores_carried`; the expert 99 -> 100 of 100 episodes). "
         "gym.make(id, guard_ignores_carried=False) gives v0's guard.",),
 )
