@@ -58,10 +58,13 @@ def test_the_benchmark_refuses_an_out_it_cannot_write_before_measuring(tmp_path,
     """It measured everything, then failed to write (a folder, a path under a file)."""
     bench = load_script(BENCHMARKS / "bench.py")
     (tmp_path / "file").write_text("")
-    for out in (tmp_path, tmp_path / "file" / "r.json"):
+    under_a_file = tmp_path / "file" / "r.json"
+    for out, refusal in [(tmp_path, f"must be a file, got the folder '{tmp_path}'"),
+                         (under_a_file, f"cannot write to {under_a_file}: "
+                                        f"{tmp_path / 'file'} is not a folder")]:
         with pytest.raises(SystemExit):
             bench.build_parser().parse_args(["--out", str(out)])
-        assert "argument --out:" in capsys.readouterr().err
+        assert f"argument --out: {refusal}\n" in capsys.readouterr().err
 
 
 def test_the_quick_bench_command_times_each_task(capsys):

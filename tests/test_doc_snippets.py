@@ -88,6 +88,18 @@ def test_the_pages_comments_are_read_as_claims_where_they_can_be():
     assert "AssertionError: ('x[0]', 'gives', 50, 'not', 1.0)" in run.stderr
 
 
+def test_every_python_block_is_marked_as_the_runner_finds_it():
+    """A block marked ```py (or ```python3, ```pycon) would be left out of the run below
+    without a word."""
+    languages = {line.split()[0].removeprefix("```") for page in PAGES
+                 for line in page.read_text().splitlines() if line.startswith("```")}
+    assert "python" in languages
+    assert [language for language in languages if language != "python"
+            and language.lstrip("{i").startswith("py")] == []
+    assert {page.name for page in PAGES_WITH_CODE} >= {"README.md", "index.md",
+                                                       "quickstart.md"}
+
+
 @pytest.mark.parametrize("page", PAGES_WITH_CODE, ids=lambda page: str(page.relative_to(REPO)))
 def test_each_pages_python_runs_as_written_and_gives_what_it_says(page, tmp_path):
     script = checked_script(python_blocks(page))

@@ -96,12 +96,20 @@ def test_links_to_the_repositorys_included_files_go_to_their_pages():
         "results", "changelog", "guide/quickstart"]
 
 
-def test_the_animation_script_takes_the_shared_tasks_syntax():
+def test_the_animation_script_takes_the_shared_tasks_syntax(tmp_path, monkeypatch):
     """Its --tasks is every subcommand's (cli.options): both forms, and a clear refusal."""
     import subprocess
     import sys
 
     script = REPO / "docs" / "_scripts" / "gen_animations.py"
+    animations, animated = _load(script), []
+    monkeypatch.setattr(animations, "OUT", tmp_path)  # (Nothing rendered, nothing written.)
+    monkeypatch.setattr(animations, "episode_frames",
+                        lambda task: animated.append(task) or ([], 0, True))
+    monkeypatch.setattr(animations, "write_animation", lambda frames, gif: gif.touch())
+    for tasks in (["push", "slide"], ["push,slide"]):
+        animated.clear()
+        assert animations.main(["--tasks", *tasks]) == 0 and animated == ["push", "slide"]
     done = subprocess.run([sys.executable, str(script), "--tasks", "push,fly"],
                           capture_output=True, text=True, timeout=120, check=False)
     assert done.returncode == 2

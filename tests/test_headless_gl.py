@@ -106,7 +106,7 @@ def test_a_display_glfw_cannot_open_is_refused_at_the_first_render_naming_it(muj
 
 
 @pytest.mark.parametrize("off", ["disable", "off"])  # Two of dm_control's spellings.
-def test_rendering_with_rendering_turned_off_is_refused_saying_so(off):
+def test_rendering_with_rendering_turned_off_is_refused_saying_so(off, tmp_path):
     """dm_control's "No OpenGL rendering backend is available" came from deep inside, and
     demo printed it as a traceback after making its folder."""
     env = {**os.environ, "MUJOCO_GL": off}
@@ -115,6 +115,7 @@ def test_rendering_with_rendering_turned_off_is_refused_saying_so(off):
                "render_mode=None, observation_mode='state', demo --no-video")
     assert _printed_errors(_RENDER_TWICE, env) == [message, message]
     demo = subprocess.run([sys.executable, "-m", "franka_composer", "demo", "--tasks", "reach",
-                           "--episodes", "1", "--out", "never-made"], env=env,
+                           "--episodes", "1", "--out", "never-made"], env=env, cwd=tmp_path,
                           capture_output=True, text=True, timeout=120, check=False)
     assert (demo.returncode, demo.stderr) == (1, f"franka-composer: error: {message}\n")
+    assert not (tmp_path / "never-made").exists()

@@ -19,6 +19,7 @@ from franka_composer.adapters.registration import env_id
 from franka_composer.controllers import CONTROLS
 from franka_composer.environment import GoalEnvironment
 from franka_composer.randomization import PARAMETERS, PRESETS
+from franka_composer.randomization.parameters import MAX_DELAY
 from conftest import (SPEC, UNBOUNDED_OBSERVATIONS, batches_substeps, env_checker_findings,
                       her_samples)
 
@@ -251,6 +252,9 @@ def test_identity_randomisation_reproduces_the_unrandomised_trajectory_bit_for_b
     ones = {name: 1.0 for name in PHYSICS}
     plain = _rollout(_make("pick_and_place"), seed=2, steps=60)
     identity = _rollout(_make("pick_and_place", randomization=ones), seed=2, steps=60)
+    drawn = identity[0][2]["randomization"]  # The factors were applied, each of them 1.
+    assert set(drawn) == set(PHYSICS) and all(np.all(np.equal(value, 1.0))
+                                              for value in drawn.values())
     for (a, reward_a, _), (b, reward_b, _) in zip(plain, identity):
         for key in a:
             np.testing.assert_array_equal(a[key], b[key])
@@ -543,7 +547,17 @@ def test_a_distribution_that_can_draw_outside_its_parameters_range_is_refused_at
 ])
 def test_a_distribution_bounded_within_its_parameters_range_is_accepted(parameter,
                                                                        distribution):
-    _make(randomization={parameter: distribution}).close()
+    """Taken, and drawn at each reset within the range: a factor above 0, a delay a
+    whole number of steps from 0 to 50."""
+    env = _make(randomization={parameter: distribution})
+    draws = np.concatenate([np.ravel(env.reset(seed=seed)[1]["randomization"][parameter])
+                            for seed in range(20)])
+    env.close()
+    if PARAMETERS[parameter].kind == "steps":
+        assert np.all((draws >= 0) & (draws <= MAX_DELAY) & (draws == np.round(draws)))
+    else:
+        assert np.all(draws > 0) and np.all(np.isfinite(draws))
+    assert np.ptp(draws) > 0  # Drawn anew each episode, not one value.
 
 
 @pytest.mark.parametrize("value, message", [

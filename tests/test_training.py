@@ -131,6 +131,7 @@ def test_a_policy_file_acts_as_the_trained_model_to_the_bit(runs, tmp_path, algo
     full = load_trained(RunDir(runs[algo]), env, device="cpu")
     small = load_trained(RunDir(committed), env, device="cpu")
     assert isinstance(small, ActorPolicy) and small.num_timesteps == full.num_timesteps == 300
+    assert not isinstance(full, ActorPolicy)  # The run's model.zip: two paths compared.
     obs, _ = env.reset(seed=3)
     for _ in range(20):
         action, _ = full.predict(obs, deterministic=True)
@@ -1779,7 +1780,7 @@ def test_the_weld_counts_only_under_mocap_control():
         assert config(ours, 0.02).differing(config(theirs, 0.02)) == {"control": (ours, theirs)}
 
 
-def test_a_run_keeps_the_surface_guard_it_trained_under():
+def test_a_run_keeps_the_surface_guard_it_trained_under(capsys):
     """Stack's v1 guard counts a carried block as part of the hand; a stack run from before
     it (its config.json names no guard setting, as issue 40's kept run) trained under v0's,
     and is remade, labelled and checked as such: played on v1's guard it would act in
@@ -1827,8 +1828,11 @@ def test_a_run_keeps_the_surface_guard_it_trained_under():
                                             "--backend", "sbx", "--guard-ignores-carried",
                                             "FALSE"])
     assert run_config(parsed).differing(older) == {}
+    capsys.readouterr()
     with pytest.raises(SystemExit):
         cli.build_parser().parse_args(["train", "--guard-ignores-carried", "no"])
+    assert ("argument --guard-ignores-carried: must be true or false, got 'no'"
+            in capsys.readouterr().err)
 
 
 @pytest.mark.parametrize("seed", ["-1", "2147483648", "1.5"])

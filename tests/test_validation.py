@@ -219,7 +219,11 @@ def test_a_box_that_just_passes_resets_without_composer_logging_errors(caplog):
     ("FrankaFlipSparse-v1", dict(goal_yaw_range=0.2, object_range=(0.1, 0.1))),
 ])
 def test_options_the_env_reads_are_taken(env_id, options):
-    gym.make(env_id, **options).close()
+    env = gym.make(env_id, **options)
+    config = env.unwrapped.task.config
+    taken = dict(config.options, timing=config.timing_name)  # (A timing sets several.)
+    assert {name: taken[name] for name in options} == options
+    env.close()
 
 
 @pytest.mark.parametrize("option, value, message", [
@@ -407,7 +411,8 @@ def test_a_closed_dm_env_says_so():
     env.close()
     env.close()
     for call in (env.reset, lambda: env.step(np.zeros(3)), lambda: env.physics):
-        with pytest.raises(EnvironmentClosedError, match="closed"):
+        with pytest.raises(EnvironmentClosedError, match=re.escape(
+                "this environment is closed (close() freed its physics): make a new one")):
             call()
 
 
