@@ -1082,17 +1082,52 @@ def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path, signum):
     out = tmp_path / "interrupted"
     command = [sys.executable, "-m", "franka_composer", "train", "--task", "push", "--algo",
                "ddpg", "--seed", "1", "--out", str(out), "--total-steps", "100000", *TINY]
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, text=True, preexec_fn=(
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, preexec_fn=(
         lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)))
     _wait_for_evaluation(out, 200, process, timeout_s=60)
     process.send_signal(getattr(signal, signum))
-    stdout, _ = process.communicate(timeout=60)
+    stdout, stderr = process.communicate(timeout=60)
     assert process.returncode == 130 and "--resume" in stdout
+    # Said at once (after the evaluation under way, if one was: it says so then).
+    assert re.fullmatch(r"stopping at the episode's end, where its checkpoint resumes exactly"
+                        r"( \(first the evaluation under way: 2 episodes at step [\d,]+\))?; "
+                        r"Ctrl-C or SIGTERM again stops at once\n", stderr), stderr
     steps = RunDir(out).read_state()["steps"]
     assert steps >= 200 and RunDir(out).read_state()["exact"]  # At the episode's end.
     assert _train(out, "ddpg", steps + 100, "--resume") == 0
     evaluated = [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)]
     assert evaluated == sorted(set(evaluated)) and evaluated[-1] == steps + 100
+
+
+def test_a_stop_asked_during_an_evaluation_says_at_once_that_it_waits_for_it(
+        tmp_path, monkeypatch, capfd):
+    """A stop waits for the evaluation under way (its row is the exact course's), which with
+    many episodes or long steps takes minutes: nothing showed that the stop was heard, and
+    a run under `timeout` looked hung."""
+    import signal
+
+    from franka_composer.training.callbacks import Evaluation
+
+    log, sent = Evaluation._log_success_callback, []
+
+    def signal_once(self, locals_, globals_):  # Called at each step of an evaluation.
+        if self.num_timesteps >= 200 and not sent:
+            sent.append(self.num_timesteps)
+            signal.raise_signal(signal.SIGTERM)
+        return log(self, locals_, globals_)
+
+    monkeypatch.setattr(Evaluation, "_log_success_callback", signal_once)
+    capfd.readouterr()
+    assert _train(tmp_path / "run", "sac", 400) == 130
+    assert sent == [200] and capfd.readouterr().err == (
+        "stopping at the episode's end, where its checkpoint resumes exactly (first the "
+        "evaluation under way: 2 episodes at step 200); Ctrl-C or SIGTERM again stops at "
+        "once\n")
+    state = RunDir(tmp_path / "run").read_state()
+    assert state["exact"] and 200 <= state["steps"] <= 250  # The episode's end (at 200).
+    assert [r["steps"] for r in read_eval_rows(RunDir(tmp_path / "run").eval_csv)] == [
+        0, 100, 200]
 
 
 @pytest.mark.parametrize("algo, backend", [("tqc", "sbx"), ("sac", "sb3")])

@@ -120,6 +120,16 @@ class Evaluation(EvalCallback):
                          eval_freq=every, log_path=str(run.root),
                          deterministic=True, warn=False, verbose=0)
 
+    #: Whether an evaluation is under way: a stop asked for meanwhile waits for it.
+    evaluating = False
+
+    def _on_step(self) -> bool:
+        self.evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+        try:
+            return super()._on_step()
+        finally:
+            self.evaluating = False
+
     def _on_training_start(self) -> None:
         # SB3 evaluates when its call count is a multiple of eval_freq: count from the
         # run's step, not from this session's start.
