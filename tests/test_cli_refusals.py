@@ -351,8 +351,22 @@ def test_plot_and_report_refuse_a_success_rate_out_of_range(command, written, tm
      "eval.csv, line 2: success_rate must be within [0, 1], got 7.0"),
     (("outcome.json", "{x"), "outcome.json is not a run's outcome: Expecting property name"),
     (("outcome.json", '{"wall_time_s": 2}'), "outcome.json is not a run's outcome: it needs "
-                                             "a whole number of steps and stopped_early true "
-                                             "or false"),
+                                             "a whole number of steps, 0 or more, and "
+                                             "stopped_early true or false"),
+    # Read as "steps reached -5" and "inf wall-clock hours, -0.0 CPU hours" by `report`.
+    (("outcome.json", '{"steps": -5, "stopped_early": false}'),
+     "outcome.json is not a run's outcome: it needs a whole number of steps, 0 or more, and "
+     "stopped_early true or false"),
+    (("outcome.json", '{"steps": 2000, "stopped_early": false, "wall_time_s": Infinity}'),
+     "outcome.json is not a run's outcome: its wall_time_s must be a number of seconds, 0 "
+     "or more, got inf"),
+    (("outcome.json", '{"steps": 2000, "stopped_early": false, "cpu_time_s": -3}'),
+     "outcome.json is not a run's outcome: its cpu_time_s must be a number of seconds, 0 or "
+     "more, got -3"),
+    # Copied by `keep` ("eval.csv up to its checkpoint"), counted by `report`.
+    (("eval.csv", HEADER + "0,1,0.0,-1\n2000,2,0.5,-1\n3000,3,0.5,-1\n"),
+     "eval.csv, line 4: an evaluation at step 3,000, past the run's end at step 2,000 "
+     "(outcome.json): edited, or another run's?"),
     (("config.json", "{x"), "config.json is not a run's config: Expecting property name"),
 ])
 def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path):
@@ -363,6 +377,21 @@ def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path
     with pytest.raises(ValueError, match=re.escape(f"{bad.root / message}")):
         cli.main(["keep", str(good.root), str(bad.root), "--into", str(kept)])
     assert not kept.exists()
+
+
+@pytest.mark.parametrize("command", ["keep", "report", "plot"])
+def test_a_run_that_has_ended_without_its_evaluations_is_refused(command, tmp_path):
+    """`keep` copied it as a header-only eval.csv beside its outcome and policy, which
+    `report` then refused."""
+    run = _run(tmp_path / "run")
+    run.eval_csv.unlink()
+    out = {"keep": ["--into", str(tmp_path / "kept")],
+           "report": ["--out", str(tmp_path / "report.md")],
+           "plot": ["--out", str(tmp_path / "curves.png")]}[command]
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{run.root} has ended and has no evaluations (its eval.csv lost or emptied?)")):
+        cli.main([command, str(run.root), *out])
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["run"]
 
 
 @pytest.mark.parametrize("edit, message", [

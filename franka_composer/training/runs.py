@@ -77,10 +77,17 @@ class RunDir:
         if not self.outcome_path.is_file():
             return {}
         outcome = read_json(self.outcome_path, "a run's outcome")
-        if not (isinstance(outcome.get("steps"), int)
+        if not (isinstance(outcome.get("steps"), int) and outcome["steps"] >= 0
                 and isinstance(outcome.get("stopped_early"), bool)):
             raise ValueError(f"{self.outcome_path} is not a run's outcome: it needs a whole "
-                             "number of steps and stopped_early true or false")
+                             "number of steps, 0 or more, and stopped_early true or false")
+        for name in ("wall_time_s", "cpu_time_s"):  # (CPU time: None where not recorded.)
+            seconds = outcome.get(name)
+            if seconds is not None and not (isinstance(seconds, (int, float))
+                                            and not isinstance(seconds, bool)
+                                            and math.isfinite(seconds) and seconds >= 0):
+                raise ValueError(f"{self.outcome_path} is not a run's outcome: its {name} "
+                                 f"must be a number of seconds, 0 or more, got {seconds!r}")
         return outcome
 
     def write_outcome(self, steps: int, stopped_early: bool, wall_time_s: float,
@@ -329,9 +336,30 @@ class RunDir:
                              "no whole number of steps")
         return state
 
-    def evaluations(self) -> list[dict[str, float]]:
-        """eval.csv's rows; a run with no evaluations yet is a ValueError."""
+    def recorded_evaluations(self) -> list[dict[str, float]]:
+        """eval.csv's rows (`read_eval_rows`: [] before the first), checked against the
+        run's end where it has ended (outcome.json): none at all (its eval.csv lost or
+        emptied), or one past its last step (edited, or another run's: `keep` copied it,
+        and `report` counted it), is a ValueError naming the file."""
         rows = read_eval_rows(self.eval_csv)
+        outcome = self.read_outcome()
+        if not outcome:
+            return rows
+        if not rows:
+            raise ValueError(f"{self.root} has ended and has no evaluations (its eval.csv lost "
+                             "or emptied?)")
+        for line, row in enumerate(rows, start=2):
+            if row["steps"] > outcome["steps"]:
+                raise ValueError(
+                    f"{self.eval_csv}, line {line}: an evaluation at step {row['steps']:,}, "
+                    f"past the run's end at step {outcome['steps']:,} "
+                    f"({self.outcome_path.name}): edited, or another run's?")
+        return rows
+
+    def evaluations(self) -> list[dict[str, float]]:
+        """eval.csv's rows (`recorded_evaluations`); a run with no evaluations yet is a
+        ValueError."""
+        rows = self.recorded_evaluations()
         if not rows:
             raise ValueError(f"{self.root} has no evaluations yet (no eval.csv rows)")
         return rows
@@ -339,8 +367,8 @@ class RunDir:
     def kept_evaluations(self) -> list[dict[str, float]]:
         """eval.csv's rows that a resume keeps: of a run stopped between checkpoints, those
         up to its checkpoint (the steps after it are redone, their evaluations with them);
-        all of a run that has ended."""
-        rows = read_eval_rows(self.eval_csv)
+        all of a run that has ended (`recorded_evaluations`)."""
+        rows = self.recorded_evaluations()
         state = self.read_state()
         if state and not self.read_outcome():
             rows = [row for row in rows if row["steps"] <= state["steps"]]

@@ -404,18 +404,11 @@ def run_directories(paths) -> list[pathlib.Path]:
 def split_evaluated(runs) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
     """`runs` split into those with evaluations and those with none yet (a sweep under way
     has cells not begun, or begun and not yet evaluated); none with any is a ValueError
-    naming them. A damaged eval.csv is a ValueError too, not a run waiting, and so is a run
-    that ended (its outcome.json written) with no evaluations: its eval.csv was lost."""
+    naming them. A damaged eval.csv is a ValueError too, not a run waiting, and so is one
+    that does not fit the run's end (`RunDir.recorded_evaluations`)."""
     evaluated, waiting = [], []
     for run in runs:
-        run_dir = RunDir(run)
-        if read_eval_rows(run_dir.eval_csv):
-            evaluated.append(run)
-        elif run_dir.read_outcome():
-            raise ValueError(f"{run} has ended and has no evaluations (its eval.csv lost or "
-                             "emptied?)")
-        else:
-            waiting.append(run)
+        (evaluated if RunDir(run).recorded_evaluations() else waiting).append(run)
     if not evaluated:
         raise ValueError(f"no evaluations yet in {', '.join(map(str, waiting))}")
     return evaluated, waiting
