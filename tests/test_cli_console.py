@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import pathlib
+import re
 import signal
 import subprocess
 import sys
@@ -126,6 +127,24 @@ def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
         "to a folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when "
         "offline.")
     assert not out.exists()  # No empty video folder left behind.
+
+
+def test_a_damaged_panda_is_one_line_naming_the_file(tmp_path):
+    """A truncated panda.xml under MENAGERIE_ROOT: lxml's XMLSyntaxError came as a
+    43-line traceback."""
+    panda = tmp_path / "franka_emika_panda"
+    panda.mkdir()
+    whole = (pathlib.Path(os.environ["MENAGERIE_ROOT"]) / panda.name / "panda.xml").read_bytes()
+    (panda / "panda.xml").write_bytes(whole[:2000])
+    env = {**os.environ, "MENAGERIE_ROOT": str(tmp_path), "FRANKA_COMPOSER_CACHE": "off"}
+    result = franka_composer("demo", "--tasks", "push", "--episodes", "1", "--no-video",
+                             env=env, stdout=subprocess.PIPE)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert re.fullmatch(
+        re.escape(f"franka-composer: error: {panda / 'panda.xml'} is not Menagerie's Panda: it "
+                  "is not well-formed XML (") + r".+, line \d+, column \d+" + re.escape(
+            "); a damaged or edited copy? Point MENAGERIE_ROOT at a whole one"),
+        result.stderr.splitlines()[-1]), result.stderr
 
 
 def test_version_prints_the_package_version():

@@ -9,6 +9,8 @@ collide, with the objects and the floor.
 
 from __future__ import annotations
 
+import pathlib
+
 import numpy as np
 from dm_control import composer, mjcf
 from dm_control.composer import define
@@ -78,6 +80,18 @@ SERVO_DERIVATIVE_TIME = 0.015
 ROBOT_CONTYPE, ROBOT_CONAFFINITY = 1, 0
 
 
+def _parsed(xml: pathlib.Path) -> mjcf.RootElement:
+    """Menagerie's Panda as dm_control's MJCF tree; one that is not XML (a truncated or
+    edited copy under MENAGERIE_ROOT) a `MenagerieUnavailableError` naming the file, where
+    lxml's syntax error came as a traceback."""
+    try:
+        return mjcf.from_path(str(xml))
+    except SyntaxError as error:  # lxml.etree.XMLSyntaxError is one.
+        raise assets.MenagerieUnavailableError(
+            f"{xml} is not Menagerie's Panda: it is not well-formed XML ({error.msg}); a damaged "
+            "or edited copy? Point MENAGERIE_ROOT at a whole one") from None
+
+
 class Panda(composer.Robot):
     """Menagerie's Panda with a tool-centre-point site and a width-controlled gripper."""
 
@@ -90,7 +104,7 @@ class Panda(composer.Robot):
         check_choice("arm_actuation", arm_actuation, ARM_ACTUATIONS)
         self._arm_actuation = arm_actuation
         self._has_visual_meshes = bool(visual_meshes)
-        self._mjcf_root = mjcf.from_path(str(assets.panda_xml()))
+        self._mjcf_root = _parsed(assets.panda_xml())
         self._mjcf_root.model = name
         if not visual_meshes:
             _remove_visual_geoms(self._mjcf_root)
