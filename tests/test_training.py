@@ -718,6 +718,16 @@ def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
     RunDir(tmp_path / "bare").write_config(RunDir(runs["ddpg"]).read_config())
     with pytest.raises(ValueError, match="no complete checkpoint"):
         _train(tmp_path / "bare", "ddpg", 300, "--resume")
+    # Its checkpoint's folder removed: the link named, not "delete it to start again",
+    # which would have lost the finished model.
+    lost = RunDir(shutil.copytree(runs["ddpg"], tmp_path / "lost", symlinks=True))
+    target = os.readlink(lost.checkpoint)
+    shutil.rmtree(lost.root / target)
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{lost.checkpoint} links to {target}, which is missing (removed?): put it back "
+            "to resume; the run's other files are as they were") + "$"):
+        _train(lost.root, "ddpg", 400, "--resume")
+    assert lost.final_model.is_file() and lost.checkpoint.is_symlink()
 
 
 def test_a_run_that_cannot_train_is_refused_before_its_folder_is_made(tmp_path):

@@ -283,6 +283,11 @@ class RunDir:
         edited since its checkpoint (`check_config_checkpointed`)."""
         recoverable = not self.checkpoint.exists() and self._complete_checkpoints()
         if not self.checkpoint_state.is_file() and not recoverable:
+            if self.checkpoint.is_symlink() and not self.checkpoint.exists():
+                # It had one ("delete it to start again" would have lost a finished model).
+                raise ValueError(f"{self.checkpoint} links to {os.readlink(self.checkpoint)}, "
+                                 "which is missing (removed?): put it back to resume; the "
+                                 "run's other files are as they were")
             trainer = self.trainer()
             if trainer is not None:  # Not stopped: training, before its first checkpoint.
                 raise ValueError(f"{self.root} is being trained by {trainer} (no checkpoint "
