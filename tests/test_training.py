@@ -730,6 +730,27 @@ def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
     assert lost.final_model.is_file() and lost.checkpoint.is_symlink()
 
 
+@pytest.mark.parametrize("option, value, allocation", [
+    ("--buffer-size", "1000000000000", "Unable to allocate 21.8 TiB for an array with shape "
+                                       "(1000000000000, 1, 3) and data type float64"),
+    ("--net-arch", "10000000,10000000", "DefaultCPUAllocator: can't allocate memory: you tried "
+                                        "to allocate 400000000000000 bytes")])
+def test_a_model_too_large_for_the_memory_is_one_line_naming_its_options(tmp_path, capsys,
+                                                                         option, value,
+                                                                         allocation):
+    """numpy's MemoryError and torch's allocator's RuntimeError came as tracebacks."""
+    out = tmp_path / "run"
+    assert cli.console(["train", "--task", "reach", "--algo", "sac", "--out", str(out),
+                        "--total-steps", "200", *TINY, option, value]) == 1
+    buffer_size, net_arch = {"--buffer-size": ("1,000,000,000,000", "16,16"),
+                             "--net-arch": ("2,000", value)}[option]
+    error = capsys.readouterr().err
+    assert error.startswith(
+        f"franka-composer: error: the replay buffer (--buffer-size {buffer_size}) and networks "
+        f"(--net-arch {net_arch}) do not fit in this machine's memory: ") and allocation in error
+    assert len(error.splitlines()) == 1 and not out.exists()
+
+
 def test_a_run_that_cannot_train_is_refused_before_its_folder_is_made(tmp_path):
     """Thousands of threads or a batch larger than the buffer would stall the run (past
     SIGTERM's stop at an episode's end) or exhaust memory: refused first."""

@@ -52,9 +52,9 @@ def main(argv: list[str] | None = None) -> int:
 def console(argv: list[str] | None = None) -> int:
     """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
     status 2, as argparse reports its own errors, not a traceback, and so are a Panda that
-    cannot be found, a process that cannot render (`HeadlessGLError`) and a file that
-    cannot be written or read after all (OSError: a full disk, a folder removed meanwhile;
-    status 1); a reader that has gone (`franka-composer evaluate ... | head`) ends the
+    cannot be found, a process that cannot render (`HeadlessGLError`), a model too large
+    for the memory (MemoryError) and a file that cannot be written or read after all
+    (OSError: a full disk, a folder removed meanwhile; status 1); a reader that has gone (`franka-composer evaluate ... | head`) ends the
     command quietly, with the status a shell gives a command SIGPIPE ends; so does Ctrl-C
     where the command has nothing of its own to say (train and sweep say what they kept),
     saying so in one line."""
@@ -69,7 +69,7 @@ def console(argv: list[str] | None = None) -> int:
                 return main(argv)
         finally:
             sys.stdout.flush()  # What is still buffered meets a gone reader here.
-    except (ValueError, MenagerieUnavailableError, HeadlessGLError) as error:
+    except (ValueError, MenagerieUnavailableError, HeadlessGLError, MemoryError) as error:
         print(f"franka-composer: error: {error}", file=sys.stderr)
         return 2 if isinstance(error, ValueError) else 1
     except BrokenPipeError:

@@ -209,7 +209,21 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
         kwargs["top_quantiles_to_drop_per_net"] = hp.top_quantiles_to_drop_per_net
     if backend == "sbx":
         kwargs.update(_sbx_kwargs(algo, hp))
-    return algo_class(_policy(algo_class, backend), env, **kwargs)
+    try:
+        return algo_class(_policy(algo_class, backend), env, **kwargs)
+    except (MemoryError, RuntimeError) as error:
+        if not isinstance(error, MemoryError) and not any(
+                sign in str(error).lower() for sign in _OUT_OF_MEMORY):
+            raise
+        raise MemoryError(f"the replay buffer (--buffer-size {hp.buffer_size:,}) and networks "
+                          f"(--net-arch {','.join(map(str, hp.net_arch))}) do not fit in this "
+                          f"machine's memory: {str(error).strip().splitlines()[-1]}") from None
+
+
+#: How the libraries say that an allocation failed (lower case): numpy raises MemoryError,
+#: torch a RuntimeError from its CPU allocator (or CUDA's, a subclass). (JAX allocates as it
+#: dispatches, after this: sbx's networks fail at their first use.)
+_OUT_OF_MEMORY = ("can't allocate memory", "out of memory")
 
 
 def check_saved_by(path, algo: str, backend: str) -> None:
