@@ -123,7 +123,7 @@ def test_demo_refuses_a_task_twice_and_an_empty_out(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
     with pytest.raises(SystemExit):  # It wrote into the working folder.
         main(["demo", "--episodes", "1", "--out", ""])
-    assert "argument --out: must be a folder, got ''" in capsys.readouterr().err
+    assert "argument --out: must be a path, got an empty one ('')" in capsys.readouterr().err
 
 
 def test_demo_interrupted_while_writing_a_video_leaves_none(tmp_path, monkeypatch):

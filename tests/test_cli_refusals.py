@@ -61,6 +61,16 @@ def test_an_output_path_under_a_file_is_refused_as_parsed(before, option, tmp_pa
     assert (tmp_path / "afile").read_text() == "kept"
 
 
+@pytest.mark.parametrize("before, option", [*OUTPUTS, (["rollout", "--task", "push"], "--out"),
+                                            (["evaluate"], "RUN_DIR")])
+def test_an_empty_path_is_refused_as_parsed(before, option, capsys):
+    """pathlib reads "" as the working folder: `evaluate ""` scanned it for runs, and
+    `rollout --out ""` said "." must end in .npz."""
+    given = [option, ""] if option.startswith("--") else [""]
+    error = _parse_error([*before, *given], capsys)
+    assert error.endswith(f"error: argument {option}: must be a path, got an empty one ('')")
+
+
 @needs_proc
 @pytest.mark.parametrize("before, option", OUTPUTS)
 def test_an_output_path_where_no_file_can_be_made_is_refused_as_parsed(before, option, capsys):

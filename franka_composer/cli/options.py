@@ -77,16 +77,15 @@ def output_folder(text: str) -> pathlib.Path:
 def normal_path(text: str) -> pathlib.Path:
     """A path a command writes to, with `..` taken out as the file system takes it (after
     a link, from where the link leads; past a folder not there yet, from the path's text):
-    "x/../out" made x on the way, which a command that failed left."""
-    path = pathlib.Path(text)
+    "x/../out" made x on the way, which a command that failed left. An empty one is refused
+    (`given_path`)."""
+    path = given_path(text)
     return pathlib.Path(os.path.realpath(path)) if ".." in path.parts else path
 
 
 def folder_path(text: str) -> pathlib.Path:
     """A folder that may be read or written, as the command decides (`sweep --out`: read by
     --status and --sync, written by a run, which checks it then): not a file."""
-    if not text:  # pathlib reads it as ".": the working folder, unasked.
-        raise argparse.ArgumentTypeError("must be a folder, got ''")
     path = normal_path(text)
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"must be a folder, got the file {text!r}")
@@ -193,9 +192,18 @@ def the_runs_control(policy: pathlib.Path, config, control: str | None) -> str:
     return config.control
 
 
+def given_path(text: str) -> pathlib.Path:
+    """`text` as a path; an empty one (`--out ""`, a variable unset in a script) is refused,
+    where pathlib reads it as the current folder: `evaluate ""` scanned that for runs, and
+    `rollout --out ""` said that "." must end in .npz."""
+    if not text:
+        raise argparse.ArgumentTypeError("must be a path, got an empty one ('')")
+    return pathlib.Path(text)
+
+
 def add_run_dirs(parser: argparse.ArgumentParser) -> None:
     """The RUN_DIR arguments of the commands that read finished or running runs."""
-    parser.add_argument("runs", nargs="+", type=pathlib.Path, metavar="RUN_DIR",
+    parser.add_argument("runs", nargs="+", type=given_path, metavar="RUN_DIR",
                         help="run directories written by `franka-composer train`, or "
                              "sweep directories (every run in them)")
 
