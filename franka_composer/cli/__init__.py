@@ -54,10 +54,10 @@ def console(argv: list[str] | None = None) -> int:
     status 2, as argparse reports its own errors, not a traceback, and so are a Panda that
     cannot be found, a process that cannot render (`HeadlessGLError`), a model too large
     for the memory (MemoryError) and a file that cannot be written or read after all
-    (OSError: a full disk, a folder removed meanwhile; status 1); a reader that has gone (`franka-composer evaluate ... | head`) ends the
-    command quietly, with the status a shell gives a command SIGPIPE ends; so does Ctrl-C
-    where the command has nothing of its own to say (train and sweep say what they kept),
-    saying so in one line."""
+    (OSError: a full disk, a folder removed meanwhile; status 1); a reader that has gone
+    (`franka-composer evaluate ... | head`) ends the command quietly, with the status a
+    shell gives a command SIGPIPE ends; so does Ctrl-C where the command has nothing of its
+    own to say (train and sweep say what they kept), saying so in one line."""
     warnings.formatwarning = _format_warning
     try:
         try:
