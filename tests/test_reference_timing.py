@@ -5,6 +5,7 @@ rendering) at that timing."""
 
 from __future__ import annotations
 
+import itertools
 import pickle
 
 import gymnasium as gym
@@ -114,6 +115,23 @@ def test_a_full_action_lands_at_rest_only_at_the_reference_timing(timing):
         assert velocity[0] == pytest.approx(0.0108, abs=1e-4)
         assert width == pytest.approx(0.0139, abs=1e-4)
         assert hand_tilt_degrees(env) < 0.6  # Measured 0.588.
+
+
+def test_a_full_default_step_in_any_direction_keeps_the_hand_within_a_degree():
+    """docs/guide/physics.md: within 0.9° of vertical after a full step at 0.05 s, along
+    each of the 26 axes and diagonals (seeds 0 and 3): most along (-1, -1, 1)."""
+    env = gym.make("FrankaPickAndPlaceSparse-v0")
+    tilts = {}
+    for seed in (0, 3):
+        for direction in itertools.product((-1, 0, 1), repeat=3):
+            if any(direction):
+                env.reset(seed=seed)
+                env.step(np.array([*direction, 0], np.float32))
+                tilts[seed, direction] = hand_tilt_degrees(env)
+    env.close()
+    most = max(tilts, key=tilts.get)
+    assert most[1] == (-1, -1, 1) and 0.85 < tilts[most] < 0.9  # Measured 0.89.
+    assert tilts[0, (1, 0, 0)] < 0.6 < tilts[most]
 
 
 @pytest.mark.parametrize("timing", ["default", "reference"])
