@@ -241,6 +241,20 @@ def test_a_recording_whose_physics_diverges_is_refused_and_leaves_nothing(tmp_pa
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_npz_dataset_there_is_replaced_whole_once_recorded_and_kept_if_it_fails(tmp_path):
+    """As `rollout --out` and the datasets guide say: numpy's savez would replace it too, but
+    only once the new episodes are whole; a recording that fails leaves the old file."""
+    out = tmp_path / "push.npz"
+    record("push", 1, out, seed=0)
+    record("push", 2, out, seed=5)
+    replaced = Trajectories.load(out)
+    assert len(replaced) == 2 and replaced.metadata["seed"] == 5
+    before = out.read_bytes()
+    with pytest.raises(ValueError, match="ended where the physics diverged"):
+        record("push", 2, out, seed=0, **_UNSTABLE)
+    assert out.read_bytes() == before and list(tmp_path.iterdir()) == [out]
+
+
 def test_a_rollout_names_its_diverged_episodes_and_they_are_not_saved(push_env, tmp_path):
     import gymnasium as gym
 
@@ -269,7 +283,7 @@ def test_a_rollout_names_its_diverged_episodes_and_they_are_not_saved(push_env, 
     flung.diverged = []
     flung.save(tmp_path / "flung.npz", dict(flung.metadata, options={}))
     _refused(tmp_path / "flung.npz", push_env,
-             f"episode 0 is truncated after 7 steps, and the dataset says its "
+             "episode 0 is truncated after 7 steps, and the dataset says its "
              "episodes were cut at max_episode_steps=50: edited, its metadata damaged, or "
              "the physics diverged there")
 

@@ -27,7 +27,7 @@ from franka_composer.cli.options import (add_tasks_argument, add_timing, episode
 from franka_composer.policies import make_expert, rollout
 from franka_composer.signals import held
 from franka_composer.tasks import task_config
-from franka_composer.validation import check_writable, repeated
+from franka_composer.validation import check_writable
 
 DEFAULT_OUT = "demo_output"
 #: Episodes each task's video shows where --video-episodes is not given (or every episode,
@@ -78,10 +78,6 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    twice = repeated(args.tasks)
-    if twice:  # Its second run would write its files over the first's.
-        raise ValueError(f"--tasks names {', '.join(twice)} more than once: each task runs "
-                         "once, into its own <task>.mp4 and .png")
     if args.video_episodes is not None and args.no_video:
         raise ValueError("--video-episodes sets what the videos show, and --no-video writes "
                          "none: give one of them")

@@ -230,15 +230,25 @@ def task_names(text: str) -> tuple[str, ...]:
 
 
 class _JoinTasks(argparse.Action):
-    """Joins the `--tasks` words, each a tuple of names, into one tuple, in order."""
+    """Joins the `--tasks` words, each a tuple of names, into one tuple, in order; a task
+    named twice is refused (demo's second run wrote its files over the first's, a sweep's
+    over its cells, and a benchmark timed it twice)."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        setattr(namespace, self.dest, tuple(name for word in values for name in word))
+        from franka_composer.validation import repeated
+
+        tasks = tuple(name for word in values for name in word)
+        twice = repeated(tasks)
+        if twice:
+            raise argparse.ArgumentError(self, f"names {', '.join(twice)} more than once: "
+                                               "each task is run once")
+        setattr(namespace, self.dest, tasks)
 
 
 def add_tasks_argument(parser: argparse.ArgumentParser, default, help_text: str) -> None:
     """`--tasks`, one syntax for every subcommand: names separated by spaces, commas or
-    both (`--tasks push slide`, `--tasks push,slide`), as one tuple of task names."""
+    both (`--tasks push slide`, `--tasks push,slide`), as one tuple of task names, each
+    once."""
     parser.add_argument("--tasks", nargs="+", type=task_names, action=_JoinTasks,
                         default=default, metavar="TASK[,TASK]",
                         help=f"{help_text}; names separated by spaces or commas")

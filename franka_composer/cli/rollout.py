@@ -58,7 +58,9 @@ def add_parser(subparsers) -> None:
                              "<expert|policy>[-noisy]-v0, the control named unless mocap, "
                              "-noisy with --action-noise)")
     parser.add_argument("--out", type=normal_path, required=True,
-                        help="the .npz file, or the folder of a Minari or RLDS dataset")
+                        help="the .npz file (one there is replaced once the episodes are "
+                             "recorded), or the folder of a Minari dataset (not one holding "
+                             "its --dataset-id already) or of an RLDS dataset (empty or new)")
     parser.set_defaults(func=run)
 
 
