@@ -36,6 +36,8 @@ MAX_CACHED_MODELS = 8
 #: Age (s) past which a temporary file is taken to be a killed writer's and deleted.
 STALE_PARTIAL_SECONDS = 3600.0
 _DIGEST_CHARS = 32
+#: Cache folders this process could not write to, already warned of.
+_UNWRITABLE: set[pathlib.Path] = set()
 
 
 def model_cache_dir() -> pathlib.Path | None:
@@ -125,7 +127,11 @@ def _save(physics: mjcf.Physics, directory: pathlib.Path, key: str) -> None:
                 _remove(other)
         _sweep(directory)
     except OSError as error:
-        logging.warning("could not cache the compiled model in %s: %s", directory, error)
+        if directory not in _UNWRITABLE:  # Once: every env made would say it again.
+            _UNWRITABLE.add(directory)
+            logging.warning("could not cache compiled models in %s (%s): each new env "
+                            "compiles its model (~1 s); said once", directory,
+                            "it is a file, not a folder" if directory.is_file() else error)
 
 
 def _sweep(directory: pathlib.Path) -> None:

@@ -107,6 +107,25 @@ def test_threads_compiling_at_once_write_one_model_and_no_warnings(cache, root,
     assert list(cache.glob("*.partial")) == []
 
 
+@pytest.mark.parametrize("where", ["a file", "a folder that cannot be made"])
+def test_a_cache_that_cannot_be_written_is_said_once_and_models_still_compile(
+        tmp_path, root, monkeypatch, warnings_logged, where):
+    """FRANKA_COMPOSER_CACHE naming a file, or a folder under one: every env made (each
+    worker of a vector env, the evaluation env) logged the same warning again."""
+    monkeypatch.setattr(model_cache, "_UNWRITABLE", set())
+    (tmp_path / "file").write_text("not a folder")
+    directory = tmp_path / "file" if where == "a file" else tmp_path / "file" / "cache"
+    monkeypatch.setenv("FRANKA_COMPOSER_CACHE", str(directory))
+    for _ in range(3):
+        assert compile_physics(root).model.opt.timestep == 0.002
+    because = "it is a file, not a folder" if where == "a file" else "[Errno 20] Not a directory"
+    assert len(warnings_logged) == 1
+    assert warnings_logged[0].startswith(f"could not cache compiled models in {directory} "
+                                         f"({because}")
+    assert warnings_logged[0].endswith("each new env compiles its model (~1 s); said once")
+    assert (tmp_path / "file").read_text() == "not a folder"
+
+
 def test_a_killed_writers_leftover_is_swept_and_a_live_one_is_kept(cache, root):
     stale = cache / "0123.abcd.partial"
     stale.write_bytes(b"\0" * 1000)
