@@ -1,4 +1,4 @@
-# One command sets up and runs each job on a fresh machine (Debian, Python >= 3.10).
+# One command sets up and runs each job on a fresh machine (Debian, Python >= 3.11).
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
@@ -56,4 +56,4 @@ bench: setup
 	$(WITH_MENAGERIE) $(BIN)/python benchmarks/bench.py
 
 clean:
-	rm -rf $(VENV) demo_output
+	rm -rf $(VENV) demo_output docs/_build docs/tasks build dist *.egg-info

@@ -29,7 +29,7 @@ from franka_composer.adapters import ENV_IDS, FrankaGoalEnv, register_envs  # no
 from franka_composer.suite import load  # noqa: E402
 from franka_composer.tasks import ALL_TASKS  # noqa: E402
 
-__version__ = "0.4.0"
+__version__ = "0.5.0.dev0"
 
 register_envs()
 

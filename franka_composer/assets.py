@@ -28,7 +28,7 @@ def panda_dir() -> pathlib.Path:
     except mujoco_menagerie.MenagerieError as error:
         raise MenagerieUnavailableError(
             f"Could not resolve Menagerie's {PANDA_NAME!r}: {error}. Set MENAGERIE_ROOT to a "
-            "folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when offline."
+            "folder that contains franka_emika_panda/ (a Menagerie checkout) when offline."
         ) from error
 
 

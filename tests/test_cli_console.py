@@ -124,9 +124,89 @@ def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
     assert result.stderr.splitlines()[-1] == (
         "franka-composer: error: Could not resolve Menagerie's 'franka_emika_panda': "
         f"'franka_emika_panda' not found under MENAGERIE_ROOT={tmp_path}. Set MENAGERIE_ROOT "
-        "to a folder that contains franka_emika_panda/ (e.g. ../shared/menagerie) when "
+        "to a folder that contains franka_emika_panda/ (a Menagerie checkout) when "
         "offline.")
     assert not out.exists()  # No empty video folder left behind.
+
+
+#: Runs the command in a Python where the package `missing` is not installed (its imports
+#: fail as they do then), as `franka_composer.cli.console` runs it.
+_WITHOUT = """
+import sys
+class Missing:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] == {missing!r}:
+            raise ModuleNotFoundError(f"No module named {{name!r}}", name=name)
+sys.meta_path.insert(0, Missing())
+from franka_composer.cli import console
+sys.exit(console(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("missing, extra, argv, why", [
+    ("minari", "data", ["rollout", "--task", "reach", "--episodes", "1", "--format", "minari",
+                        "--out", "{tmp}/minari"], "No module named 'minari'"),
+    ("h5py", "data", ["rollout", "--task", "reach", "--episodes", "1", "--format", "minari",
+                      "--out", "{tmp}/minari"], "h5py is not installed."),  # Minari's words.
+    ("envlogger", "data", ["rollout", "--task", "reach", "--episodes", "1", "--format", "rlds",
+                           "--out", "{tmp}/rlds"], "No module named 'envlogger'"),
+    ("matplotlib", "train", ["plot", str(A_COMMITTED_RUN), "--out", "{tmp}/curves.png"],
+     "No module named 'matplotlib'"),
+    ("torch", "train", ["evaluate", str(A_COMMITTED_RUN), "--episodes", "1"],
+     "No module named 'torch'"),
+    ("stable_baselines3", "train", ["train", "--task", "reach", "--algo", "sac",
+                                    "--total-steps", "200", "--out", "{tmp}/run"],
+     "No module named 'stable_baselines3'"),
+])
+def test_a_command_without_its_extra_names_the_extra_to_install(tmp_path, missing, extra,
+                                                                argv, why):
+    """Each was Python's ImportError traceback (sweep and --backend sbx already named
+    theirs), and nothing is made before it."""
+    result = subprocess.run(
+        [sys.executable, "-c", _WITHOUT.format(missing=missing),
+         *(word.format(tmp=tmp_path) for word in argv)],
+        cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
+    assert result.returncode == 1 and "Traceback" not in result.stderr
+    assert result.stderr.splitlines()[-1].startswith(
+        f"franka-composer: error: this command needs {missing}, which the '{extra}' extra "
+        f"installs: pip install 'franka_composer[{extra}]' ({why}")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_only_an_extras_import_error_is_taken_for_a_missing_extra():
+    """Any other is a broken installation: its traceback says where."""
+    from franka_composer.cli.extras import missing_extra
+
+    assert missing_extra(ModuleNotFoundError("No module named 'lxml'", name="lxml")) is None
+    assert missing_extra(ImportError("cannot import name 'x' from 'numpy'")) is None
+    assert missing_extra(ModuleNotFoundError("No module named 'sbx.tqc'", name="sbx.tqc")
+                         ).startswith("this command needs sbx, which the 'jax' extra")
+
+
+def test_each_extra_named_brings_its_package():
+    """`EXTRA_OF` against setup.cfg: each package is one of its extra's requirements, or a
+    requirement of one of them (torch of stable-baselines3, jax of sbx-rl)."""
+    import configparser
+    from importlib import metadata
+
+    from packaging.requirements import Requirement
+
+    from franka_composer.cli.extras import EXTRA_OF
+
+    def name(text):
+        return Requirement(text).name.lower().replace("_", "-")
+
+    config = configparser.ConfigParser()
+    config.read(REPO / "setup.cfg")
+    extras = config["options.extras_require"]
+    distributions = metadata.packages_distributions()
+    for module, extra in EXTRA_OF.items():
+        direct = [line for line in extras[extra].splitlines() if line.strip()]
+        brought = {name(line) for line in direct}
+        for requirement in direct:
+            brought |= {name(r) for r in metadata.requires(Requirement(requirement).name) or ()
+                        if "extra ==" not in r}
+        assert {name(d) for d in distributions[module]} & brought, (module, extra)
 
 
 def test_a_damaged_panda_is_one_line_naming_the_file(tmp_path):

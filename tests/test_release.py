@@ -73,13 +73,25 @@ def _setup_cfg() -> configparser.ConfigParser:
 
 
 def test_one_version_in_the_package_the_citation_and_the_changelog():
+    """The citation names the last release, and so does the package on its release commit;
+    with changes since (an [Unreleased] section that is not empty) the package is the next
+    release's .dev0: a wheel built between releases was named as the last one."""
+    from packaging.version import Version
+
+    changelog = (REPO / "CHANGELOG.md").read_text()
     citation = (REPO / "CITATION.cff").read_text()
-    version = re.search(r"^version: (\S+)$", citation, re.MULTILINE)[1]
-    assert version == franka_composer.__version__
-    releases = re.findall(r"^## \[(\d[^\]]*)\] - (\d{4}-\d\d-\d\d)$",
-                          (REPO / "CHANGELOG.md").read_text(), re.MULTILINE)
-    assert releases[0][0] == franka_composer.__version__
-    assert f'date-released: "{releases[0][1]}"' in citation
+    releases = re.findall(r"^## \[(\d[^\]]*)\] - (\d{4}-\d\d-\d\d)$", changelog,
+                          re.MULTILINE)
+    last, released_on = releases[0]
+    assert re.search(r"^version: (\S+)$", citation, re.MULTILINE)[1] == last
+    assert f'date-released: "{released_on}"' in citation
+    unreleased = changelog.split("## [Unreleased]", 1)[1].split(f"## [{last}]", 1)[0]
+    version = Version(franka_composer.__version__)
+    if unreleased.strip():
+        assert version.is_devrelease and Version(version.base_version) > Version(last)
+        assert str(version) == f"{version.base_version}.dev0"
+    else:
+        assert str(version) == last
 
 
 def test_the_licence_shipped_is_the_one_the_metadata_names():

@@ -16,6 +16,7 @@ import warnings
 
 from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
+from franka_composer.cli.extras import missing_extra
 from franka_composer.headless_gl import HeadlessGLError
 from franka_composer.signals import interrupt_on, stop_signals
 
@@ -53,8 +54,9 @@ def console(argv: list[str] | None = None) -> int:
     """`main` for a terminal: a refused value (ValueError) is one line on stderr and exit
     status 2, as argparse reports its own errors, not a traceback, and so are a Panda that
     cannot be found, a process that cannot render (`HeadlessGLError`), a model too large
-    for the memory (MemoryError) and a file that cannot be written or read after all
-    (OSError: a full disk, a folder removed meanwhile; status 1); a reader that has gone
+    for the memory (MemoryError), a package of an extra not installed (naming the extra)
+    and a file that cannot be written or read after all (OSError: a full disk, a folder
+    removed meanwhile; status 1); a reader that has gone
     (`franka-composer evaluate ... | head`) ends the command quietly, with the status a
     shell gives a command SIGPIPE ends; so does Ctrl-C where the command has nothing of its
     own to say (train and sweep say what they kept), saying so in one line."""
@@ -72,6 +74,12 @@ def console(argv: list[str] | None = None) -> int:
     except (ValueError, MenagerieUnavailableError, HeadlessGLError, MemoryError) as error:
         print(f"franka-composer: error: {error}", file=sys.stderr)
         return 2 if isinstance(error, ValueError) else 1
+    except ImportError as error:
+        install = missing_extra(error)
+        if install is None:
+            raise  # Not an extra's: a broken installation, whose traceback says where.
+        print(f"franka-composer: error: {install}", file=sys.stderr)
+        return 1
     except BrokenPipeError:
         # The interpreter flushes stdout again on exit: let that write go nowhere.
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -1,0 +1,26 @@
+"""Which extra a command's missing package comes from, so that a command run without it
+says what to install instead of ending in Python's ImportError traceback."""
+
+from __future__ import annotations
+
+import re
+
+#: The import name of each optional package the commands use, and the extra that brings it
+#: (setup.cfg's extras_require; torch comes with stable-baselines3).
+EXTRA_OF = {"stable_baselines3": "train", "sb3_contrib": "train", "torch": "train",
+            "matplotlib": "train", "rich": "train", "sbx": "jax", "jax": "jax",
+            "ray": "sweep", "minari": "data", "h5py": "data", "envlogger": "data",
+            "gymnasium_robotics": "peers"}
+
+
+def missing_extra(error: ImportError) -> str | None:
+    """What to install, for an ImportError of a package of `EXTRA_OF`: named by the error
+    (`No module named 'minari'`), or only in its text (Minari's own error for a missing
+    h5py, SB3's for a missing rich); None for any other."""
+    names = [error.name.split(".")[0]] if error.name else re.findall(r"\b\w+\b", str(error))
+    for name in names:
+        if name in EXTRA_OF:
+            extra = EXTRA_OF[name]
+            return (f"this command needs {name}, which the '{extra}' extra installs: pip "
+                    f"install 'franka_composer[{extra}]' ({error})")
+    return None
