@@ -52,7 +52,11 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
     if renderable is not None:
         check_bool("renderable", renderable)
     if seed is not None and not isinstance(seed, np.random.RandomState):
-        seed = seeding.random_state(seed)
+        try:
+            seed = seeding.random_state(seed)
+        except ValueError:  # check_seed's words, which know of ints alone.
+            raise ValueError(f"seed must be a non-negative int, a np.random.RandomState or "
+                             f"None, got {seed!r}") from None
     config = task_config(name, reward_type=reward_type, **task_kwargs)
     seconds = (config.time_limit if isinstance(time_limit, str) and time_limit == TASK_TIME_LIMIT
                else check_time_limit(time_limit))

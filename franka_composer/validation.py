@@ -8,7 +8,8 @@ import numbers
 import os
 import pathlib
 import tempfile
-from typing import Iterable, Sequence
+from collections.abc import Set as AbstractSet
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -26,7 +27,8 @@ def check_choice(kind: str, value, choices: Sequence[str], *, also: str | None =
 def check_names(kind: str, names: Iterable[str], valid: Iterable[str]) -> None:
     """Raises "unknown KIND(s) 'a', 'b'; valid KINDs: ..." for names not in `valid`."""
     valid = sorted(valid)
-    unknown = sorted(set(names) - set(valid))
+    # By their text: names of mixed types ({1: ..., "foo": ...}) do not sort as they are.
+    unknown = sorted(set(names) - set(valid), key=repr)
     if unknown:
         raise ValueError(f"unknown {kind}(s) {', '.join(map(repr, unknown))}; "
                          f"valid {kind}s: {', '.join(valid)}")
@@ -85,8 +87,10 @@ def _shown(value) -> str:
 
 
 def check_vector(name: str, value, size: int, **bounds) -> tuple[float, ...]:
-    """`value` as a tuple of `size` floats, each checked like `check_number(**bounds)`."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, Iterable):
+    """`value` as a tuple of `size` floats, each checked like `check_number(**bounds)`: a
+    sequence or an array, in order (not a set, whose order is its own, nor a mapping, whose
+    keys alone would be read)."""
+    if isinstance(value, (str, bytes, AbstractSet, Mapping)) or not isinstance(value, Iterable):
         raise ValueError(f"{name} must be a sequence of {size} numbers, got {value!r}")
     items = tuple(value)
     if len(items) != size:

@@ -5,6 +5,7 @@ adapter and Shimmy truncate there."""
 from __future__ import annotations
 
 import pickle
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -104,7 +105,9 @@ def test_the_gymnasium_adapter_truncates_at_the_time_limit_on_its_own():
     for step in range(1, 51):
         _, _, terminated, truncated, _ = env.step(np.zeros(3, np.float32))
         assert not terminated and truncated == (step == 50)
-    with pytest.raises(gym.error.ResetNeeded):
+    with pytest.raises(gym.error.ResetNeeded, match=re.escape(
+            "Cannot call env.step() before calling env.reset(): the episode ended at its "
+            "last step (terminated or truncated), and reset() begins the next")):
         env.step(np.zeros(3, np.float32))
 
 

@@ -252,7 +252,8 @@ def test_step_before_reset_raises_gymnasiums_error():
     env = gym.make("FrankaPushSparse-v0")
     with pytest.raises(gym.error.ResetNeeded):
         env.step(np.zeros(3, np.float32))
-    with pytest.raises(gym.error.ResetNeeded):
+    with pytest.raises(gym.error.ResetNeeded, match=r"^Cannot call env.step\(\) before calling "
+                                                    r"env.reset\(\)$"):
         env.unwrapped.step(np.zeros(3, np.float32))
 
 

@@ -148,9 +148,13 @@ def test_the_panda_is_drawn_from_its_hulls_or_its_visual_meshes():
                                    "state, pixels, state\\+pixels"),
     (dict(cameras=("workspace", "eye")), "unknown camera 'eye'; valid cameras: workspace, "
                                           "wrist"),
-    (dict(cameras=()), "cameras must be a camera name or a non-empty sequence"),
-    (dict(cameras=("wrist", "wrist")), "cameras must be a camera name or a non-empty sequence "
-                                       "of different ones"),
+    (dict(cameras=()), "cameras must be a camera name or a non-empty tuple or list"),
+    (dict(cameras=("wrist", "wrist")), "cameras must be a camera name or a non-empty tuple or "
+                                       "list of different ones"),
+    # A sequence too, but not one it takes: "a sequence" said it was.
+    (dict(cameras=np.array(["wrist"])), "cameras must be a camera name or a non-empty tuple "
+                                        "or list of different ones from workspace, wrist, got "
+                                        "array"),
     (dict(pixel_height=0), "pixel_height must be >= 1 and <= 1024, got 0"),
     (dict(pixel_width=84.0), "pixel_width must be a whole number"),
     (dict(pixel_width=2048), "pixel_width must be >= 1 and <= 1024, got 2048"),
@@ -161,6 +165,12 @@ def test_the_panda_is_drawn_from_its_hulls_or_its_visual_meshes():
     (dict(cameras="wrist"), "cameras set the camera observations, and observation_mode="
                             "'state' has none: give observation_mode='pixels' or "
                             "'state\\+pixels', or leave it out"),
+    (dict(goal_marker_visible=False), "goal_marker_visible shows or hides the goal in "
+                                      "rendered frames and camera observations, and "
+                                      "render_mode=None with observation_mode='state' has "
+                                      "neither: give render_mode='rgb_array' or 'human', or "
+                                      "observation_mode='pixels' or 'state\\+pixels', or "
+                                      "leave it out"),
     (dict(pixel_height=10, camera_meshes="visual"), "pixel_height, camera_meshes set the "
                                                     "camera observations, and observation_mode"
                                                     "='state' has none: .* leave them out"),
@@ -168,6 +178,13 @@ def test_the_panda_is_drawn_from_its_hulls_or_its_visual_meshes():
 def test_bad_observation_options_are_refused_clearly(options, message):
     with pytest.raises(ValueError, match=message):
         gym.make("FrankaPushSparse-v0", **options)
+
+
+def test_goal_marker_visible_is_taken_where_frames_or_images_show_the_goal():
+    for options in (dict(render_mode="rgb_array"), dict(observation_mode="pixels")):
+        env = gym.make("FrankaPushSparse-v0", goal_marker_visible=False, **options)
+        assert env.unwrapped._task.config.observations.goal_marker_visible is False
+        env.close()
 
 
 @pytest.mark.slow

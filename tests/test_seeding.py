@@ -3,6 +3,8 @@ interfaces, and a refused seed changes nothing."""
 
 from __future__ import annotations
 
+import re
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -86,9 +88,12 @@ def test_a_numpy_integer_seed_gives_the_python_ints_episode_in_both_interfaces(n
     assert _same_observations(loaded, expected)
 
 
-def test_load_refuses_a_negative_seed_naming_it():
-    with pytest.raises(ValueError, match=r"seed must be a non-negative int, got -4"):
-        franka_composer.load("push", seed=-4)
+@pytest.mark.parametrize("bad", [-4, np.random.default_rng(0)])
+def test_load_refuses_a_bad_seed_naming_it_and_what_load_takes(bad):
+    """Not check_seed's words alone: `load` takes a RandomState too."""
+    with pytest.raises(ValueError, match=re.escape(
+            f"seed must be a non-negative int, a np.random.RandomState or None, got {bad!r}")):
+        franka_composer.load("push", seed=bad)
 
 
 def test_a_random_state_is_used_as_given():

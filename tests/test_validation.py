@@ -24,6 +24,15 @@ NAN, INF = float("nan"), float("inf")
     ("actuated_gripper", 1, "actuated_gripper must be True or False, got 1"),
     ("goal_centre", (0.6,), r"goal_centre must have 2 number\(s\), got 1"),
     ("object_centre", "0.6", "object_centre must be a sequence of 2 numbers"),
+    # A set's order is its own, and a mapping's keys alone were read: {0.5: "a", 0.1: "b"}
+    # was taken as (0.5, 0.1).
+    ("goal_centre", {0.1, 0.2}, "goal_centre must be a sequence of 2 numbers, got {"),
+    ("goal_centre", {0.5: "a", 0.1: "b"}, "goal_centre must be a sequence of 2 numbers, got "
+                                          "{0.5: 'a', 0.1: 'b'}"),
+    ("neutral_arm_qpos", frozenset(range(7)), "neutral_arm_qpos must be a sequence of 7"),
+    # Names of mixed types were sorted as they are, and Python's TypeError came instead.
+    ("randomization", {1: 1.0, "foo": 2}, "unknown randomization parameter\\(s\\) 'foo', 1; "
+                                          "valid randomization parameters: action_noise, "),
     ("max_tcp_step", -1, "max_tcp_step must be > 0, got -1"),
     ("max_tcp_step", INF, "max_tcp_step must be a finite number > 0, got inf"),
     ("max_finger_step", NAN, "max_finger_step must be a finite number > 0, got nan"),

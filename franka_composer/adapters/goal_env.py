@@ -25,7 +25,7 @@ from franka_composer.environment import ended_by_divergence
 from franka_composer.headless_gl import has_display
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
-from franka_composer.validation import check_choice
+from franka_composer.validation import check_bool, check_choice
 
 #: `suite.load`'s parameters that the adapter sets itself, and how a Gymnasium user sets
 #: what they stand for.
@@ -49,7 +49,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
       width, height: size (pixels) of `rgb_array` frames, at most 1024 (480 if not given).
       camera: the arena camera to render from ("workspace", the default, or "top").
       An env without a render mode renders nothing: width, height or camera given to one is
-      refused, not ignored.
+      refused, not ignored (and goal_marker_visible, unless camera observations show it).
       **task_kwargs: overrides of the task's configuration (e.g. terminate_on_success=False).
 
     Episodes end with `terminated=True` on success when the task's `terminate_on_success`
@@ -94,6 +94,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         if render_mode == "human":
             _check_display()
         _check_rendering_asked(render_mode, width=width, height=height, camera=camera)
+        _check_goal_marker_seen(render_mode, task_kwargs)
         width = RENDER_SIZE if width is None else width
         height = RENDER_SIZE if height is None else height
         camera = CAMERAS[0] if camera is None else camera
@@ -110,6 +111,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._width, self._height, self._camera = width, height, camera
         self._renderer = None
         self._timestep = None
+        self._an_episode_ended = False  # Then a step before reset() says why it needs one.
         self._stream_started = False  # Whether a reset has seeded the episode stream.
         self._randomization = None  # This episode's randomised parameters, if randomised.
         self._closed = False
@@ -183,7 +185,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     def step(self, action):
         self._check_open()
         if self._timestep is None:
-            raise gym.error.ResetNeeded("Cannot call env.step() before calling env.reset()")
+            raise gym.error.ResetNeeded(
+                "Cannot call env.step() before calling env.reset()" + (
+                    ": the episode ended at its last step (terminated or truncated), and "
+                    "reset() begins the next" if self._an_episode_ended else ""))
         self._timestep = self._env.step(action)
         obs = self.goal_observation(self._timestep.observation)
         info = self._info()
@@ -199,6 +204,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             info["diverged"] = True
         if ended:
             self._timestep = None  # Composer would reset on the next step: make it explicit.
+            self._an_episode_ended = True
         if self.render_mode == "human":
             self.render()
         return obs, reward, terminated, truncated, info
@@ -297,6 +303,19 @@ def _check_rendering_asked(render_mode: str | None, **given) -> None:
                          "frames, and render_mode=None renders none: give render_mode="
                          f"'rgb_array' or 'human', or leave {'it' if len(named) == 1 else 'them'}"
                          " out")
+
+
+def _check_goal_marker_seen(render_mode: str | None, task_kwargs: dict) -> None:
+    """A ValueError for `goal_marker_visible` given to an env with neither frames nor camera
+    observations, where nothing would show the goal or hide it."""
+    if "goal_marker_visible" not in task_kwargs or render_mode is not None:
+        return
+    check_bool("goal_marker_visible", task_kwargs["goal_marker_visible"])
+    if task_kwargs.get("observation_mode", "state") == "state":
+        raise ValueError("goal_marker_visible shows or hides the goal in rendered frames and "
+                         "camera observations, and render_mode=None with observation_mode="
+                         "'state' has neither: give render_mode='rgb_array' or 'human', or "
+                         "observation_mode='pixels' or 'state+pixels', or leave it out")
 
 
 def _check_render_size(width: int, height: int) -> None:

@@ -674,8 +674,8 @@ def _cameras(name, value):
     cameras = (value,) if isinstance(value, str) else value
     if (not isinstance(cameras, (tuple, list)) or not cameras
             or len(set(map(str, cameras))) != len(cameras)):
-        raise ValueError(f"{name} must be a camera name or a non-empty sequence of different "
-                         f"ones from {', '.join(PIXEL_CAMERAS)}, got {value!r}")
+        raise ValueError(f"{name} must be a camera name or a non-empty tuple or list of "
+                         f"different ones from {', '.join(PIXEL_CAMERAS)}, got {value!r}")
     return tuple(check_choice("camera", camera, PIXEL_CAMERAS) for camera in cameras)
 
 
