@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import pickle
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -53,6 +54,23 @@ def test_every_task_is_registered_under_every_controller_with_its_episode_length
     assert env_id("flip", "dense", "osc") == "FrankaFlipOscDense-v1"
     assert env_id("push", "sparse", "joints") == "FrankaPushJointsSparse-v1"
     assert env_id("flip", "sparse", "joints") == "FrankaFlipJointsSparse-v2"
+
+
+def test_no_option_makes_another_ids_env_under_an_id():
+    """The id was among the spec's kwargs, so an option could replace it: a stack env under
+    push's id, with push's time limit. Specs recorded then (a Minari dataset's) still make
+    their env."""
+    with pytest.raises(ValueError, match=re.escape(
+            "registered_id is not an option of the Gymnasium env: the id "
+            "(FrankaPushSparse-v0) is")):
+        gym.make("FrankaPushSparse-v0", registered_id="FrankaStackSparse-v1", task="stack")
+    assert "registered_id" not in gym.spec("FrankaPushSparse-v0").kwargs
+    recorded = copy.deepcopy(gym.spec("FrankaStackOscDense-v1"))  # As registered before.
+    recorded.entry_point = "franka_composer.adapters.registration:make_registered"
+    recorded.kwargs = {"registered_id": recorded.id, **recorded.kwargs}
+    env = gym.make(recorded)
+    assert (env.unwrapped.task_name, env.unwrapped.task.config.control.kind,
+            env.spec.max_episode_steps) == ("stack", "osc", SPEC["stack"]["steps"])
 
 
 @pytest.mark.parametrize("old, new", [

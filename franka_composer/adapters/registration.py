@@ -25,6 +25,8 @@ from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.rewards import REWARD_TYPES
 from franka_composer.validation import check_choice
 
+#: The entry point of specs recorded before each id had its own (`id_maker`): Minari
+#: datasets keep it, and `recover_environment` makes their env through it.
 ENTRY_POINT = "franka_composer.adapters.registration:make_registered"
 
 
@@ -124,13 +126,34 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
 make_registered.metadata = FrankaGoalEnv.metadata
 
 
+def id_maker(id_: str):
+    """`gym.make(id_)`'s entry point: `make_registered` for that id, which no option can
+    change (with the id among the spec's kwargs, `gym.make("FrankaPushSparse-v0",
+    registered_id="FrankaStackSparse-v1", task="stack")` made a stack env under push's id
+    and time limit)."""
+    def make(**options) -> FrankaGoalEnv:
+        if "registered_id" in options:
+            raise ValueError(f"registered_id is not an option of the Gymnasium env: the id "
+                             f"({id_}) is")
+        return make_registered(id_, **options)
+
+    make.__name__ = make.__qualname__ = "make_" + id_.replace("-", "_")
+    make.metadata = FrankaGoalEnv.metadata
+    return make
+
+
+#: Each id's entry point (also attributes of this module, which the specs name).
+ID_MAKERS = {id_: id_maker(id_) for id_ in ENV_IDS}
+globals().update({maker.__name__: maker for maker in ID_MAKERS.values()})
+
+
 def register_envs() -> None:
     """Registers every id once (re-importing is harmless)."""
     for id_, registered in ENV_IDS.items():
         if id_ not in gym.registry:
-            kwargs = {"registered_id": id_, "task": registered.task,
-                      "reward_type": registered.reward_type}
+            kwargs = {"task": registered.task, "reward_type": registered.reward_type}
             if registered.control != "mocap":
                 kwargs["control"] = registered.control
-            gym.register(id=id_, entry_point=ENTRY_POINT, kwargs=kwargs,
+            gym.register(id=id_, entry_point=f"{__name__}:{ID_MAKERS[id_].__name__}",
+                         kwargs=kwargs,
                          max_episode_steps=TASK_CONFIGS[registered.task].max_episode_steps)
