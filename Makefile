@@ -23,18 +23,21 @@ $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --upgrade pip
 
+# Each setup installs once, and again when constraints.txt or setup.cfg is newer than its
+# stamp in the venv (a venv kept from before took none of their changes); else pip is not run.
 # What the demo needs: the environments and video writing (no training, datasets or sweeps).
-setup-demo: $(BIN)/python
-	@$(BIN)/python -c "import franka_composer, imageio_ffmpeg" 2>/dev/null \
-	  || $(BIN)/pip install -c constraints.txt -e .
+setup-demo: $(VENV)/.setup-demo
+$(VENV)/.setup-demo: constraints.txt setup.cfg | $(BIN)/python
+	$(BIN)/pip install -c constraints.txt -e .
+	touch $@
 
 # Everything the tests use, in the tested versions (constraints.txt) within setup.cfg's
 # ranges; torch first, as the CPU build.
-setup: $(BIN)/python
-	@$(BIN)/python -c "import franka_composer, torch, sb3_contrib, sbx, ray, minari, envlogger, pytest, sphinx" \
-	  2>/dev/null || { \
-	  $(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX)) \
-	  && $(BIN)/pip install -c constraints.txt -e ".[test,train]"; }
+setup: $(VENV)/.setup
+$(VENV)/.setup: constraints.txt setup.cfg | $(BIN)/python
+	$(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX))
+	$(BIN)/pip install -c constraints.txt -e ".[test,train]"
+	touch $@
 
 demo: setup-demo
 	$(WITH_MENAGERIE) $(BIN)/franka-composer demo

@@ -29,6 +29,7 @@ def _make_demo(tmp_path: pathlib.Path, cache: pathlib.Path, copy: pathlib.Path,
     command.write_text('#!/bin/sh\necho "MENAGERIE_ROOT=${MENAGERIE_ROOT-unset}"\n')
     python.chmod(0o755)
     command.chmod(0o755)
+    (venv / ".setup-demo").touch()  # Set up, after constraints.txt and setup.cfg.
     env = {key: value for key, value in os.environ.items() if key != "MENAGERIE_ROOT"}
     env["MENAGERIE_CACHE_DIR"] = str(cache)
     if menagerie_root is not None:
@@ -77,3 +78,34 @@ def test_torch_comes_from_the_cpu_index_beside_pips_own(tmp_path):
     torch_line = next(line for line in recipe.splitlines() if "torch==2.13.0" in line)
     assert "--extra-index-url https://download.pytorch.org/whl/cpu" in torch_line
     assert " --index-url" not in torch_line
+
+
+@pytest.mark.parametrize("target", ["setup", "setup-demo"])
+def test_a_venv_is_set_up_again_once_the_tested_versions_change(tmp_path, target):
+    """The setups ran pip only where an import failed: a venv kept from before never took
+    a new constraints.txt. A stamp older than constraints.txt or setup.cfg installs again;
+    a newer one runs nothing. (In a copy of the three files, whose times are set here.)"""
+    project = tmp_path / "project"
+    project.mkdir()
+    for name in ("Makefile", "constraints.txt", "setup.cfg"):
+        shutil.copy(REPO / name, project / name)
+        os.utime(project / name, (1_000_000, 1_000_000))
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").touch()
+    stamp = venv / f".{target}"
+
+    def installs() -> bool:
+        recipe = subprocess.run(["make", "-n", "-C", str(project), target, f"VENV={venv}"],
+                                capture_output=True, text=True, check=True, timeout=60).stdout
+        return "pip install -c constraints.txt" in recipe
+
+    assert installs()  # Never set up.
+    stamp.touch()
+    os.utime(stamp, (2_000_000, 2_000_000))
+    assert not installs()
+    for source in ("constraints.txt", "setup.cfg"):
+        os.utime(project / source, (3_000_000, 3_000_000))
+        assert installs(), source
+        os.utime(project / source, (1_000_000, 1_000_000))
+        assert not installs(), source
