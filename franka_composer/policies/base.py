@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import abc
 import dataclasses
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -31,7 +33,7 @@ class Scene:
     finger_width: float | None  # None when the fingers are locked closed
 
     @classmethod
-    def read(cls, obs: dict, layout: ObservationLayout) -> "Scene":
+    def read(cls, obs: Mapping[str, Any], layout: ObservationLayout) -> "Scene":
         vector = np.asarray(obs["observation"], dtype=np.float64)
         return cls(
             tcp=layout.read(vector, "tcp_position"),
@@ -67,18 +69,18 @@ class Expert(abc.ABC):
     def reset(self) -> None:
         """Forgets the previous episode's plan."""
 
-    def scene(self, obs: dict) -> Scene:
+    def scene(self, obs: Mapping[str, Any]) -> Scene:
         return Scene.read(obs, self.layout)
 
     def move_towards(self, tcp: np.ndarray, target, max_speed: float = 1.0) -> np.ndarray:
         """The position part of an action towards `target` (`ControlSettings.tcp_action`)."""
         return self.config.control.tcp_action(tcp, target, max_speed)
 
-    def __call__(self, obs: dict) -> np.ndarray:
+    def __call__(self, obs: Mapping[str, Any]) -> np.ndarray:
         action = np.zeros(self.action_size)
         action[:] = self.act(self._input(obs))
         return np.clip(action, -1.0, 1.0).astype(np.float32)
 
     @abc.abstractmethod
-    def act(self, obs: dict) -> np.ndarray:
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         """The unclipped action for the goal dict `obs` ("observation", "desired_goal")."""

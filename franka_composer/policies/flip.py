@@ -17,6 +17,9 @@ within the success angle of the goal in only ~6 % of episodes:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import mujoco
 import numpy as np
 
@@ -73,7 +76,7 @@ class FlipExpert(Expert):
     def reset(self) -> None:
         self._pushing = None  # The push under way: (its start, its direction xy).
 
-    def act(self, obs: dict) -> np.ndarray:
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         vector = np.asarray(obs["observation"], dtype=np.float64)
         tcp = self.layout.read(vector, "tcp_position")
         cube = self.layout.read(vector, "object_position")

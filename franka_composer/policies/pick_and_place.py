@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from franka_composer.entities.panda import MAX_FINGER_WIDTH
@@ -39,7 +42,7 @@ class PickAndPlaceExpert(Expert):
         #: when they are not closing on it.
         self._closing_from = None
 
-    def act(self, obs: dict) -> np.ndarray:
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         scene = self.scene(obs)
         return self.fetch(scene.tcp, scene.finger_width, scene.object_position, scene.goal)
 

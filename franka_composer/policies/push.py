@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from franka_composer.policies.base import Expert, unit
@@ -29,7 +32,7 @@ class PushExpert(Expert):
     def reset(self) -> None:
         self._pushing = False
 
-    def act(self, obs: dict) -> np.ndarray:
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         scene = self.scene(obs)
         block, tcp = scene.object_position, scene.tcp
         to_goal = scene.goal[:2] - block[:2]

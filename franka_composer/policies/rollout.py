@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from typing import Callable
+from typing import Any, Callable
 
 import dm_env
 import numpy as np
@@ -25,7 +25,7 @@ def check_episodes_end(env) -> None:
 
 
 def rollout(env, policy, episodes: int, seed: int | None = None,
-            on_step: Callable[[object, int], None] | None = None,
+            on_step: Callable[[Any, int], None] | None = None,
             on_episode_end: Callable[[int], None] | None = None) -> Trajectories:
     """Runs `policy` (obs -> action; its `reset()` is called at each episode start if it has
     one) for `episodes` episodes of the Gymnasium `env`, each until terminated or truncated.

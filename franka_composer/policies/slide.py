@@ -18,6 +18,8 @@ the goal by `OVERSHOOT` rather than risk stopping short.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -151,7 +153,7 @@ class SlideExpert(Expert):
         self._calibration = CALIBRATIONS.get((control, self.config.timing_name),
                                              CALIBRATIONS[control, "default"])
 
-    def act(self, obs: dict) -> np.ndarray:
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         scene = self.scene(obs)
         puck, tcp = scene.object_position, scene.tcp
         if self._waiting:

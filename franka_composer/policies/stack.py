@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
 from franka_composer.policies.pick_and_place import PickAndPlaceExpert
@@ -23,7 +26,7 @@ class StackExpert(PickAndPlaceExpert):
     """Works on the first block that is not yet at its goal, with pick and place's state
     machine; moving on to the next block opens the hand, which releases the placed one."""
 
-    def act(self, obs: dict) -> np.ndarray:
+    def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         vector = np.asarray(obs["observation"], dtype=np.float64)
         tcp = self.layout.read(vector, "tcp_position")
         width = float(self.layout.read(vector, "finger_width")[0])
