@@ -730,24 +730,36 @@ def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
     assert lost.final_model.is_file() and lost.checkpoint.is_symlink()
 
 
-@pytest.mark.parametrize("option, value, allocation", [
-    ("--buffer-size", "1000000000000", "Unable to allocate 21.8 TiB for an array with shape "
-                                       "(1000000000000, 1, 3) and data type float64"),
-    ("--net-arch", "10000000,10000000", "DefaultCPUAllocator: can't allocate memory: you tried "
-                                        "to allocate 400000000000000 bytes")])
-def test_a_model_too_large_for_the_memory_is_one_line_naming_its_options(tmp_path, capsys,
-                                                                         option, value,
-                                                                         allocation):
-    """numpy's MemoryError and torch's allocator's RuntimeError came as tracebacks."""
+@pytest.mark.parametrize("argv, sizes, allocation", [
+    (["--buffer-size", "1000000000000"], ("1,000,000,000,000", "16,16"),
+     "Unable to allocate 21.8 TiB for an array with shape (1000000000000, 1, 3) and data type "
+     "float64"),
+    # Found before anything is built: sbx's networks are allocated by JAX at their first
+    # use, later, where it ended in JAX's traceback.
+    *[(["--backend", backend, "--net-arch", "10000000,10000000"],
+       ("2,000", "10000000,10000000"), "the weights of one actor and one critic alone take "
+       "745,059.2 GiB (float32), and the machine has ") for backend in ("sb3", "sbx")],
+    # Past that check (a machine said to have more), torch's allocator's refusal.
+    (["--net-arch", "10000000,10000000", "more memory"], ("2,000", "10000000,10000000"),
+     "DefaultCPUAllocator: can't allocate memory: you tried to allocate 400000000000000 "
+     "bytes")])
+def test_a_model_too_large_for_the_memory_is_one_line_naming_its_options(
+        tmp_path, capsys, monkeypatch, argv, sizes, allocation):
+    """numpy's MemoryError, torch's allocator's RuntimeError and JAX's came as tracebacks."""
+    if argv[-1] == "more memory":
+        from franka_composer.training import models
+
+        monkeypatch.setattr(models, "_physical_memory_bytes", lambda: 2**62)
+        argv = argv[:-1]
+    if "sbx" in argv:
+        pytest.importorskip("sbx")
     out = tmp_path / "run"
     assert cli.console(["train", "--task", "reach", "--algo", "sac", "--out", str(out),
-                        "--total-steps", "200", *TINY, option, value]) == 1
-    buffer_size, net_arch = {"--buffer-size": ("1,000,000,000,000", "16,16"),
-                             "--net-arch": ("2,000", value)}[option]
+                        "--total-steps", "200", *TINY, *argv]) == 1
     error = capsys.readouterr().err
     assert error.startswith(
-        f"franka-composer: error: the replay buffer (--buffer-size {buffer_size}) and networks "
-        f"(--net-arch {net_arch}) do not fit in this machine's memory: ") and allocation in error
+        f"franka-composer: error: the replay buffer (--buffer-size {sizes[0]}) and networks "
+        f"(--net-arch {sizes[1]}) do not fit in this machine's memory: ") and allocation in error
     assert len(error.splitlines()) == 1 and not out.exists()
 
 

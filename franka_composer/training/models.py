@@ -6,6 +6,8 @@ run, a resumed run and an evaluation all see the same construction.
 
 from __future__ import annotations
 
+import os
+
 import gymnasium as gym
 import numpy as np
 
@@ -209,15 +211,43 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
         kwargs["top_quantiles_to_drop_per_net"] = hp.top_quantiles_to_drop_per_net
     if backend == "sbx":
         kwargs.update(_sbx_kwargs(algo, hp))
+    least, memory = _least_weight_bytes(env, hp), _physical_memory_bytes()
+    if least > memory:  # JAX would fail later, at sbx's first use of them, in a traceback.
+        raise _too_large(hp, f"the weights of one actor and one critic alone take "
+                             f"{least / 2**30:,.1f} GiB (float32), and the machine has "
+                             f"{memory / 2**30:,.1f} GiB")
     try:
         return algo_class(_policy(algo_class, backend), env, **kwargs)
     except (MemoryError, RuntimeError) as error:
         if not isinstance(error, MemoryError) and not any(
                 sign in str(error).lower() for sign in _OUT_OF_MEMORY):
             raise
-        raise MemoryError(f"the replay buffer (--buffer-size {hp.buffer_size:,}) and networks "
-                          f"(--net-arch {','.join(map(str, hp.net_arch))}) do not fit in this "
-                          f"machine's memory: {str(error).strip().splitlines()[-1]}") from None
+        raise _too_large(hp, str(error).strip().splitlines()[-1]) from None
+
+
+def _too_large(hp: Hyperparameters, why: str) -> MemoryError:
+    return MemoryError(f"the replay buffer (--buffer-size {hp.buffer_size:,}) and networks "
+                       f"(--net-arch {','.join(map(str, hp.net_arch))}) do not fit in this "
+                       f"machine's memory: {why}")
+
+
+def _least_weight_bytes(env: gym.Env, hp: Hyperparameters) -> int:
+    """Fewer bytes than any algorithm's networks on `env` take: the float32 weights of an
+    actor and one critic on the vector observations (images add a CNN; critics add copies,
+    targets and optimiser moments). More than the machine's memory, they cannot be built."""
+    spaces = getattr(env.observation_space, "spaces", {"observation": env.observation_space})
+    observed = sum(space.shape[0] for space in spaces.values() if len(space.shape) == 1)
+    actions = env.action_space.shape[0]
+
+    def weights(sizes) -> int:
+        return sum(a * b for a, b in zip(sizes, sizes[1:]))
+
+    return 4 * (weights([observed, *hp.net_arch, actions])
+                + weights([observed + actions, *hp.net_arch, 1]))
+
+
+def _physical_memory_bytes() -> int:
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
 
 
 #: How the libraries say that an allocation failed (lower case): numpy raises MemoryError,
