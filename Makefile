@@ -25,6 +25,7 @@ $(BIN)/python:
 
 # Each setup installs once, and again when constraints.txt or setup.cfg is newer than its
 # stamp in the venv (a venv kept from before took none of their changes); else pip is not run.
+# `setup` installs what `setup-demo` does too, and stamps both.
 # What the demo needs: the environments and video writing (no training, datasets or sweeps).
 setup-demo: $(VENV)/.setup-demo
 $(VENV)/.setup-demo: constraints.txt setup.cfg | $(BIN)/python
@@ -37,7 +38,7 @@ setup: $(VENV)/.setup
 $(VENV)/.setup: constraints.txt setup.cfg | $(BIN)/python
 	$(BIN)/pip install -c constraints.txt torch==2.13.0 $(if $(TORCH_INDEX),--extra-index-url $(TORCH_INDEX))
 	$(BIN)/pip install -c constraints.txt -e ".[test,train]"
-	touch $@
+	touch $@ $(VENV)/.setup-demo
 
 demo: setup-demo
 	$(WITH_MENAGERIE) $(BIN)/franka-composer demo

@@ -173,14 +173,27 @@ def test_a_command_without_its_extra_names_the_extra_to_install(tmp_path, missin
     assert list(tmp_path.iterdir()) == []
 
 
-def test_only_an_extras_import_error_is_taken_for_a_missing_extra():
-    """Any other is a broken installation: its traceback says where."""
+def test_only_a_missing_extras_import_error_is_taken_for_one(monkeypatch):
+    """Any other is a broken installation or a bug, whose traceback says where: a package
+    that is installed but fails to import (a version that lacks a name, a broken C
+    extension) was told to be installed."""
     from franka_composer.cli.extras import missing_extra
 
     assert missing_extra(ModuleNotFoundError("No module named 'lxml'", name="lxml")) is None
-    assert missing_extra(ImportError("cannot import name 'x' from 'numpy'")) is None
-    assert missing_extra(ModuleNotFoundError("No module named 'sbx.tqc'", name="sbx.tqc")
-                         ).startswith("this command needs sbx, which the 'jax' extra")
+    with pytest.raises(ImportError) as real:
+        from torch import no_such_name  # noqa: F401
+    assert real.value.name == "torch" and missing_extra(real.value) is None
+    assert missing_extra(ImportError("broken", name="torch._C")) is None
+    assert missing_extra(ImportError("could not load the ray tracer")) is None  # Ray is here.
+    from franka_composer.cli import extras
+
+    monkeypatch.setitem(extras.EXTRA_OF, "franka_absent", "data")  # Not installed anywhere.
+    for error in (ModuleNotFoundError("No module named 'franka_absent'",
+                                      name="franka_absent.sub"),
+                  ImportError("franka_absent is not installed")):
+        assert missing_extra(error) == (
+            f"this command needs franka_absent, which the 'data' extra installs: pip "
+            f"install 'franka_composer[data]' ({error})")
 
 
 def test_each_extra_named_brings_its_package():
