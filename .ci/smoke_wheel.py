@@ -1,6 +1,7 @@
 """Smoke test of a release: the sdist and wheel in DIST hold what a user needs, and the
 wheel, installed (not editable) into the virtualenv whose python runs this script, makes and
-steps every Gymnasium id and answers `franka-composer --version`.
+steps every Gymnasium id and answers `franka-composer --version` and each command's
+`--help` (every module the commands import is in the wheel).
 
 Run it with that python, isolated (`-I`), from outside the checkout, so that the package
 imported is the installed wheel and never the source tree:
@@ -92,6 +93,15 @@ def main(argv: list[str]) -> int:
                              check=True).stdout
     if printed != f"franka-composer {version}\n":
         raise SystemExit(f"franka-composer --version printed {printed!r}, not {version}")
+    from franka_composer.cli import SUBCOMMANDS
+
+    for name in SUBCOMMANDS:
+        answered = subprocess.run([str(command), name, "--help"], capture_output=True,
+                                  text=True)
+        if answered.returncode != 0 or not answered.stdout.startswith(
+                f"usage: franka-composer {name}"):
+            raise SystemExit(f"franka-composer {name} --help failed: {answered.stderr[-500:]}")
+    print(f"franka-composer {', '.join(SUBCOMMANDS)}: each answers --help")
     print(f"the wheel and sdist in {dist} pass: franka-composer {version}")
     return 0
 
