@@ -24,6 +24,7 @@ from franka_composer import render_owner, seeding, suite
 from franka_composer.environment import ended_by_divergence
 from franka_composer.headless_gl import has_display
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
+from franka_composer.tasks.config import ObservationSettings
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.validation import check_bool, check_choice
 
@@ -311,7 +312,7 @@ def _check_goal_marker_seen(render_mode: str | None, task_kwargs: dict) -> None:
     if "goal_marker_visible" not in task_kwargs or render_mode is not None:
         return
     check_bool("goal_marker_visible", task_kwargs["goal_marker_visible"])
-    if task_kwargs.get("observation_mode", "state") == "state":
+    if task_kwargs.get("observation_mode", ObservationSettings.mode) == "state":
         raise ValueError("goal_marker_visible shows or hides the goal in rendered frames and "
                          "camera observations, and render_mode=None with observation_mode="
                          "'state' has neither: give render_mode='rgb_array' or 'human', or "

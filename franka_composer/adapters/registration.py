@@ -25,10 +25,6 @@ from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.rewards import REWARD_TYPES
 from franka_composer.validation import check_choice
 
-#: The entry point of specs recorded before each id had its own (`id_maker`): Minari
-#: datasets keep it, and `recover_environment` makes their env through it.
-ENTRY_POINT = "franka_composer.adapters.registration:make_registered"
-
 
 def _camel(task: str) -> str:
     return "".join(part.capitalize() for part in task.split("_"))
@@ -104,7 +100,8 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
     `gym.make` that differs is an error naming the id to use instead. The episode length is
     `TimeLimit`'s (`gym.make(id, max_episode_steps=N)`, the task's by default), which the
     env cannot see: it is built without a time limit of its own unless `time_limit` is
-    given (then the shorter ends an episode)."""
+    given (then the shorter ends an episode). Specs recorded before each id had its own
+    entry point (`id_maker`), such as Minari datasets', name this function: keep it."""
     fixed = ENV_IDS[registered_id]
     asked = RegisteredEnv(task, reward_type, control)
     if (asked.task, asked.reward_type) != (fixed.task, fixed.reward_type) or (

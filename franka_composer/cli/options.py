@@ -9,7 +9,7 @@ import pathlib
 import sys
 
 from franka_composer.training.run_config import MAX_TRAINING_SEED
-from franka_composer.validation import check_writable
+from franka_composer.validation import check_writable, repeated
 
 
 def number(text: str) -> float:
@@ -235,8 +235,6 @@ class _JoinTasks(argparse.Action):
     over its cells, and a benchmark timed it twice)."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        from franka_composer.validation import repeated
-
         tasks = tuple(name for word in values for name in word)
         twice = repeated(tasks)
         if twice:
