@@ -30,7 +30,10 @@ import argparse
 
 import numpy as np
 
-from franka_composer.cli.options import episode_seed, positive_int
+from franka_composer.cli.options import add_tasks_argument, episode_seed, positive_int
+
+#: The tasks whose block lies on the floor to be pressed.
+PRESSED_TASKS = ("push", "slide", "pick_and_place")
 
 HOVER = 0.04  # m above the object's top, before the press.
 STEP = 0.05  # m: a full Cartesian command, the press's depth per step.
@@ -197,8 +200,7 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--tasks", nargs="+", default=["push", "slide", "pick_and_place"],
-                        choices=("push", "slide", "pick_and_place"))
+    add_tasks_argument(parser, PRESSED_TASKS, f"tasks to press (of {', '.join(PRESSED_TASKS)})")
     parser.add_argument("--controls", nargs="+", default=list(CONTROLS), choices=CONTROLS)
     parser.add_argument("--seeds", type=episode_seed, nargs="+", default=[0, 1])
     parser.add_argument("--steps", type=positive_int, default=80,
@@ -207,6 +209,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--held", action="store_true",
                         help="press a held block onto another instead (stack; --tasks unread)")
     args = parser.parse_args(argv)
+    others = [task for task in args.tasks if task not in PRESSED_TASKS]
+    if others:
+        parser.error(f"--tasks: {', '.join(others)} not pressed here; tasks pressed: "
+                     f"{', '.join(PRESSED_TASKS)}")
     if args.held:
         return _print_held(args)
     print("| task | control | seed | sank (mm) | rose (mm) | top speed (m/s) | moved (mm) | "

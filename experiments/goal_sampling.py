@@ -110,7 +110,7 @@ def tables(results: dict[str, dict]) -> str:
     if len(draws) == 2:
         (ours_block, ours_goal), (ref_block, ref_goal) = draws.values()
         critical = ks_critical(len(ours_block), len(ref_block))
-        lines += ["", f"| quantity | Kolmogorov-Smirnov statistic | 1 % critical value |",
+        lines += ["", "| quantity | Kolmogorov-Smirnov statistic | 1 % critical value |",
                   "|---|---|---|"]
         for name, quantity in QUANTITIES.items():
             statistic = ks_statistic(quantity(ours_block, ours_goal),

@@ -68,7 +68,7 @@ def _reference_differences(config: TaskConfig) -> str:
 def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     """The documentation page of the task `config` describes, registered as `ids`."""
     layout = layout_for(config)
-    control, workspace = config.control, config.workspace
+    control = config.control
     max_episode_steps = config.max_episode_steps
     gripper = (f"The 4th moves the fingers' target opening by up to "
                f"{control.max_finger_step:g} m (-1 and +1 set it fully closed and fully open "

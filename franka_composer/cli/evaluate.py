@@ -4,7 +4,6 @@ Table II-style summary over runs."""
 from __future__ import annotations
 
 import argparse
-import pathlib
 
 from franka_composer.cli.options import (add_run_dirs, episode_seed, output_file,
                                          positive_int, report_waiting)
