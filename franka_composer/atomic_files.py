@@ -8,6 +8,7 @@ import itertools
 import os
 import pathlib
 import stat
+from typing import Callable
 
 from franka_composer.signals import held
 
@@ -29,7 +30,7 @@ def replace_together(writes: dict) -> None:
     or all the new ones, never one without the others (short of the process being killed
     outright, or the machine stopping, between two renames). Two paths that are one file,
     or a folder where a file is to go, are refused before anything is written."""
-    places = []
+    places: list[tuple[pathlib.Path, pathlib.Path, Callable]] = []
     for path, write in writes.items():
         problem = irregular_file(path)
         if problem is not None:

@@ -56,7 +56,7 @@ class GoalEnvironment(composer.Environment):
     @property
     def episode_steps(self) -> int | None:
         """Control steps before an episode times out; None: it never does."""
-        return None if self._episode_steps == NO_LIMIT else self._episode_steps
+        return None if self._episode_steps == NO_LIMIT else int(self._episode_steps)
 
     @property
     def time_limit(self) -> float:
@@ -66,10 +66,10 @@ class GoalEnvironment(composer.Environment):
     def set_episode_steps(self, steps: int | None) -> None:
         """Makes episodes time out after `steps` control steps (a whole number >= 1; None:
         never), from the next step on."""
-        steps = NO_LIMIT if steps is None else check_number("steps", steps, minimum=1,
+        limit = NO_LIMIT if steps is None else check_number("steps", steps, minimum=1,
                                                             integer=True)
-        self._episode_steps = steps
-        self._time_limit = composer_time_limit(steps, self.control_timestep())
+        self._episode_steps = limit
+        self._time_limit = composer_time_limit(limit, self.control_timestep())
 
     @property
     def closed(self) -> bool:
@@ -140,7 +140,7 @@ def check_time_limit(time_limit) -> float:
     if time_limit is None:
         return NO_LIMIT
     if (isinstance(time_limit, bool) or not isinstance(time_limit, numbers.Real)
-            or not time_limit > 0):
+            or not time_limit > 0):  # type: ignore[operator]  # (NaN refused too.)
         raise ValueError(f"time_limit must be a number of seconds > 0, or None (or inf, as "
                          f"in Composer) for no limit, got {time_limit!r}")
     try:

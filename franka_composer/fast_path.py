@@ -127,6 +127,10 @@ def _warn_once(missing: list[str]) -> None:
 class FastEnvironment(GoalEnvironment):
     """`GoalEnvironment` with the substep loop batched where nothing observes it."""
 
+    # Set at each reset that rebuilds Composer's observation updater.
+    _direct: list | None
+    _signature: tuple
+
     def __init__(self, task, **kwargs) -> None:
         super().__init__(task, **kwargs)
         missing = _probe_instance(self)
@@ -215,6 +219,7 @@ class FastEnvironment(GoalEnvironment):
 
     def _read_observation(self) -> dict:
         # What Composer's one-entry buffer would hand back: a copy of the latest reading.
+        assert self._direct is not None  # Read so only while observables are read directly.
         return {name: np.array(read()) for name, read in self._direct}
 
     def reset(self) -> dm_env.TimeStep:

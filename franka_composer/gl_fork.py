@@ -70,7 +70,8 @@ def install() -> None:
         # which dm_control leaves to its first context) goes first, to run after this one.
         import concurrent.futures.thread  # pylint: disable=unused-import,import-outside-toplevel
 
-        threading._register_atexit(_free_contexts_at_exit)  # pylint: disable=protected-access
+        threading._register_atexit(  # type: ignore[attr-defined]  # pylint: disable=protected-access
+            _free_contexts_at_exit)
     else:
         return
     os.register_at_fork(after_in_child=_forget_inherited_gl)
@@ -126,6 +127,7 @@ def forked_children_render() -> bool:
 
 
 def _refuse_an_inherited_gpu_driver() -> None:
+    assert _egl_driver is not None  # Registered where `install` set it.
     parent, vendor = _egl_driver
     if parent != os.getpid() and vendor != FORK_SAFE_EGL_VENDOR:
         raise ForkedGLError(

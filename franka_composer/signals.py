@@ -34,9 +34,11 @@ class _Handled:
 
     def __init__(self, handler, signums) -> None:
         self._handler, self._signums = handler, signums
-        self._repeat = None  # The arguments of the interrupt to raise again.
-        self._dropped = None  # Those of one Python dropped and no repeat has raised yet.
-        self._alarm = None  # SIGALRM's handler, its timer and the hook the repeat took.
+        self._repeat: tuple | None = None  # The arguments of the interrupt to raise again.
+        # Those of one Python dropped and no repeat has raised yet.
+        self._dropped: tuple | None = None
+        # SIGALRM's handler, its timer and the hook the repeat took.
+        self._alarm: tuple | None = None
         self._ending = False
 
     def __enter__(self) -> None:
@@ -68,9 +70,10 @@ class _Handled:
         if self._repeat is not None and isinstance(unraisable.exc_value, KeyboardInterrupt):
             self._dropped = self._repeat
         else:
+            assert self._alarm is not None  # The hook is this only while the alarm is set.
             self._alarm[2](unraisable)
 
-    def __exit__(self, *exc) -> bool:
+    def __exit__(self, *exc) -> None:
         self._repeat, self._ending = None, True
         dropped = self._dropped  # Python dropped it, and the block ended before a repeat.
         restores = list(self._previous.items())
@@ -91,7 +94,6 @@ class _Handled:
             arrived = KeyboardInterrupt(*dropped)
         if arrived is not None and not _interrupt_in_flight():
             raise arrived
-        return False
 
 
 def stop_signals() -> list[int]:
@@ -162,7 +164,7 @@ def stop_requests(request, *signums: int):
     """Inside the block the first of `signums` calls `request()`, so that what runs can stop
     where it is ready to (a training run: at its episode's end, where its checkpoint
     resumes exactly); a second raises KeyboardInterrupt at once. Restored after."""
-    received = []
+    received: list[int] = []
 
     def handler(signum, frame):
         if received:

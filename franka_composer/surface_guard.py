@@ -134,7 +134,7 @@ class BoundSurfaceGuard:
         footprint, if already computed."""
         points = self.footprint() if points is None else points
         lowest = self._lowest_hit(points, RAY_START_ABOVE)
-        fractions = (0.0,)
+        fractions: tuple[float, ...] = (0.0,)
         if np.hypot(*sideways) > MIN_SIDEWAYS:
             fractions += PATH_FRACTIONS
             for fraction in PATH_FRACTIONS:

@@ -15,6 +15,7 @@ import sys
 from collections.abc import Mapping
 from typing import Any
 
+import dm_env
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
@@ -63,7 +64,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
     Gymnasium-Robotics (`registration.make_registered`).
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
     def __getstate__(self):
         # EzPickle rebuilds from the constructor's arguments; `gym.make`'s spec goes along
@@ -111,7 +112,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self.render_mode = render_mode
         self._width, self._height, self._camera = width, height, camera
         self._renderer = None
-        self._timestep = None
+        self._timestep: dm_env.TimeStep | None = None
         self._an_episode_ended = False  # Then a step before reset() says why it needs one.
         self._stream_started = False  # Whether a reset has seeded the episode stream.
         self._randomization = None  # This episode's randomised parameters, if randomised.
@@ -123,7 +124,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         goal_box = spaces.Box(-np.inf, np.inf, shape=(self._task.goal_size,),
                               dtype=OBSERVATION_DTYPE)
         # The goals are state vectors in every observation mode: HER relabels them exactly.
-        space = {"observation": state_box(self._layout)} if self._state else {}
+        space: dict[str, spaces.Space] = (
+            {"observation": state_box(self._layout)} if self._state else {})
         space.update(achieved_goal=goal_box, desired_goal=goal_box)
         for key in self._pixel_keys:
             space[key] = spaces.Box(0, 255, shape=(settings.height, settings.width, 3),

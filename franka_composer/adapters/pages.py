@@ -187,6 +187,7 @@ def _goal_words(config: TaskConfig) -> tuple[str, str, str]:
                 "m")
     if config.goal == "orientation":
         settings = config.orientation_goal
+        assert settings is not None  # An orientation goal's config has its settings.
         goal = ("uniformly random (orientation_goal='uniform', panda-gym's: 94 % of such "
                 "goals are more than 0.2 rad from every orientation of a cube resting on a "
                 "face, out of a top-down hand's reach)" if settings.kind == "uniform" else

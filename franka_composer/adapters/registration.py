@@ -120,7 +120,7 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
 
 #: What `gym.make` reads off the entry point: its render modes, so that it wraps
 #: "rgb_array_list" (and "human" where needed) as for any env class.
-make_registered.metadata = FrankaGoalEnv.metadata
+make_registered.metadata = FrankaGoalEnv.metadata  # type: ignore[attr-defined]
 
 
 def id_maker(id_: str):
@@ -135,7 +135,7 @@ def id_maker(id_: str):
         return make_registered(id_, **options)
 
     make.__name__ = make.__qualname__ = "make_" + id_.replace("-", "_")
-    make.metadata = FrankaGoalEnv.metadata
+    make.metadata = FrankaGoalEnv.metadata  # type: ignore[attr-defined]
     return make
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import pathlib
+from typing import Any, Callable
 
 import gymnasium as gym
 
@@ -138,6 +139,7 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     render = {} if args.no_video else dict(render_mode="rgb_array", width=args.width,
                                            height=args.height)
     timing = given_timing(args)
+    policy: Callable[[Any], Any]
     if trained is None:
         env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render, **timing)
         policy = make_expert(env)

@@ -174,7 +174,7 @@ def cell_arguments(cell, out, train_args: tuple[str, ...], *,
     def refuse(message: str):  # Not train's usage and exit: the user ran sweep.
         raise ValueError(f"the options after -- go to each cell's train, which refuses them: "
                          f"{message}")
-    parser.error = refuse
+    parser.error = refuse  # type: ignore[method-assign]  # Deliberate: a ValueError, not exit.
     try:
         args, unknown = parser.parse_known_args(train_arguments(cell, out, train_args))
     except argparse.ArgumentError as error:

@@ -105,7 +105,8 @@ class Controller:
         self._action_spec = specs.BoundedArray(
             shape=shape, dtype=np.float32, minimum=np.full(shape, -1.0, np.float32),
             maximum=np.full(shape, 1.0, np.float32), name=settings.action_name)
-        self._law = self._law_physics = None
+        self._law: ActionLaw | None = None
+        self._law_physics = None
 
     @property
     def settings(self) -> ControlSettings:

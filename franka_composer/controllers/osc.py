@@ -40,6 +40,8 @@ cannot cover a full 5 cm command; sustained commands come close from the second 
 
 from __future__ import annotations
 
+from typing import cast
+
 import mujoco
 import numpy as np
 
@@ -88,7 +90,7 @@ class OscController(Controller):
 
     def initialize_episode(self, physics) -> None:
         super().initialize_episode(physics)
-        self.law.set_gain_scale(self._gain_scale)
+        cast(OscLaw, self.law).set_gain_scale(self._gain_scale)
 
     def _bind_law(self, physics) -> "OscLaw":
         panda = self._panda

@@ -77,6 +77,7 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
         if format == "minari":
             from franka_composer.datasets import minari_format
 
+            assert dataset_id is not None
             summary = minari_format.write(env, policy, episodes, seed, out, dataset_id,
                                           f"franka_composer {task} ({control}), {source}")
             return dict(summary, path=str(out), dataset_id=dataset_id)

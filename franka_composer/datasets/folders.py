@@ -18,7 +18,7 @@ def removed_if_it_fails(root: pathlib.Path):
     writes its namespaces' metadata beside the dataset), with Ctrl-C and SIGTERM held
     meanwhile: a second one left half a dataset."""
     made = missing_folders(root)
-    before = None if made else set(root.rglob("*"))
+    before = set() if made else set(root.rglob("*"))
     try:
         if made:
             made[0].mkdir(parents=True, exist_ok=True)

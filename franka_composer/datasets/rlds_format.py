@@ -68,7 +68,7 @@ def write(env, policy, episodes: int, seed: int, root: pathlib.Path, metadata: d
     limit = episode_limit(env)
     if limit is not None and limit != composer_env.episode_steps:
         composer_env.set_episode_steps(limit)
-    episode = {"seed": None}
+    episode: dict[str, int | None] = {"seed": None}
     steps = successes = 0
     # A recording cut short is no dataset: nothing of it is left behind, in a folder it made
     # or in the empty one it was given (`record` takes no other).

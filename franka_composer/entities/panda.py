@@ -211,8 +211,8 @@ class Panda(composer.Robot):
     @property
     def arm_joint_ranges(self) -> tuple[tuple[float, float], ...]:
         """Each arm joint's (lowest, highest) angle (rad), joint 1 first."""
-        return tuple(tuple(float(v) for v in _resolved(joint, "joint", "range"))
-                     for joint in self._arm_joints)
+        ranges = (_resolved(joint, "joint", "range") for joint in self._arm_joints)
+        return tuple((float(lowest), float(highest)) for lowest, highest in ranges)
 
     def check_arm_qpos(self, name: str, qpos) -> None:
         """A ValueError naming `name` unless every angle lies within its joint's range."""

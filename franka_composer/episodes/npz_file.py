@@ -54,8 +54,9 @@ def write(episodes: list[dict[str, np.ndarray]], path: str | os.PathLike,
     target = check_destination(path)
     if not target.parent.is_dir():  # (Else the error names the partial file beside it.)
         raise ValueError(f"cannot write {target}: {target.parent} is not a folder")
+    # (No key of `arrays` is allow_pickle, which numpy's hints cannot tell.)
     replace_atomically(target, lambda partial: np.savez_compressed(
-        partial, episode_length=lengths, **arrays))
+        partial, episode_length=lengths, **arrays))  # type: ignore[arg-type]
 
 
 def check_destination(path) -> pathlib.Path:

@@ -46,7 +46,7 @@ def make_expert(env) -> Expert:
                         f"expert reads, not a task name: make_expert(gym.make(...)), got {env!r}")
     unwrapped = getattr(env, "unwrapped", env)
     task = getattr(unwrapped, "task", None)
-    if getattr(task, "config", None) is None:
+    if task is None or getattr(task, "config", None) is None:
         raise ValueError("make_expert takes an environment of franka_composer (gym.make of "
                          "one of its ids, franka_composer.load, or Shimmy's wrapper of that), "
                          f"whose task it reads, got {env!r}")

@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from franka_composer.policies.base import Expert
+from franka_composer.tasks.config import BlockSpec
 
 #: Fingertips this far (m) below the cube's top edge when tipping it, and the tipping push's
 #: speed (fraction of a full step): measured to tip the 4 cm cube once (deeper or faster
@@ -74,7 +75,8 @@ class FlipExpert(Expert):
     """Tips, then turns; each step decided afresh from the observation."""
 
     def reset(self) -> None:
-        self._pushing = None  # The push under way: (its start, its direction xy).
+        # The push under way: (its start, its direction xy).
+        self._pushing: tuple[np.ndarray, np.ndarray] | None = None
 
     def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         vector = np.asarray(obs["observation"], dtype=np.float64)
@@ -82,7 +84,9 @@ class FlipExpert(Expert):
         cube = self.layout.read(vector, "object_position")
         current = _axes(self.layout.read(vector, "object_orientation"))
         goal = _axes(obs["desired_goal"])
-        half = self.config.objects[0].half_size
+        spec = self.config.objects[0]
+        assert isinstance(spec, BlockSpec)
+        half = spec.half_size
         below_tcp = 0.0073  # The closed fingertips below the TCP (m).
         # The body axis (a column index and sign) the goal points most nearly up.
         index = int(np.argmax(np.abs(goal[2])))

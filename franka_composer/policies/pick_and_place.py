@@ -9,6 +9,7 @@ import numpy as np
 
 from franka_composer.entities.panda import MAX_FINGER_WIDTH
 from franka_composer.policies.base import Expert
+from franka_composer.tasks.config import BlockSpec
 
 #: Height (m) above the block's centre at which the open hand lines up before descending.
 HOVER_HEIGHT = 0.08
@@ -40,10 +41,11 @@ class PickAndPlaceExpert(Expert):
         self._closing_steps = 0
         #: The finger width when the fingers were last told to close on the block; None
         #: when they are not closing on it.
-        self._closing_from = None
+        self._closing_from: float | None = None
 
     def act(self, obs: Mapping[str, Any]) -> np.ndarray:
         scene = self.scene(obs)
+        assert scene.finger_width is not None
         return self.fetch(scene.tcp, scene.finger_width, scene.object_position, scene.goal)
 
     def fetch(self, tcp: np.ndarray, width: float, block: np.ndarray, goal: np.ndarray,
@@ -82,7 +84,9 @@ class PickAndPlaceExpert(Expert):
     @property
     def block_width(self) -> float:
         """Every block's width (m): one option sets them all."""
-        return 2 * self.config.objects[0].half_size
+        block = self.config.objects[0]
+        assert isinstance(block, BlockSpec)
+        return 2 * block.half_size
 
     @staticmethod
     def in_hand(tcp: np.ndarray, block: np.ndarray) -> bool:

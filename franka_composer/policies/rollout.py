@@ -53,7 +53,8 @@ def rollout(env, policy, episodes: int, seed: int | None = None,
         env_seconds += time.perf_counter() - start
         if on_step is not None:
             on_step(env, index)
-        observations, steps = [obs], {key: [] for key in STEP_KEYS}
+        observations = [obs]
+        steps: dict[str, list] = {key: [] for key in STEP_KEYS}
         done = False
         while not done:
             action = policy(obs)

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from franka_composer.policies.base import Expert
+from franka_composer.tasks.config import PuckSpec
 
 #: Half-size (m) of the closed fingers seen from above (x, y), from where they first touch
 #: the puck approached from each direction.
@@ -86,7 +87,9 @@ class StrikeCalibration:
 
     def strike_angle(self, path_angle: float) -> float:
         """The strike direction (deg) whose puck path comes closest to `path_angle` (deg)."""
-        return float(self._strikes[np.argmin(np.abs(self._paths - path_angle))])
+        # Set by __post_init__ through object.__setattr__ (frozen), which mypy does not see.
+        strikes, paths = self._strikes, self._paths  # type: ignore[attr-defined]
+        return float(strikes[np.argmin(np.abs(paths - path_angle))])
 
     def kick(self, distance: float, strike_angle: float) -> float:
         """The kick (a fraction of a full step) that glides the puck `distance` metres."""
@@ -107,7 +110,7 @@ class StrikeCalibration:
 #: 0.8`'s output (results/slide-calibration/): a full kick glides the puck 1.3 m under mocap,
 #: 1.7 m under osc, and the puck must stop at the goal (`overshoot`). The default timing's
 #: were measured before that tool.
-CALIBRATIONS = {
+CALIBRATIONS: dict[tuple[str, str | None], StrikeCalibration] = {
     ("mocap", "default"): StrikeCalibration(1.69, 0.061, (
         ((-75.0, -55.0, -40.0, -28.5), (-3.5, -2.5, -3.2, -3.4)),
         ((-26.5, -22.5, -20.0, -15.0, -10.0, -7.5, -5.0, -0.5),
@@ -157,18 +160,20 @@ class SlideExpert(Expert):
         scene = self.scene(obs)
         puck, tcp = scene.object_position, scene.tcp
         if self._waiting:
-            self._waiting = np.linalg.norm(scene.object_velocity[:2]) > 1e-4
+            self._waiting = bool(np.linalg.norm(scene.object_velocity[:2]) > 1e-4)
             return self.move_towards(tcp, [*tcp[:2], TRAVEL_HEIGHT])
         to_goal = scene.goal[:2] - puck[:2]
         calibration = self._calibration
         strike_angle = calibration.strike_angle(np.degrees(np.arctan2(to_goal[1], to_goal[0])))
         direction = np.array([np.cos(np.radians(strike_angle)), np.sin(np.radians(strike_angle))])
         corner = FINGER_HALF_SIZE * np.sign(direction)
-        radius = self.config.objects[0].radius
+        spec = self.config.objects[0]
+        assert isinstance(spec, PuckSpec)
+        radius = spec.radius
         start = np.array([*(puck[:2] - direction * (radius + GAP) - corner), STRIKE_HEIGHT])
         if np.linalg.norm(tcp - start) < POSITION_TOLERANCE:
             self._waiting = True
-            kick = calibration.kick(np.linalg.norm(to_goal) + calibration.overshoot,
+            kick = calibration.kick(float(np.linalg.norm(to_goal)) + calibration.overshoot,
                                     strike_angle)
             return np.array([*direction * kick, 0.0])
         if np.linalg.norm(tcp[:2] - start[:2]) < POSITION_TOLERANCE:

@@ -107,7 +107,8 @@ class Randomizer:
             return np.asarray(physics.bind(elements).element_id, dtype=int)
 
         bodies = np.array([physics.bind(prop.geom).bodyid for prop in self._props], dtype=int)
-        object_geoms = ids([prop.geom for prop in self._props]) if self._props else []
+        object_geoms = (ids([prop.geom for prop in self._props]) if self._props
+                        else np.zeros(0, dtype=int))
         panda_geoms = ids(self._panda.mjcf_model.find_all("geom"))
         panda_materials = ids(self._panda.mjcf_model.find_all("material"))
         lights = ids(self._arena.mjcf_model.find_all("light"))
@@ -188,7 +189,9 @@ class Randomizer:
     def _split_streams(self, random_state: np.random.RandomState) -> None:
         """One Philox stream per group, keyed by a hash of the episode's random state and
         the group's name (a SeedSequence over MT19937's 625 words costs 0.8 ms; this 60 us)."""
-        _, keys, position, *_ = random_state.get_state()
+        state = random_state.get_state(legacy=True)
+        assert isinstance(state, tuple)  # MT19937's, as RandomState keeps it.
+        _, keys, position, *_ = state
         fingerprint = hashlib.blake2b(keys.tobytes(), digest_size=16)
         fingerprint.update(int(position).to_bytes(4, "little"))
         for group in GROUPS:

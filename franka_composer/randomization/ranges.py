@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import numbers
 import operator
+from typing import Callable
 
 import numpy as np
 from dm_control.composer.variation import base, distributions, noises
@@ -147,7 +148,7 @@ def _uniform_integer(low, high=None) -> Interval:
 
 #: Each distribution's range from its (constant) arguments. Uniform's high end counts as
 #: drawn: numpy's may return it after rounding.
-_RANGES = {
+_RANGES: dict[type, Callable[..., Interval]] = {
     distributions.Uniform: lambda low, high: Interval.of(np.minimum(low, high),
                                                          np.maximum(low, high)),
     distributions.UniformInteger: _uniform_integer,

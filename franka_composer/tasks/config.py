@@ -497,6 +497,12 @@ def _lift_unread(config: TaskConfig, name: str, other: str) -> str:
     return f"{other}={value:g} lifts no goal: give {other} as well, or leave {name} out"
 
 
+def _orientation_goal(config: TaskConfig) -> str | None:
+    """How `config`'s orientation goals are drawn (`OrientationGoalSettings.kind`); None
+    where its goals have no orientation."""
+    return None if config.orientation_goal is None else config.orientation_goal.kind
+
+
 class ReadOnlyWhere(NamedTuple):
     """Where an option that only some configurations read is read: `reads(config)`; what
     such a configuration does instead (`instead`, the refusal's reason), and which other
@@ -542,8 +548,8 @@ _READ_ONLY_WHERE: dict[str, ReadOnlyWhere] = {
                            lambda c: None)
        for name in ("goal_centre", "goal_range")},
     "goal_yaw_range": ReadOnlyWhere(
-        lambda c: c.orientation_goal.kind == "face_up",
-        lambda c: f"orientation_goal={c.orientation_goal.kind!r} draws every orientation, "
+        lambda c: _orientation_goal(c) == "face_up",
+        lambda c: f"orientation_goal={_orientation_goal(c)!r} draws every orientation, "
                   "not a yaw about face up: leave it out",
         lambda c: "orientation_goal='face_up'"),
     "goal_max_height": ReadOnlyWhere(

@@ -47,7 +47,7 @@ class GoalTask(composer.Task):
         self._initial_finger_width = config.initial_finger_width
         # Goal distance at the end of the last step or reset: computed once per step
         # (`after_step`) for the reward, the discount, termination and the adapter's success.
-        self._distance = np.float64(np.inf)
+        self._distance: np.ndarray | np.float64 = np.float64(np.inf)
         self._success = False
         self._episode_started = False  # Cameras render from the first episode on.
 
@@ -112,7 +112,8 @@ class GoalTask(composer.Task):
 
     def _entity_observable(self, key: str):
         """The entity observable "<entity>/<name>"."""
-        entities = {entity.mjcf_model.model: entity for entity in [self._panda, *self._props]}
+        every: list[composer.Entity] = [self._panda, *self._props]
+        entities = {entity.mjcf_model.model: entity for entity in every}
         entity_name, observable_name = key.split("/")
         return entities[entity_name].observables.get_observable(observable_name)
 
@@ -127,7 +128,7 @@ class GoalTask(composer.Task):
     def _make_randomizer(self, config: TaskConfig) -> Randomizer:
         """The randomizer, with what the policy senses: the state vector's observables
         (each with its noise) and the cameras' images (delayed, not noised)."""
-        sensed = []
+        sensed: list[tuple[observable.Observable, str | None]] = []
         if config.observations.state:
             sensed += [(self._entity_observable(field.key), noise_parameter(field))
                        for field in self._observation_layout.fields]
@@ -349,6 +350,7 @@ class ApartPlacer(composer.Initializer):
             if not isinstance(placed, int):
                 break
         else:
+            assert isinstance(placed, int)  # The prop the last attempt found no room for.
             raise composer.EpisodeInitializationError(
                 f"no room for {self._props[placed].mjcf_model.model} after {MAX_ATTEMPTS} "
                 f"draws, {PLACEMENT_RESTARTS} times")

@@ -19,6 +19,7 @@ HER relabelling is exact) and shows the desired goal with a marker in rendered i
 from __future__ import annotations
 
 import abc
+from typing import Callable
 
 import mujoco
 import numpy as np
@@ -203,5 +204,5 @@ class OrientationGoal(Goal):
 
 
 #: Every kind of goal, by the name a `TaskConfig` gives.
-GOALS = {"object_position": ObjectPositionGoal, "tcp_position": TcpPositionGoal,
+GOALS: dict[str, Callable[..., Goal]] = {"object_position": ObjectPositionGoal, "tcp_position": TcpPositionGoal,
          "stacked": StackedGoal, "orientation": OrientationGoal}

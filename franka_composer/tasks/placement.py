@@ -57,6 +57,6 @@ def room_to_place_apart(low, high, radii: Sequence[float]) -> bool:
 @functools.lru_cache(maxsize=64)
 def _room(low: tuple, high: tuple, radii: tuple) -> bool:
     random = np.random.RandomState(0)
-    low, high = np.asarray(low), np.asarray(high)
-    return all(not isinstance(place_apart(lambda: random.uniform(low, high), radii), int)
+    box = np.asarray(low), np.asarray(high)
+    return all(not isinstance(place_apart(lambda: random.uniform(*box), radii), int)
                for _ in range(CHECKED_PLACEMENTS))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import time
+from typing import cast
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
@@ -94,7 +95,8 @@ class RecordEvaluation(BaseCallback):
             self.last_steps = row["steps"]
 
     def _on_step(self) -> bool:
-        evaluation = self.parent  # SB3's EvalCallback, with log_path set, keeps its results.
+        # SB3's EvalCallback, with log_path set, keeps its results.
+        evaluation = cast(EvalCallback, self.parent)
         success_rate = float(np.mean(evaluation.evaluations_successes[-1]))
         mean_reward = float(np.mean(evaluation.evaluations_results[-1]))
         append_eval_row(self._run.eval_csv, {
@@ -185,6 +187,8 @@ class LatestCheckpoint(CheckpointCallback):
     `machines`, those it has trained on (`machine`), carried on (`RunDir.read_state`; None
     where unknown); `config`, the run's settings, recorded so that a resume can tell a
     config.json edited since (`RunDir.check_config_checkpointed`)."""
+
+    n_calls: int  # SB3's, for a type checker that does not read SB3.
 
     def __init__(self, run: RunDir, clock: WallClock, *, every: int, stream: EpisodeStream,
                  config: RunConfig, threads: int | None = None,

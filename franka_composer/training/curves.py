@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 import textwrap
+from typing import Any
 
 import numpy as np
 
@@ -24,7 +25,7 @@ LINESTYLES = ("-", "--", ":", "-.")
 #: at the figure's edge (a line of the 12-point title fills the 4.5-inch panel at about 47).
 LINE_CHARACTERS = 40
 
-Curves = dict[tuple[str, str, str], list[dict[int, float]]]
+Curves = dict[tuple[str, str, str], list[dict[Any, float]]]  # Keyed by steps or minutes.
 
 
 def seed_curves(run_dirs: list[pathlib.Path], wall_clock: bool = False) -> Curves:
@@ -36,8 +37,9 @@ def seed_curves(run_dirs: list[pathlib.Path], wall_clock: bool = False) -> Curve
     for root in run_dirs:
         run = read_run(pathlib.Path(root))
         if wall_clock:
-            run = dataclasses.replace(run, curve={
-                run.wall_times[step] / 60: rate for step, rate in run.curve.items()})
+            # Keyed by minutes, not steps as RunRecord says: `held` reads the record's curve.
+            minutes = {run.wall_times[step] / 60: rate for step, rate in run.curve.items()}
+            run = dataclasses.replace(run, curve=minutes)  # type: ignore[arg-type]
         cells.setdefault((run.task, run.algo, run.variant), []).append(run)
     curves: Curves = {}
     for cell, runs in cells.items():

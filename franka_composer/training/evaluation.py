@@ -32,7 +32,8 @@ def measure_success(model, env: gym.Env, episodes: int, *, seed: int | None = No
     successes, returns = [], []
     for episode in range(episodes):
         obs, _ = env.reset(seed=seed if episode == 0 else None)
-        done, total, info = False, 0.0, {}
+        done, total = False, 0.0
+        info: dict = {}
         while not done:
             action, _ = model.predict(obs, deterministic=deterministic)
             obs, reward, terminated, truncated, info = env.step(action)

@@ -7,6 +7,7 @@ command-line overrides go through `Hyperparameters.replace`, which names the val
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.validation import check_bool, check_choice, check_names, check_number
@@ -44,11 +45,11 @@ ALGORITHM_SETTINGS = {"ddpg": (), "sac": ("ent_coef",), "tqc": ("ent_coef", *_TQ
 def _check_ent_coef(value) -> None:
     """SB3's entropy coefficients: a number > 0, "auto", or "auto_X" (X > 0, the start)."""
     if isinstance(value, str) and value.startswith("auto"):
-        start = value[len("auto_"):] if value.startswith("auto_") else None
+        start = value[len("auto_"):] if value.startswith("auto_") else ""
         try:
             if value == "auto" or float(start) > 0:
                 return
-        except (TypeError, ValueError):
+        except ValueError:
             pass
     elif isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0:
         return
@@ -181,7 +182,7 @@ class Hyperparameters:
 _ADDED_SINCE_THE_FIRST_RUNS = ("stop_success_rate", "stop_after_evaluations", "clip_q_targets")
 
 
-_PER_TASK = {
+_PER_TASK: dict[str, dict[str, Any]] = {
     "push": dict(net_arch=(256, 256, 256), batch_size=512, total_steps=500_000),
     "pick_and_place": dict(net_arch=(256, 256, 256), batch_size=512, total_steps=500_000),
     "slide": dict(net_arch=(512, 512, 512), batch_size=2048, total_steps=1_000_000),
@@ -189,7 +190,7 @@ _PER_TASK = {
 # The paper has no row for panda-gym's other tasks: they take push's settings.
 for _task in ALL_TASKS:
     _PER_TASK.setdefault(_task, _PER_TASK["push"])
-_PER_ALGO = {
+_PER_ALGO: dict[str, dict[str, Any]] = {
     "ddpg": dict(action_noise_std=0.2),
     "sac": dict(action_noise_std=0.2, ent_coef="auto"),
     "tqc": dict(ent_coef="auto", n_critics=2, n_quantiles=25, top_quantiles_to_drop_per_net=2),

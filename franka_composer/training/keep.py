@@ -13,8 +13,8 @@ import pathlib
 import shutil
 
 from franka_composer.atomic_files import replace_atomically
-from franka_composer.training.runs import (RunDir, is_run, read_eval_rows, run_finished,
-                                           write_eval_rows)
+from franka_composer.training.runs import (EvalRow, RunDir, is_run, read_eval_rows,
+                                           run_finished, write_eval_rows)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -22,7 +22,7 @@ class KeptFiles:
     """What `keep_run` copies of `run`, read and checked by `files_to_keep`."""
 
     run: RunDir
-    evaluations: list[dict[str, float]]
+    evaluations: list[EvalRow]
     finished: bool
 
 
@@ -79,7 +79,7 @@ def check_extends(files: KeptFiles, kept: RunDir) -> None:
             f"{kept.root} away")
 
 
-def departure(kept: list[dict], ours: list[dict]) -> tuple[dict, dict | None] | None:
+def departure(kept: list[EvalRow], ours: list[EvalRow]) -> tuple[EvalRow, EvalRow | None] | None:
     """Where the evaluations `ours` leave those `kept` (eval.csv rows), up to the last of
     ours: the first kept one they do not hold with the same success rate and mean reward,
     and theirs at its step (None: no evaluation there); None where they retrace them."""

@@ -7,6 +7,7 @@ run, a resumed run and an evaluation all see the same construction.
 from __future__ import annotations
 
 import os
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -149,7 +150,7 @@ def _sbx_kwargs(algo: str, hp: Hyperparameters) -> dict:
     """
     if algo == "tqc" and hp.n_critics != 2:
         raise ValueError(f"sbx's TQC has exactly 2 critics, got n_critics={hp.n_critics}")
-    kwargs = dict(qf_learning_rate=hp.learning_rate)
+    kwargs: dict[str, Any] = dict(qf_learning_rate=hp.learning_rate)
     if algo in ("sac", "tqc"):
         kwargs.update(policy_delay=1, target_entropy="auto")
     return kwargs
@@ -167,7 +168,7 @@ def _policy(algo_class, backend: str):
 def policy_kwargs(algo: str, hp: Hyperparameters, backend: str = "sb3") -> dict:
     """The networks of `algo` with `hp`: what a model is built with, and what a saved actor
     (`policy_file`) is rebuilt with."""
-    kwargs = dict(net_arch=list(hp.net_arch))
+    kwargs: dict[str, Any] = dict(net_arch=list(hp.net_arch))
     if algo == "tqc":
         kwargs.update(n_critics=hp.n_critics, n_quantiles=hp.n_quantiles)
     if backend == "sbx":
@@ -191,7 +192,7 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
     from stable_baselines3 import HerReplayBuffer
     from stable_baselines3.common.noise import NormalActionNoise
 
-    n_actions = env.action_space.shape[0]
+    n_actions = gym.spaces.flatdim(env.action_space)
     kwargs = dict(
         learning_rate=hp.learning_rate, buffer_size=hp.buffer_size,
         learning_starts=hp.learning_starts, batch_size=hp.batch_size, tau=hp.tau,
@@ -237,7 +238,7 @@ def _least_weight_bytes(env: gym.Env, hp: Hyperparameters) -> int:
     targets and optimiser moments). More than the machine's memory, they cannot be built."""
     spaces = getattr(env.observation_space, "spaces", {"observation": env.observation_space})
     observed = sum(space.shape[0] for space in spaces.values() if len(space.shape) == 1)
-    actions = env.action_space.shape[0]
+    actions = gym.spaces.flatdim(env.action_space)
 
     def weights(sizes) -> int:
         return sum(a * b for a, b in zip(sizes, sizes[1:]))

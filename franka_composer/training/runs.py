@@ -32,6 +32,7 @@ import socket
 import time
 import uuid
 import warnings
+from typing import TypedDict
 
 from franka_composer.atomic_files import replace_atomically, sync_to_disk
 from franka_composer.training.run_config import RunConfig
@@ -41,6 +42,15 @@ EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
 #: state.json records a run's own, which a resume keeps.
 DEFAULT_CHECKPOINT_EVERY = 50_000
+
+
+class EvalRow(TypedDict):
+    """An eval.csv row as `read_eval_rows` reads it: steps as an int, the rest floats."""
+
+    steps: int
+    wall_time_s: float
+    success_rate: float
+    mean_reward: float
 
 
 @dataclasses.dataclass(frozen=True)
@@ -218,7 +228,7 @@ class RunDir:
             return
         complete = self._complete_checkpoints()
         if complete:
-            newest = max(complete, key=complete.get)
+            newest = max(complete, key=complete.__getitem__)
             self.checkpoint.unlink(missing_ok=True)  # A link to nothing.
             self.checkpoint.symlink_to(newest.name)
 
@@ -341,7 +351,7 @@ class RunDir:
                              "no whole number of steps")
         return state
 
-    def recorded_evaluations(self) -> list[dict[str, float]]:
+    def recorded_evaluations(self) -> list[EvalRow]:
         """eval.csv's rows (`read_eval_rows`: [] before the first), checked against the
         run's end where it has ended (outcome.json): none at all (its eval.csv lost or
         emptied), or one past its last step (edited, or another run's: `keep` copied it,
@@ -361,7 +371,7 @@ class RunDir:
                     f"({self.outcome_path.name}): edited, or another run's?")
         return rows
 
-    def evaluations(self) -> list[dict[str, float]]:
+    def evaluations(self) -> list[EvalRow]:
         """eval.csv's rows (`recorded_evaluations`); a run with no evaluations yet is a
         ValueError."""
         rows = self.recorded_evaluations()
@@ -369,7 +379,7 @@ class RunDir:
             raise ValueError(f"{self.root} has no evaluations yet (no eval.csv rows)")
         return rows
 
-    def kept_evaluations(self) -> list[dict[str, float]]:
+    def kept_evaluations(self) -> list[EvalRow]:
         """eval.csv's rows that a resume keeps: of a run stopped between checkpoints, those
         up to its checkpoint (the steps after it are redone, their evaluations with them);
         all of a run that has ended (`recorded_evaluations`)."""
@@ -437,12 +447,12 @@ def _holder(lock_file) -> str:
     return lock_file.read().strip() or "another process"
 
 
-def success_curve(rows: list[dict[str, float]]) -> dict[int, float]:
+def success_curve(rows: list[EvalRow]) -> dict[int, float]:
     """{evaluated step: success rate} of eval.csv's rows."""
     return {row["steps"]: row["success_rate"] for row in rows}
 
 
-def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
+def read_eval_rows(path: pathlib.Path) -> list[EvalRow]:
     """The rows of an eval.csv as floats (steps as int); [] when it does not exist. A row no
     run writes (steps not whole or not increasing, a wall time not finite and >= 0, a
     success rate outside [0, 1]) is a ValueError naming the file and its line."""
@@ -458,7 +468,7 @@ def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
         raise ValueError(f"{path} is not an eval.csv: its columns are "
                          f"{', '.join(reader.fieldnames or ()) or 'none'}, not "
                          f"{', '.join(EVAL_COLUMNS)}")
-    rows: list[dict[str, float]] = []
+    rows: list[EvalRow] = []
     for line, row in enumerate(reader, start=2):
         try:
             values = {name: float(value) for name, value in row.items()}
@@ -468,7 +478,9 @@ def read_eval_rows(path: pathlib.Path) -> list[dict[str, float]]:
         problem = _eval_row_problem(values, rows[-1]["steps"] if rows else None)
         if problem:
             raise ValueError(f"{path}, line {line}: {problem}")
-        rows.append({**values, "steps": int(values["steps"])})
+        rows.append(EvalRow(steps=int(values["steps"]), wall_time_s=values["wall_time_s"],
+                            success_rate=values["success_rate"],
+                            mean_reward=values["mean_reward"]))
     return rows
 
 
@@ -490,7 +502,7 @@ def _eval_row_problem(row: dict[str, float], previous_steps: int | None) -> str 
     return None
 
 
-def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
+def write_eval_rows(path: pathlib.Path, rows: list[EvalRow]) -> None:
     """Rewrites an eval.csv with `rows` (used to drop rows past a checkpoint on resume),
     in one step."""
     def write(partial: pathlib.Path) -> None:
@@ -502,7 +514,7 @@ def write_eval_rows(path: pathlib.Path, rows: list[dict[str, float]]) -> None:
     replace_atomically(path, write)
 
 
-def append_eval_row(path: pathlib.Path, row: dict[str, float]) -> None:
+def append_eval_row(path: pathlib.Path, row: EvalRow) -> None:
     """Appends `row` to an eval.csv (with its header, where new) in one write, flushed to
     the disk: a run killed there leaves the rows it had, and this one whole or not at all."""
     text = io.StringIO(newline="")

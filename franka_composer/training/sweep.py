@@ -23,6 +23,7 @@ import socket
 import subprocess
 import sys
 import time
+from typing import Any
 
 from franka_composer.signals import interrupt_on
 from franka_composer.training.report import with_variant
@@ -324,8 +325,8 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
                     # A cluster of its own listens on loopback only: Ray's ports take no
                     # authentication, and a sweep on a laptop need not open them to its
                     # network.
-                    local = ({} if address else
-                             dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1"))
+                    local: dict[str, Any] = (
+                        {} if address else dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1"))
                     ray.init(address=address, include_dashboard=False, log_to_driver=False,
                              **local)
                 # Ray's start put its own SIGTERM handler in (it exits): the sweep's again.
@@ -406,7 +407,8 @@ def split_evaluated(runs) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
     has cells not begun, or begun and not yet evaluated); none with any is a ValueError
     naming them. A damaged eval.csv is a ValueError too, not a run waiting, and so is one
     that does not fit the run's end (`RunDir.recorded_evaluations`)."""
-    evaluated, waiting = [], []
+    evaluated: list[pathlib.Path] = []
+    waiting: list[pathlib.Path] = []
     for run in runs:
         (evaluated if RunDir(run).recorded_evaluations() else waiting).append(run)
     if not evaluated:
