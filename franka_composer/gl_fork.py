@@ -70,8 +70,8 @@ def install() -> None:
         # which dm_control leaves to its first context) goes first, to run after this one.
         import concurrent.futures.thread  # pylint: disable=unused-import,import-outside-toplevel
 
-        threading._register_atexit(  # type: ignore[attr-defined]  # pylint: disable=protected-access
-            _free_contexts_at_exit)
+        # (Threading's private hook: no public one runs before the pools'.)
+        getattr(threading, "_register_atexit")(_free_contexts_at_exit)
     else:
         return
     os.register_at_fork(after_in_child=_forget_inherited_gl)

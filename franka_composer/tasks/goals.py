@@ -204,5 +204,6 @@ class OrientationGoal(Goal):
 
 
 #: Every kind of goal, by the name a `TaskConfig` gives.
-GOALS: dict[str, Callable[..., Goal]] = {"object_position": ObjectPositionGoal, "tcp_position": TcpPositionGoal,
-         "stacked": StackedGoal, "orientation": OrientationGoal}
+GOALS: dict[str, Callable[..., Goal]] = {
+    "object_position": ObjectPositionGoal, "tcp_position": TcpPositionGoal,
+    "stacked": StackedGoal, "orientation": OrientationGoal}
