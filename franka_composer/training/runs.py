@@ -38,7 +38,6 @@ from franka_composer.atomic_files import replace_atomically, sync_to_disk
 from franka_composer.training.run_config import RunConfig
 from franka_composer.training.run_files import checked_model, model_damage, read_json, steps_of
 
-EVAL_COLUMNS = ("steps", "wall_time_s", "success_rate", "mean_reward")
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
 #: state.json records a run's own, which a resume keeps.
 DEFAULT_CHECKPOINT_EVERY = 50_000
@@ -51,6 +50,10 @@ class EvalRow(TypedDict):
     wall_time_s: float
     success_rate: float
     mean_reward: float
+
+
+#: eval.csv's columns, in its order.
+EVAL_COLUMNS = tuple(EvalRow.__annotations__)
 
 
 @dataclasses.dataclass(frozen=True)
