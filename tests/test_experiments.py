@@ -1482,3 +1482,17 @@ def test_held_rays_counts_what_docs_give_for_the_experts():
     assert stack.sum(axis=0).tolist() == [383, 166, 166, 29]
     assert pick.sum(axis=0).tolist() == [102, 0, 0, 30]
     assert excluded.sum(axis=0).tolist() == [261, 47, 47, 30]
+
+
+@pytest.mark.parametrize("tasks, message", [
+    (["push", "push"], "argument --tasks: names push more than once: each task is run once"),
+    (["stack"], "--tasks: stack not pressed here; tasks pressed: push, slide, pick_and_place"),
+])
+def test_the_controller_press_refuses_tasks_it_does_not_press_once(tasks, message, capsys):
+    """Its `--tasks` is every command's (a task named twice refused), and a task whose block
+    does not lie on the floor is refused before anything is pressed."""
+    module = load_script(EXPERIMENTS / "controller_press.py")
+    with pytest.raises(SystemExit) as exit_:
+        module.main(["--tasks", *tasks])
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
