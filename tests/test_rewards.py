@@ -66,7 +66,8 @@ def test_goal_batches_that_do_not_pair_up_are_refused_and_one_goal_for_many_is_t
             f"broadcasts, such as one goal for many), got shapes (3, {size}) and (2, {size})")):
         rewards.compute_reward(np.zeros((3, size)), np.ones((2, size)), "dense", 0.05,
                                metric=metric, size=size)
-    one_for_many = rewards.compute_reward(np.ones((3, size)), np.ones(size), "sparse", 0.05,
+    goal = np.ones(size) / np.sqrt(size)  # (A unit quaternion for rotation_angle.)
+    one_for_many = rewards.compute_reward(np.tile(goal, (3, 1)), goal, "sparse", 0.05,
                                           metric=metric, size=size)
     np.testing.assert_array_equal(one_for_many, [0.0, 0.0, 0.0])
 
@@ -84,3 +85,24 @@ def test_a_nan_goal_is_not_a_success_and_gets_the_failure_reward():
 def test_the_sparse_success_reward_is_positive_zero():
     reward = rewards.compute_reward(np.zeros(3), np.zeros(3), "sparse", 0.05)
     assert reward == 0.0 and not np.signbit(reward)
+
+
+def test_quaternions_that_are_not_unit_are_refused_naming_which_and_where():
+    """2 acos |<q1, q2>| is an angle only for unit quaternions: (0.5, 0, 0, 0) against the
+    identity would read as 2.09 rad, one scaled by 2 as 0; both refused. float32's rounding
+    of a unit quaternion is taken."""
+    identity = np.array([1.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=re.escape(
+            "desired goals must be unit quaternions (w, x, y, z), got [0.5 0.  0.  0. ] at "
+            "index (1,) (norm 0.5)")):
+        rewards.compute_reward(identity, [identity, [0.5, 0, 0, 0]], "sparse", 0.1,
+                               metric="rotation_angle", size=4)
+    with pytest.raises(ValueError, match=re.escape(
+            "achieved goals must be unit quaternions (w, x, y, z), got [2. 0. 0. 0.] "
+            "(norm 2)")):
+        rewards.is_success([2.0, 0, 0, 0], identity, 0.1, metric="rotation_angle", size=4)
+    rng = np.random.default_rng(0)
+    quaternions = rng.normal(size=(1000, 4))
+    quaternions = (quaternions / np.linalg.norm(quaternions, axis=1, keepdims=True))
+    angles = rewards.rotation_angle(quaternions.astype(np.float32), identity)
+    np.testing.assert_allclose(angles, 2 * np.arccos(np.abs(quaternions[:, 0])), atol=1e-3)

@@ -200,7 +200,8 @@ def _goal_words(config: TaskConfig) -> tuple[str, str, str]:
                 "policy that never moves the cube scores)")
         return ("achieved_goal is the cube's orientation, desired_goal the goal orientation "
                 "(unit quaternions w, x, y, z; q and -q are the same orientation, and the "
-                "distance is the rotation angle between them).",
+                "distance is the rotation angle between them; compute_reward refuses "
+                "quaternions that are not unit).",
                 f"{objects}; the goal orientation {goal}.", "rad")
     return ("achieved_goal is the object's position, desired_goal the goal (m, world frame).",
             f"{objects}; the goal's (x, y) uniform in the {_square(workspace.goal_box)}, "

@@ -53,12 +53,31 @@ def euclidean_distance(achieved_goal, desired_goal, size: int | None = 3) -> np.
     return np.sqrt(np.add.reduce(difference * difference, axis=-1))
 
 
+#: How far a quaternion's squared norm may be from 1: a unit quaternion stored in float32
+#: is within ~1e-7; one farther off was not normalised, and its angle would be wrong.
+UNIT_TOLERANCE = 1e-3
+
+
 def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
     """The angle (rad, in [0, pi]) of the rotation between two orientations given as unit
-    quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation."""
+    quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation.
+    Quaternions that are not unit are refused (a NaN one gives a NaN angle)."""
     achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, 4, "w, x, y, z")
+    _check_unit(achieved_goal, "achieved")
+    _check_unit(desired_goal, "desired")
     cosine = np.abs(np.add.reduce(achieved_goal * desired_goal, axis=-1))
     return 2.0 * np.arccos(np.minimum(cosine, 1.0))
+
+
+def _check_unit(quaternions: np.ndarray, which: str) -> None:
+    squared = np.add.reduce(quaternions * quaternions, axis=-1)
+    off = np.abs(squared - 1.0) > UNIT_TOLERANCE
+    if off.any():
+        index = np.argwhere(off)[0] if off.ndim else ()
+        where = f" at index {tuple(int(i) for i in index)}" if off.ndim else ""
+        raise ValueError(f"{which} goals must be unit quaternions (w, x, y, z), got "
+                         f"{np.array2string(quaternions[tuple(index)], precision=4)}{where} "
+                         f"(norm {np.sqrt(squared[tuple(index)]):.4g})")
 
 
 def distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
