@@ -165,7 +165,7 @@ def test_a_full_joint_action_moves_that_joint_most_of_a_step(joint):
     action = np.zeros(7, np.float32)
     action[joint] = 1.0
     moved = env.step(action).observation["panda/joints_pos"] - start
-    assert 0.8 * 0.05 <= moved[joint] <= 1.1 * 0.05  # Measured 0.83-1.00.
+    assert 0.8 * 0.05 <= moved[joint] <= 1.1 * 0.05  # Measured 0.83-1.01.
     assert np.max(np.abs(np.delete(moved, joint))) < 0.01  # Measured < 0.008.
 
 

@@ -4,7 +4,7 @@ The first seven action components, clipped to [-1, 1], move each arm joint's ser
 to the joint's present angle plus `max_joint_step` (0.05 rad) times the component, within
 the joint's range; the gripper as under every controller. The servos are Menagerie's (its
 stiffness and force limits), with their damping lowered so that a step from rest reaches
-83-100 % of its target within the step (held, a moving joint carries on past it: 110-124 %
+83-101 % of its target within the step (held, a moving joint carries on past it: 110-124 %
 on joints 1-4; `entities/panda.py`, `SERVO_DERIVATIVE_TIME`), and the links compensate
 their own weight, as the real Panda's joint controller does: the servos only move the arm.
 

@@ -71,7 +71,7 @@ ARM_ACTUATIONS = ("none", "torque", "position")
 #: Derivative time (s) of the arm's position servos: damping = stiffness x this. Menagerie's
 #: 0.1 s (damping 450 N m s on joint 1) overdamps the servos 2-7x, so a 0.05 rad target step
 #: moves a joint only 37 % of the way within a 0.05 s control step, and zero actions leave
-#: it there. At 0.015 s a first step from rest moves a joint 83-100 % of the way within
+#: it there. At 0.015 s a first step from rest moves a joint 83-101 % of the way within
 #: the control step (from the neutral pose, joint by joint); a joint already moving carries
 #: on past its target, 110-124 % of it on joints 1-4 (experiments/joint_tracking.py).
 SERVO_DERIVATIVE_TIME = 0.015
