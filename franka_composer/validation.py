@@ -98,6 +98,20 @@ def check_vector(name: str, value, size: int, **bounds) -> tuple[float, ...]:
     return tuple(check_number(f"{name}[{i}]", item, **bounds) for i, item in enumerate(items))
 
 
+def check_path(name: str, value) -> pathlib.Path:
+    """`value` as a Path if it is one or a string naming one: an int would be taken by
+    `open` for a file descriptor (reading from the caller's stdin, closing its stderr), an
+    empty string by pathlib for the working folder."""
+    if isinstance(value, bytes):
+        value = os.fsdecode(value)
+    if not isinstance(value, (str, os.PathLike)):
+        raise ValueError(f"{name} must be a path (a str or os.PathLike), got "
+                         f"{type(value).__name__} {value!r}")
+    if not os.fspath(value):
+        raise ValueError(f"{name} is empty: give a path")
+    return pathlib.Path(value)
+
+
 def check_writable(path, *, folder: bool = False) -> pathlib.Path:
     """`path` as a Path if a file (or, with `folder`, a folder) can be written there: the
     nearest folder on the way that exists takes a new file, or an existing file can be

@@ -91,6 +91,150 @@ def test_a_truncated_emptied_or_garbage_npz_is_refused_by_name(recorded, push_en
     _refused(path, push_env, message)
 
 
+def _central_directory(content: bytes) -> dict[str, int]:
+    """Each member's offset of its entry in the zip archive's central directory."""
+    end = content.rindex(b"PK\x05\x06")
+    offset = int.from_bytes(content[end + 16:end + 20], "little")
+    entries = {}
+    while content[offset:offset + 4] == b"PK\x01\x02":
+        name_size, extra_size, comment_size = (
+            int.from_bytes(content[offset + at:offset + at + 2], "little") for at in (28, 30, 32))
+        entries[content[offset + 46:offset + 46 + name_size].decode()] = offset
+        offset += 46 + name_size + extra_size + comment_size
+    return entries
+
+
+def _damaged_header(content: bytes, where: str) -> bytes:
+    """`content` (an npz) with one field of a zip header changed, as a changed byte does."""
+    content = bytearray(content)
+    entries = _central_directory(bytes(content))
+    names = list(entries)
+    assert names[-1] == "metadata.npy"
+    if where == "compression method":  # Of the first member's central directory entry.
+        content[entries[names[0]] + 10] = 99
+    elif where == "encryption flag":  # The same entry's.
+        content[entries[names[0]] + 8] |= 1
+    else:  # The comment length of the entry before metadata's: zipfile reads past it.
+        content[entries[names[-2]] + 32] = 0xA0
+    return bytes(content)
+
+
+@pytest.mark.parametrize("where, said", [
+    ("compression method", "NotImplementedError: That compression method is not supported"),
+    ("encryption flag", "RuntimeError: File 'episode_length.npy' is encrypted"),
+    ("directory entry", "BadZipFile: its end record counts 10 members, and its central "
+                        "directory lists 9")])
+def test_an_npz_whose_zip_headers_are_damaged_is_refused_by_name(recorded, push_env, tmp_path,
+                                                                 where, said):
+    """zipfile's NotImplementedError and RuntimeError were left to the user as they were,
+    naming no file; an entry of the central directory read wrong made zipfile stop before
+    metadata, and the file read as one recorded before metadata was kept."""
+    path = tmp_path / "demos.npz"
+    path.write_bytes(_damaged_header((recorded / "push.npz").read_bytes(), where))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{path} is not a readable npz file (truncated or damaged?): {said}")):
+        Trajectories.load(path)
+    _refused(path, push_env, "is not a readable npz file")
+
+
+@pytest.mark.slow
+def test_every_byte_of_an_npz_changed_is_refused_by_name_or_reads_the_same(tmp_path):
+    """One byte at a time, every byte of a small dataset: no other error than the one
+    naming the file (numpy's tokenize.TokenError from an npy header, zipfile's
+    NotImplementedError from a zip header were before), and nothing read otherwise than
+    recorded (metadata lost to a damaged directory entry was before)."""
+    original = tmp_path / "reach.npz"
+    record("reach", 1, original, seed=0)
+    recorded = Trajectories.load(original)
+    content, path = original.read_bytes(), tmp_path / "changed.npz"
+    refused = 0
+    for position in range(len(content)):
+        changed = bytearray(content)
+        changed[position] ^= 0x55
+        path.write_bytes(bytes(changed))
+        try:
+            loaded = Trajectories.load(path)
+        except ValueError as error:
+            assert str(path) in str(error), (position, error)
+            refused += 1
+            continue
+        assert loaded.metadata == recorded.metadata, position
+        for ours, theirs in zip(loaded.episodes, recorded.episodes, strict=True):
+            assert ours.keys() == theirs.keys(), position
+            for key in ours:
+                np.testing.assert_array_equal(ours[key], theirs[key], err_msg=str(position))
+                assert ours[key].dtype == theirs[key].dtype, (position, key)
+    assert refused > len(content) / 2  # Measured: 1,658 of 2,331 bytes.
+
+
+def test_a_path_that_names_no_file_is_refused_before_anything_is_read(recorded, push_env,
+                                                                      tmp_path):
+    """An int was taken by `open` for a file descriptor: 0 read the caller's stdin (waiting
+    on a terminal), 2 closed its stderr; a FIFO's opening waits for a writer; "" was the
+    working folder."""
+    import os
+    import signal
+
+    from franka_composer.datasets import rlds_format
+
+    for value, said in ((0, "got int 0"), (True, "got bool True"), (None, "got NoneType None")):
+        with pytest.raises(ValueError, match=re.escape(
+                f"an npz dataset's path must be a path (a str or os.PathLike), {said}")):
+            Trajectories.load(value)
+    with pytest.raises(ValueError, match="^an npz dataset's path is empty: give a path$"):
+        Trajectories.load("")
+    with pytest.raises(ValueError, match=re.escape(f"{tmp_path} is a folder, not an npz file")):
+        Trajectories.load(tmp_path)
+    fifo = tmp_path / "fifo.npz"
+    os.mkfifo(fifo)
+    previous = signal.signal(signal.SIGALRM, lambda *_: pytest.fail("waited on a FIFO"))
+    signal.alarm(10)
+    try:
+        with pytest.raises(ValueError, match=re.escape(
+                f"{fifo} is not a regular file (a device, FIFO or socket), not an npz file")):
+            Trajectories.load(fifo)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    with pytest.raises(ValueError, match=re.escape(
+            "a dataset's path must be a path (a str or os.PathLike), got int 2")):
+        demos.load_episodes(2, push_env)
+    with pytest.raises(ValueError, match="^an RLDS dataset's folder is empty: give a path$"):
+        rlds_format.read("")
+    with pytest.raises(ValueError, match=re.escape(
+            "out must be a path (a str or os.PathLike), got int 3")):
+        record("reach", 1, 3)
+    os.fstat(2)  # stderr still open.
+
+
+@pytest.mark.parametrize("metadata, message", [
+    ([1, 2], "metadata must be a dict of names to values, got [1, 2]"),
+    ({1: 2}, "metadata's keys must be strings, got 1"),
+    ({"a": np.float32(1)}, "metadata['a'] = np.float32(1.0) is not JSON (give str, int, float, "
+                           "bool, None, and lists and dicts of them; numpy's scalars as "
+                           "Python's: .item())")])
+def test_metadata_a_file_cannot_give_back_is_refused_before_writing(recorded, tmp_path,
+                                                                    metadata, message):
+    """`save` wrote [1, 2], which `load` then refused as "not a JSON object"; {1: 2} read
+    back as {"1": 2}; numpy's float32 was json's TypeError, naming no key."""
+    trajectories = Trajectories.load(recorded / "push.npz")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        trajectories.save(tmp_path / "saved.npz", metadata)
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("recorded_id", [5, ["FrankaPushSparse-v0"]])
+def test_metadata_naming_an_id_that_is_no_string_is_refused(recorded, push_env, tmp_path,
+                                                            recorded_id):
+    """Was Python's AttributeError ('int' object has no attribute 'rpartition') or
+    TypeError (unhashable type: 'list')."""
+    metadata = dict(Trajectories.load(recorded / "push.npz").metadata, id=recorded_id)
+    edited = _rewrite(recorded / "push.npz", tmp_path / "edited.npz",
+                      metadata=np.array(json.dumps(metadata)))
+    _refused(edited, push_env, f"says it was recorded under the id {recorded_id!r}, which is "
+                               "not an env id (damaged metadata?)")
+
+
 def _rewrite(source, destination, **changes):
     """`source`'s arrays with `changes` (None: left out), as a new npz."""
     with np.load(source) as data:
@@ -809,6 +953,50 @@ def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_pat
     data.write_bytes(data.read_bytes()[:3000])
     _refused(dataset, push_env, "is not a readable Minari dataset (damaged?): OSError: "
                                 "Unable to synchronously open file (truncated file")
+
+
+def test_a_minari_dataset_whose_episode_attributes_are_damaged_is_refused_by_name(
+        recorded, push_env, tmp_path):
+    """A changed byte in an episode's attribute (the version of the "id" attribute's
+    dataspace message) is h5py's RuntimeError when the digests are checked: it was left
+    to the user as it was, naming no file."""
+    import shutil
+
+    import h5py
+
+    dataset = tmp_path / "push"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", dataset)
+    data = dataset / "data" / "main_data.hdf5"
+    with h5py.File(data, "r") as file:
+        header = h5py.h5o.get_info(file["episode_1"].id).addr
+    content = bytearray(data.read_bytes())
+    name = content.index(b"id\x00\x00\x00\x00\x00\x00", header)  # Its name, padded to 8.
+    content[name + 24] = 0xC6
+    data.write_bytes(bytes(content))
+    _refused(dataset, push_env, "is not a readable Minari dataset (damaged?): its "
+                                "main_data.hdf5: RuntimeError: Can't synchronously determine "
+                                "if attribute exists by name (wrong version number in "
+                                "dataspace message)")
+
+
+def test_minari_seeds_past_uint64_are_refused_before_recording(tmp_path):
+    """Minari keeps each episode's seed as a uint64: --seed 2**64 ended in h5py's TypeError
+    (Object dtype dtype('O') has no native HDF5 equivalent), and 2**64 - 1 after its first
+    episode was recorded."""
+    with pytest.raises(ValueError, match=re.escape(
+            "a Minari dataset keeps each episode's seed as a uint64 (below 2**64), and episode "
+            "1's would be 18446744073709551616: give a smaller --seed, or record as npz or "
+            "rlds, which keep any")):
+        record("reach", 2, tmp_path / "minari", format="minari", seed=2**64 - 1)
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_dataset_of_the_tasks_own_options_says_so_in_every_format(recorded):
+    """envlogger keeps {} as None: RLDS metadata read None where npz's gives {}."""
+    from franka_composer.datasets import rlds_format
+
+    assert rlds_format.read(recorded / "rlds")["metadata"]["options"] == {}
+    assert Trajectories.load(recorded / "push.npz").metadata["options"] == {}
 
 
 @pytest.mark.parametrize("counted, message", [

@@ -22,7 +22,7 @@ from franka_composer.episodes import npz_file
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end, recorded_with
 from franka_composer.tasks.config import expand_timing, plain_value, readable_options
-from franka_composer.validation import check_choice, check_number, check_writable
+from franka_composer.validation import check_choice, check_number, check_path, check_writable
 
 #: The formats `record` writes.
 FORMATS = ("npz", "minari", "rlds")
@@ -49,9 +49,10 @@ def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
     check_number("episodes", episodes, minimum=1, integer=True)
     check_number("seed", seed, minimum=0, integer=True)
     action_noise = check_number("action_noise", action_noise, minimum=0.0)
-    out = pathlib.Path(out)
+    out = check_path("out", out)
     source = source_name(policy_dir, action_noise)
     if format == "minari":
+        _check_minari_seeds(seed, episodes)
         dataset_id = _check_dataset_id(dataset_id or default_dataset_id(task, control, source))
     elif dataset_id is not None:
         raise ValueError("--dataset-id names a Minari dataset: give it with --format minari")
@@ -101,6 +102,17 @@ def _check_dataset_id(dataset_id) -> str:
                          "[namespace/]name-v<version>, e.g. franka_composer/push/expert-v0"
                          ) from None
     return dataset_id
+
+
+def _check_minari_seeds(seed: int, episodes: int) -> None:
+    """Minari keeps each episode's seed as a uint64 (HDF5 has no larger integer): seeds
+    past it are refused before the first episode is recorded, not at the one that
+    reaches them."""
+    last = seed + episodes - 1
+    if last >= 2**64:
+        raise ValueError(f"a Minari dataset keeps each episode's seed as a uint64 (below "
+                         f"2**64), and episode {episodes - 1}'s would be {last}: give a "
+                         "smaller --seed, or record as npz or rlds, which keep any")
 
 
 def _check_json_options(options: dict) -> None:

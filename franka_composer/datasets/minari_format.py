@@ -132,15 +132,27 @@ def check_digests(path, data: pathlib.Path) -> None:
         return
     import h5py
 
-    with h5py.File(data / HDF5_FILE, "r") as file:
-        changed = [name.removeprefix("episode_") for name in episode_groups(file)
-                   if DIGEST_ATTRIBUTE in file[name].attrs
-                   and file[name].attrs[DIGEST_ATTRIBUTE] != _digest(file[name])]
+    try:
+        with h5py.File(data / HDF5_FILE, "r") as file:
+            changed = [name.removeprefix("episode_") for name in episode_groups(file)
+                       if DIGEST_ATTRIBUTE in file[name].attrs
+                       and file[name].attrs[DIGEST_ATTRIBUTE] != _digest(file[name])]
+    except Exception as error:  # h5py raises what it meets in a damaged file.
+        raise unreadable(path, error, HDF5_FILE) from None
     if changed:
         raise ValueError(f"{path}: the data of episode{'s' if len(changed) > 1 else ''} "
                          f"{', '.join(changed)} is not what was recorded (its SHA-256 "
                          f"differs from the one recorded in its {HDF5_FILE}): damaged or "
                          "edited since; record it again")
+
+
+def unreadable(path, error: Exception, file: str | None = None) -> ValueError:
+    """The error for a Minari dataset at `path` that h5py, json or Minari failed to read
+    (in its `file`, where known), with the first line of what they said."""
+    first_line = (str(error).splitlines() or [""])[0]
+    inside = f"its {file}: " if file else ""
+    return ValueError(f"{path} is not a readable Minari dataset (damaged?): {inside}"
+                      f"{type(error).__name__}: {first_line}")
 
 
 def episode_groups(file) -> list[str]:

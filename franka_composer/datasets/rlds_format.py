@@ -31,6 +31,7 @@ from franka_composer.environment import ended_by_divergence
 from franka_composer.episodes import check_not_diverged
 from franka_composer.policies.rollout import episode_limit
 from franka_composer.signals import held
+from franka_composer.validation import check_path
 
 
 def import_envlogger():
@@ -157,13 +158,14 @@ def read(root: pathlib.Path) -> dict:
     envlogger cannot read, that holds no episodes (its step files emptied or cut short
     read as none), or an episode that is not one FIRST step, MID steps and one LAST step
     (its index files cut short join or split episodes), is a ValueError naming `root`."""
+    root = check_path("an RLDS dataset's folder", root)
     envlogger = import_envlogger()
     from envlogger.backends.riegeli_backend_reader import RiegeliBackendReader
 
-    if not pathlib.Path(root).is_dir():
-        raise ValueError(f"{root} does not exist" if not pathlib.Path(root).exists()
+    if not root.is_dir():
+        raise ValueError(f"{root} does not exist" if not root.exists()
                          else f"{root} is a file, and an RLDS dataset is a folder")
-    check_digests(pathlib.Path(root))
+    check_digests(root)
     logged = _LoggedErrors()
     absl_logger = logging.getLogger("absl")
     absl_logger.addFilter(logged)
@@ -185,6 +187,8 @@ def read(root: pathlib.Path) -> dict:
         absl_logger.removeFilter(logged)
     if not read_episodes:
         raise ValueError(f"{root} holds no episodes (its step files empty or damaged?)")
+    if isinstance(metadata, dict) and metadata.get("options", {}) is None:
+        metadata["options"] = {}  # The task's own options: envlogger keeps {} as None.
     episodes = []
     for index, (steps, info) in enumerate(read_episodes):
         _check_episode(root, index, [step.timestep for step in steps])

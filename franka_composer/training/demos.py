@@ -23,6 +23,7 @@ from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episo
 from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.config import OPTIONS, readable_options
 from franka_composer.tasks.rewards import reward_from_distance
+from franka_composer.validation import check_path
 
 
 def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
@@ -31,7 +32,7 @@ def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
     whole (`episodes.record`), as recorded with `env`'s task and controller and sparse
     rewards, and against its observation space: anything else is a ValueError naming the
     file and what is wrong."""
-    path = pathlib.Path(path)
+    path = check_path("a dataset's path", path)
     mode = env.unwrapped.task.config.observations.mode
     if mode != "state":
         raise ValueError(f"{path}: demonstrations go into a buffer of state observations, "
@@ -119,6 +120,9 @@ def _check_id_agrees(path, recorded: dict) -> None:
     hand, and which to believe cannot be told."""
     if "id" not in recorded:
         return
+    if not isinstance(recorded["id"], str):
+        raise ValueError(f"{path} says it was recorded under the id {recorded['id']!r}, which "
+                         "is not an env id (damaged metadata?)")
     if recorded["id"] not in ENV_IDS:
         raise _not_registered(path, recorded["id"])
     fixed = ENV_IDS[recorded["id"]]
@@ -313,7 +317,7 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
         dataset = minari.MinariDataset(data)
         env_spec = dataset.spec.env_spec
     except Exception as error:  # h5py, json and Minari raise what they meet.
-        raise _unreadable_minari(path, error) from None
+        raise minari_format.unreadable(path, error) from None
     if env_spec is not None and env_spec.id not in ENV_IDS:
         raise _not_registered(path, env_spec.id)
     recorded = _recorded_by_spec(env_spec)
@@ -329,7 +333,7 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
                     for episode in dataset.iterate_episodes()]
         stored = _stored_minari_episodes(data)
     except Exception as error:
-        raise _unreadable_minari(path, error) from None
+        raise minari_format.unreadable(path, error) from None
     minari_format.check_digests(path, data)
     steps = sum(len(episode["action"]) for episode in episodes)
     if (dataset.total_episodes, dataset.total_steps) != (stored, steps):
@@ -382,12 +386,6 @@ def _not_registered(path, recorded_id: str) -> ValueError:
     return ValueError(f"{path} was recorded under {recorded_id}, an older version of "
                       f"{registered}: its transitions are of dynamics since changed (the "
                       "task's version history); record it again")
-
-
-def _unreadable_minari(path, error: Exception) -> ValueError:
-    first_line = (str(error).splitlines() or [""])[0]
-    return ValueError(f"{path} is not a readable Minari dataset (damaged?): "
-                      f"{type(error).__name__}: {first_line}")
 
 
 def _rlds_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
