@@ -30,7 +30,8 @@ VERSION_HISTORY = (
 #: What each controller's version bump changed (`controllers.CONTROL_VERSIONS`), newest last,
 #: after the task's own history on its page.
 CONTROL_VERSION_HISTORY = (
-    "Joints ids one version up (v1; flip's and stack's v2), 0.4.0: the surface guard acts "
+    "Joints ids one version up from the task's (v1; flip's v2; stack's v2 since its own v1), "
+    "0.4.0: the surface guard acts "
     "under joints as well, raising the servo targets near surfaces and braking a "
     "descending hand (a press in joint space had lifted objects 13 mm and shoved them up "
     "to 38 cm: docs/guide/controllers.md).",
@@ -70,9 +71,9 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
     layout = layout_for(config)
     control = config.control
     max_episode_steps = config.max_episode_steps
-    gripper = (f"The 4th moves the fingers' target opening by up to "
-               f"{control.max_finger_step:g} m (-1 and +1 set it fully closed and fully open "
-               "in one step; the fingers follow it)." if control.actuated_gripper
+    gripper = (f"The last (the 4th; under joints the 8th) moves the fingers' target opening "
+               f"by up to {control.max_finger_step:g} m (-1 and +1 set it fully closed and "
+               "fully open in one step; the fingers follow it)." if control.actuated_gripper
                else "The fingers are locked closed.")
     goals, start, unit = _goal_words(config)
     # `timing` names a set of the options below (or none of its names, when they were set
@@ -171,8 +172,9 @@ def _goal_words(config: TaskConfig) -> tuple[str, str, str]:
                f"{_square(workspace.object_box)}" if len(config.objects) == 1 else
                f"the {len(config.objects)} objects at rest, upright, at uniform points of the "
                f"{_square(workspace.object_box)}, apart from each other")
-    lifted = (f"lifted uniformly in [0, {workspace.goal_max_height:g}] m with probability "
-              f"{workspace.goal_in_air_probability:g}, else on the floor"
+    lifted = (f"lifted uniformly in [0, {workspace.goal_max_height:g}] m"
+              + ("" if workspace.goal_in_air_probability == 1 else
+                 f" with probability {workspace.goal_in_air_probability:g}, else on the floor")
               if workspace.goal_max_height > 0 else "on the floor")
     if config.goal == "tcp_position":
         return ("achieved_goal is the tool centre point's position, desired_goal the goal "

@@ -11,7 +11,7 @@ PICK_AND_PLACE = TaskConfig(
     name="pick_and_place",
     description="Grasp a 4 cm, 0.1 kg block and carry it to a goal that is in the air (up to "
                 "0.2 m above the resting block) 70 % of the time, else on the floor. The "
-                "fourth action opens and closes the hand.",
+                "last action (the fourth; under joints the eighth) opens and closes the hand.",
     objects=(BlockSpec(mass=0.1),),
     control=ControlSettings(actuated_gripper=True),
     workspace=Workspace(goal_max_height=0.2, goal_in_air_probability=0.7),

@@ -2,12 +2,12 @@
 
 from franka_composer.tasks.config import TaskConfig, Workspace
 
-# The goal is uniform in the 0.3 m cube above the object square: lifted from the surface
+# The goal is uniform in the 0.3 m cube above the goal square: lifted from the surface
 # with probability 1, up to 0.3 m. The fingers are locked (3 actions).
 REACH = TaskConfig(
     name="reach",
     description="Move the tool centre point (between the fingertips) to a goal drawn "
-                "uniformly in the 0.3 m cube above the object square, from the floor up to "
+                "uniformly in the 0.3 m cube above the goal square, from the floor up to "
                 "0.3 m. No object; the fingers are locked closed.",
     objects=(),
     goal="tcp_position",
