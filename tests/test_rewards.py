@@ -104,5 +104,6 @@ def test_quaternions_that_are_not_unit_are_refused_naming_which_and_where():
     rng = np.random.default_rng(0)
     quaternions = rng.normal(size=(1000, 4))
     quaternions = (quaternions / np.linalg.norm(quaternions, axis=1, keepdims=True))
-    angles = rewards.rotation_angle(quaternions.astype(np.float32), identity)
-    np.testing.assert_allclose(angles, 2 * np.arccos(np.abs(quaternions[:, 0])), atol=1e-3)
+    rewards_ = rewards.compute_reward(quaternions.astype(np.float32), identity, "dense", 0.1,
+                                      metric="rotation_angle", size=4)
+    np.testing.assert_allclose(-rewards_, 2 * np.arccos(np.abs(quaternions[:, 0])), atol=1e-3)

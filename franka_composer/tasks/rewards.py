@@ -60,11 +60,9 @@ UNIT_TOLERANCE = 1e-3
 
 def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
     """The angle (rad, in [0, pi]) of the rotation between two orientations given as unit
-    quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation.
-    Quaternions that are not unit are refused (a NaN one gives a NaN angle)."""
+    quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation
+    (`compute_reward` and `is_success` refuse others: `_given_distance`)."""
     achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, 4, "w, x, y, z")
-    _check_unit(achieved_goal, "achieved")
-    _check_unit(desired_goal, "desired")
     cosine = np.abs(np.add.reduce(achieved_goal * desired_goal, axis=-1))
     return 2.0 * np.arccos(np.minimum(cosine, 1.0))
 
@@ -87,6 +85,18 @@ def distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
     if metric != "euclidean":  # Checked only off the hot path: check_choice raises here.
         check_choice("metric", metric, METRICS)
     return euclidean_distance(achieved_goal, desired_goal, size)
+
+
+def _given_distance(achieved_goal, desired_goal, metric: str, size: int) -> np.ndarray:
+    """`distance` of goals a caller gives (HER's, a user's), its quaternions checked unit
+    (`_check_unit`; a NaN one gives a NaN angle). A step's own, read from MuJoCo and drawn
+    unit, go to `distance` unchecked: the check would cost each flip step twice the
+    distance itself."""
+    if metric == "rotation_angle":
+        achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, 4, "w, x, y, z")
+        _check_unit(achieved_goal, "achieved")
+        _check_unit(desired_goal, "desired")
+    return distance(achieved_goal, desired_goal, metric, size)
 
 
 def check_reward_type(reward_type: str) -> str:
@@ -114,12 +124,12 @@ def compute_reward(achieved_goal, desired_goal, reward_type: str, distance_thres
     Returns float64 with the leading batch shape of the goals (a 0-d ndarray for one pair,
     not a Python float).
     """
-    return reward_from_distance(distance(achieved_goal, desired_goal, metric, size),
+    return reward_from_distance(_given_distance(achieved_goal, desired_goal, metric, size),
                                 reward_type, distance_threshold)
 
 
 def is_success(achieved_goal, desired_goal, distance_threshold: float,
                metric: str = "euclidean", size: int = 3) -> np.ndarray:
     """Whether each goal pair is within `distance_threshold` by `metric`."""
-    return success_from_distance(distance(achieved_goal, desired_goal, metric, size),
+    return success_from_distance(_given_distance(achieved_goal, desired_goal, metric, size),
                                  distance_threshold)
