@@ -12,8 +12,11 @@ back to Composer's loop otherwise. A task's torque law (its
 plain loop instead. It also:
 - keeps the observation updater across resets while its make-up is unchanged (rebuilding it
   is a quarter of a reset);
-- compiles the MJCF once (Composer compiles again on the first reset, for
-  `initialize_episode_mjcf` hooks; none of ours has one), through `model_cache`;
+- compiles the MJCF once, through `model_cache`: Composer compiles it again on the first
+  reset (for `initialize_episode_mjcf` hooks; none of ours has one), and there the fast path
+  keeps the model compiled at construction and does the rest of that reset as Composer does
+  (its `after_compile` hooks, and a new observation updater reset once before the episode
+  is initialised: a corruptor draws from the random state there);
 - clears dm_control's "dirty" flag after a step a binding write preceded: the legacy step's
   closing `mj_step1` has brought positions and velocities up to date, so the first binding
   read need not run a whole `mj_forward` again.
@@ -137,13 +140,17 @@ class FastEnvironment(GoalEnvironment):
         if missing:
             self.close()
             raise FastPathUnavailable(", ".join(missing))
-        if not self._has_mjcf_hooks():
-            # The model compiled above is the one the first reset would compile again.
-            self._mjcf_never_compiled = False
+        # The model compiled above is the one the first reset compiles again, unless an
+        # `initialize_episode_mjcf` hook changes it then: `_recompile_physics` keeps it.
+        self._compiled_model_unused = True
 
     # pylint: disable=protected-access
 
     def _recompile_physics(self) -> None:
+        unused = getattr(self, "_compiled_model_unused", False)  # Not yet at construction.
+        self._compiled_model_unused = False
+        if unused and not self._has_mjcf_hooks():
+            return
         physics = getattr(self, "_physics", None)
         if physics:
             physics.free()
@@ -291,12 +298,12 @@ class FastEnvironment(GoalEnvironment):
 
 def _due_at_control_steps(enabled, substeps: int) -> bool:
     """Whether an enabled observable is only ever due at the end of a control step: read
-    every substep with no delay and a buffer shorter than a control step (Composer then
-    schedules only the last substeps), or read once per control step with a delay of whole
-    control steps into a one-entry buffer."""
+    every substep with no delay into a one-entry buffer (Composer then schedules only the
+    last substep; a buffer of b entries takes the last b substeps' readings), or read once
+    per control step with a delay of whole control steps into a one-entry buffer."""
     interval, delay = enabled.update_interval, enabled.delay
     if not (isinstance(interval, int) and isinstance(delay, int)):
         return False  # Drawn anew at each update (a Variation).
     if interval == 1 and delay == 0:
-        return enabled.buffer_size < substeps
+        return enabled.buffer_size == 1
     return interval == substeps and delay % substeps == 0 and enabled.buffer_size == 1

@@ -150,3 +150,53 @@ def test_an_observable_enabled_between_episodes_appears_after_the_next_reset(mon
     env.task.panda.observables.joints_pos.enabled = True
     assert "panda/joints_pos" in env.reset().observation
     assert env.step(np.zeros(3, np.float32)).observation["panda/joints_pos"].shape == (7,)
+
+
+def _tcp_readings(path: str, monkeypatch, configure) -> list:
+    """The first episode's goal and its hand positions over three full pushes in x, on a
+    push env `configure` changed before its first reset."""
+    env = _load(path, monkeypatch, "push", seed=0)
+    configure(env.task)
+    timestep = env.reset()
+    readings = [timestep.observation["goal"], timestep.observation["panda/tcp_position"]]
+    for _ in range(3):
+        timestep = env.step(np.array([1.0, 0.0, 0.0], np.float32))
+        readings.append(timestep.observation["panda/tcp_position"])
+    return readings
+
+
+def test_an_observable_buffering_substeps_reads_the_last_substeps_as_composer_does(
+        monkeypatch):
+    """A buffer of 2 takes the last two substeps' readings. The fast path batched such an
+    observable as if only the last substep were due, and it never updated again: each step
+    gave the reading taken at the reset."""
+    def buffer_two(task):
+        task.panda.observables.tcp_position.buffer_size = 2
+
+    fast = _tcp_readings("fast", monkeypatch, buffer_two)
+    stock = _tcp_readings("stock", monkeypatch, buffer_two)
+    for a, b in zip(fast, stock, strict=True):
+        np.testing.assert_array_equal(a, b)
+    hand_x = [reading[:, 0] for reading in fast[2:]]
+    assert all(reading.shape == (2, 3) for reading in fast[1:])
+    for before, after in zip(hand_x, hand_x[1:]):
+        assert after[0] - before[1] > 0.04  # A full x action moves the hand ~47 mm a step.
+    assert all(0 < x[1] - x[0] < 0.002 for x in hand_x)  # One substep (2 ms) apart.
+
+
+def test_a_corruptor_drawing_from_the_random_state_gives_the_stock_paths_episode(
+        monkeypatch):
+    """Composer's first reset reads every observable once before it initialises the
+    episode, and a corruptor draws from the environment's random state there: the fast
+    path, which skipped that reset's compilation and what came with it, drew another first
+    episode from the same seed."""
+    def noisy(task):
+        task.prop.observables.position.corruptor = (
+            lambda value, random_state: value + random_state.normal(0, 1e-3, value.shape))
+
+    fast = _tcp_readings("fast", monkeypatch, noisy)
+    stock = _tcp_readings("stock", monkeypatch, noisy)
+    for a, b in zip(fast, stock, strict=True):
+        np.testing.assert_array_equal(a, b)
+    unnoised = _tcp_readings("stock", monkeypatch, lambda task: None)
+    assert not np.array_equal(stock[0], unnoised[0])  # The corruptor's draws moved the goal.
