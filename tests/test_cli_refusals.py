@@ -716,7 +716,7 @@ def test_raising_the_budget_of_a_run_whose_dataset_is_gone_says_why_it_is_needed
         total_steps=2000), demos=str(gone)))
     run.eval_csv.write_text(HEADER + "0,1,0.0,-1\n")
     run.checkpoint.mkdir()
-    run.checkpoint_state.write_text(json.dumps({"steps": 1000}))
+    run.checkpoint_state.write_text(json.dumps({"steps": 1000, "wall_time_s": 1.0}))
     with pytest.raises(ValueError, match=re.escape(
             f"--total-steps 3000: {run.root} keeps the demonstrations of {gone} in its replay "
             "buffer, and that dataset is not there to count them (whether more steps would "

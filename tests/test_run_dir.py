@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 
 import pytest
@@ -149,3 +150,15 @@ def test_a_look_at_who_trains_a_run_does_not_turn_a_trainer_away(tmp_path):
     with run.training_lock():
         assert run.trainer() == f"process {os.getpid()} on {socket.gethostname()}"
     assert run.trainer() is None
+
+
+def test_a_folder_where_the_lock_file_goes_is_named(tmp_path):
+    """It was open's IsADirectoryError, naming nothing of the run."""
+    run = RunDir(tmp_path / "run")
+    run.lock_path.mkdir(parents=True)
+    assert run.trainer() is None
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{run.lock_path} is a folder, where the run keeps its lock file (made by hand?): "
+            "remove it to train the run") + "$"):
+        with run.training_lock():
+            pass

@@ -26,8 +26,12 @@ def _train(out, steps, *extra):
 
 
 @pytest.mark.parametrize("extra, message", [
-    (["--buffer-size", "40"], "--buffer-size 40 is smaller than one push episode (50 steps): "
-                              "HER stores whole episodes"),
+    # 70: SB3's HER buffer dropped the first episode as the second overwrote it, and the
+    # next gradient step failed in a traceback (and so did every resume of the run).
+    *[(["--buffer-size", size], f"--buffer-size {size} holds less than two push episodes "
+                                "(50 steps each): HER samples finished episodes, and one must "
+                                "stay whole while the next is written: give 99 or more")
+      for size in ("40", "70", "98")],
     (["--device", "cuda"], "--device cuda, but torch sees no CUDA GPU"),
 ])
 def test_a_run_train_cannot_start_is_refused_before_its_directory_exists(tmp_path,
@@ -41,6 +45,13 @@ def test_a_run_train_cannot_start_is_refused_before_its_directory_exists(tmp_pat
     with pytest.raises(ValueError, match=re.escape(message)):
         _train(tmp_path / "run", 100, *extra)
     assert not (tmp_path / "run").exists()
+
+
+def test_a_buffer_of_two_episodes_less_a_step_trains_past_its_wrapping(tmp_path):
+    """The least --buffer-size train takes: 300 steps wrap a 99-step buffer three times, and
+    every gradient step finds a finished episode to sample."""
+    assert _train(tmp_path / "run", 300, "--buffer-size", "99") == 0
+    assert json.loads((tmp_path / "run" / "outcome.json").read_text())["steps"] == 300
 
 
 def test_a_sweep_checks_what_it_forwards_to_train_before_ray_starts(tmp_path, monkeypatch):
@@ -58,7 +69,7 @@ def test_a_sweep_checks_what_it_forwards_to_train_before_ray_starts(tmp_path, mo
     with pytest.raises(ValueError, match=re.escape(f"{tmp_path / 'missing.npz'} does not "
                                                    "exist")):
         cli.main([*base, "--demos", str(tmp_path / "missing.npz")])
-    with pytest.raises(ValueError, match="--buffer-size 40 is smaller than one push episode"):
+    with pytest.raises(ValueError, match="--buffer-size 40 holds less than two push episodes"):
         cli.main([*base, "--buffer-size", "40"])
     assert not out.exists()
     # The options the grid gives its cells pass, --timing's settings among them.
@@ -253,7 +264,8 @@ def test_evaluate_leaves_out_a_run_with_nothing_trained_yet_and_names_it(tmp_pat
         cli.main(["evaluate", str(training), "--episodes", "2", "--device", "cpu"])
     shutil.copy(kept / "outcome.json", training / "outcome.json")  # Ended: nothing to play.
     with pytest.raises(ValueError, match=re.escape(
-            f"{training} has no model yet (no model.zip, no checkpoint, no policy.pt)")):
+            f"{training} has ended (outcome.json) and was kept without its model (no "
+            "model.zip, no checkpoint, no policy.pt)")):
         cli.main(["evaluate", str(kept), str(training), "--episodes", "2", "--device", "cpu"])
     assert made == [] and "success" not in capsys.readouterr().out
 
@@ -324,12 +336,14 @@ def test_evaluate_finds_a_run_with_only_a_damaged_model_before_playing_any(tmp_p
 
 
 @pytest.mark.slow
-def test_a_resume_names_a_missing_replay_buffer(finished, tmp_path):
-    """SB3 raised an OSError naming replay_buffer.pkl.pkl."""
+@pytest.mark.parametrize("name", ["replay_buffer.pkl", "model.zip"])
+def test_a_resume_names_a_missing_checkpoint_file(finished, tmp_path, name):
+    """SB3 raised an OSError naming replay_buffer.pkl.pkl; a missing model.zip was said to
+    be damaged ("not a readable zip archive: [Errno 2] No such file ...")."""
     run = _copy_run(finished, tmp_path / "run")
-    run.checkpoint_buffer.unlink()
+    (run.checkpoint / name).unlink()
     with pytest.raises(ValueError, match="^" + re.escape(
-            f"{run.checkpoint_buffer} is missing: a checkpoint cannot be resumed without it")
+            f"{run.checkpoint / name} is missing: a checkpoint cannot be resumed without it")
             + "$"):
         cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "300",
                   "--no-progress", "--device", "cpu"])

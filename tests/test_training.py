@@ -196,6 +196,10 @@ def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
             ((runs["sac"] / "policy.pt").read_bytes()[:1000],
              "is not a policy file \\(torch cannot read it: RuntimeError PytorchStreamReader"),
             (b"hello", "is not a policy file \\(torch cannot read it: "),
+            # Not torch's advice to load it with weights_only=False, which runs any code in it.
+            (np.random.default_rng(0).bytes(3000), "is not a policy file \\(torch cannot read "
+                                                   "it: UnpicklingError Unsupported operand "
+                                                   "95\\)$"),
             (None, "is not a policy file franka_composer wrote \\(no actor and steps in it")):
         if contents is None:
             torch.save([1, 2], committed / "policy.pt")
@@ -734,6 +738,9 @@ def test_existing_run_needs_resume_and_resume_needs_checkpoint(runs, tmp_path):
     (["--buffer-size", "1000000000000"], ("1,000,000,000,000", "16,16"),
      "Unable to allocate 21.8 TiB for an array with shape (1000000000000, 1, 3) and data type "
      "float64"),
+    # More elements than numpy's index type counts: its ValueError named no option.
+    (["--buffer-size", "1e19"], ("10,000,000,000,000,000,000", "16,16"),
+     "Maximum allowed dimension exceeded"),
     # Found before anything is built: sbx's networks are allocated by JAX at their first
     # use, later, where it ended in JAX's traceback.
     *[(["--backend", backend, "--net-arch", "10000000,10000000"],
@@ -919,6 +926,138 @@ def test_a_resume_keeps_what_the_run_trained_and_its_evaluations(runs, tmp_path)
         cli.main(["train", "--resume", "--out", str(kept), "--total-steps", "7777"])
     assert sorted(path.name for path in kept.iterdir()) == ["config.json", "eval.csv"]
     assert (kept / "config.json").read_bytes() == (run.root / "config.json").read_bytes()
+
+
+def _copied_run(runs, tmp_path, name: str) -> RunDir:
+    copy = RunDir(shutil.copytree(runs["sac"], tmp_path / name, symlinks=True))
+    (copy.root / "training.lock").unlink()
+    return copy
+
+
+def _files(run: RunDir) -> dict:
+    return {path.name: path.read_bytes() for path in run.root.iterdir() if path.is_file()}
+
+
+@pytest.mark.parametrize("edit, problem", [
+    # Read as a checkpoint at step -5: the resume dropped every evaluation above it.
+    ({"steps": -5}, "its steps must be a whole number, 0 or more, got -5"),
+    ({"checkpoint_every": 0}, "its checkpoint_every must be a whole number, 1 or more, got 0"),
+    ({"wall_time_s": None}, "it has no wall_time_s"),
+    ({"wall_time_s": "x"}, "its wall_time_s must be a number of seconds, 0 or more, got 'x'"),
+    ({"threads": "1"}, "its threads must be a whole number, 1 or more, got '1'"),
+    ({"machines": [1, 2]}, "its machines must be a list of objects, each with its "
+                           "from_steps, got [1, 2]")])
+def test_a_resume_refuses_a_damaged_checkpoint_state_by_name(runs, tmp_path, edit, problem):
+    """Each was a traceback (ZeroDivisionError, KeyError, AttributeError) or, for negative
+    steps, evaluations lost for good."""
+    copy = _copied_run(runs, tmp_path, "copy")
+    state = json.loads(copy.checkpoint_state.read_text())
+    state.update(edit)
+    copy.checkpoint_state.write_text(json.dumps({k: v for k, v in state.items()
+                                                 if v is not None}))
+    files = _files(copy)
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{copy.checkpoint_state} is not a checkpoint's state (edited or damaged?): "
+            f"{problem}") + "$"):
+        cli.main(["train", "--resume", "--out", str(copy.root), "--total-steps", "400"])
+    assert _files(copy) == files
+
+
+def test_a_resume_refuses_a_checkpoint_whose_steps_or_evaluations_do_not_add_up(runs,
+                                                                               tmp_path):
+    """A state.json that says other steps than its model was saved at, and an eval.csv
+    lacking evaluations the checkpoint passed, were resumed without a word: the
+    evaluations after it went on with other episodes than the run's (they follow the count
+    of rows kept), its curve with a gap."""
+    run = RunDir(runs["sac"])
+    assert run.read_state()["steps"] == 300
+    steps = _copied_run(runs, tmp_path, "steps")
+    state = json.loads(steps.checkpoint_state.read_text())
+    steps.checkpoint_state.write_text(json.dumps({**state, "steps": 9999}))
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{steps.checkpoint_state} says 9,999 steps, and the model beside it was saved at "
+            "step 300: edited, or another checkpoint's?") + "$"):
+        cli.main(["train", "--resume", "--out", str(steps.root), "--total-steps", "400"])
+    rows = run.eval_csv.read_text().splitlines(keepends=True)
+    assert [row.split(",")[0] for row in rows] == ["steps", "0", "100", "200", "300"]
+    for kept, missing in (([0, 1, 3, 4], "the evaluation at step 100"),
+                          ([0, 1], "the evaluations at steps 100, 200, 300")):
+        copy = _copied_run(runs, tmp_path, f"rows-{len(kept)}")
+        copy.eval_csv.write_text("".join(rows[i] for i in kept))
+        files = _files(copy)
+        with pytest.raises(ValueError, match="^" + re.escape(
+                f"{copy.eval_csv} lacks {missing} (one every 100 steps from 0 to the "
+                "checkpoint's 300): the resumed run's evaluations would go on with other "
+                "episodes than the run's, and its curve with a gap; put them back (edited or "
+                "cut?), or start the run again") + "$"):
+            cli.main(["train", "--resume", "--out", str(copy.root), "--total-steps", "400"])
+        assert _files(copy) == files
+    # The last one may be missing where the checkpoint is: a stop at once cut it short,
+    # and the resume makes it (test_an_evaluation_cut_short_by_a_stop_at_once_is_made_on_resume).
+    copy.eval_csv.write_text("".join(rows[:4]))
+    copy.check_checkpoint_whole()
+
+
+def test_a_resume_refuses_threads_its_checkpoint_recorded_past_the_cpus(runs, tmp_path):
+    """It trained with them on one CPU, silently, where a new run is refused."""
+    copy = _copied_run(runs, tmp_path, "copy")
+    cpus = len(os.sched_getaffinity(0))
+    state = json.loads(copy.checkpoint_state.read_text())
+    copy.checkpoint_state.write_text(json.dumps({**state, "threads": cpus + 1}))
+    files = _files(copy)
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{copy.root} was trained with {cpus + 1} threads (its checkpoint's state.json), "
+            f"more than the {cpus} CPUs this process may use: resume it where {cpus + 1} are "
+            f"free, or give --threads {cpus} (the thread count changes the results' last "
+            "bits)") + "$"):
+        cli.main(["train", "--resume", "--out", str(copy.root), "--total-steps", "400"])
+    assert _files(copy) == files
+
+
+def test_a_finished_runs_copy_kept_without_its_policy_is_named_as_one(runs, tmp_path,
+                                                                      capsys):
+    """As results/ keeps some runs: config.json, eval.csv and outcome.json. It was told to
+    be deleted ("stopped before its first checkpoint"), and to be resumed."""
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    for name in ("config.json", "eval.csv", "outcome.json"):
+        shutil.copy(runs["sac"] / name, kept / name)
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{kept} is a kept copy of a finished run (its outcome.json kept, no policy.pt, no "
+            "checkpoint to resume from): resume the run it was kept from, or start a new "
+            "one") + "$"):
+        cli.main(["train", "--resume", "--out", str(kept), "--total-steps", "400"])
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{kept} holds a kept copy of a finished run (nothing to resume): choose another "
+            "--out") + "$"):
+        _train(kept, "sac", 300)
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{kept} has ended (outcome.json) and was kept without its model (no model.zip, "
+            "no checkpoint, no policy.pt)") + "$"):
+        cli.main(["evaluate", str(kept), "--episodes", "1", "--device", "cpu"])
+    assert sorted(path.name for path in kept.iterdir()) == ["config.json", "eval.csv",
+                                                            "outcome.json"]
+
+
+def test_a_new_run_inside_another_run_or_at_an_unwritable_default_is_refused_first(
+        runs, tmp_path, monkeypatch):
+    """A run inside another was removed with that run's next checkpoint folder; the default
+    runs/<task>-<algo>-seed<seed> under a file named runs failed after every other check,
+    in the file system's words."""
+    nested = runs["sac"] / "checkpoint" / "nested"
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"--out {nested} is inside the run {runs['sac'].resolve()}: give a folder "
+            "outside it") + "$"):
+        _train(nested, "sac", 300)
+    assert not nested.exists()
+    monkeypatch.chdir(tmp_path)
+    pathlib.Path("runs").write_text("")
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"cannot write to runs/push-sac-seed1: {tmp_path.resolve() / 'runs'} is not a "
+            "folder") + "$"):
+        cli.main(["train", "--task", "push", "--algo", "sac", "--seed", "1",
+                  "--total-steps", "300", *TINY])
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["runs"]
 
 
 def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):

@@ -21,7 +21,9 @@ from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
-from franka_composer.training.runs import DEFAULT_CHECKPOINT_EVERY, run_finished
+from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, check_not_inside_a_run,
+                                          run_finished)
+from franka_composer.validation import check_writable
 
 
 #: The run's settings when their options are not given: filled in here, not by argparse, so
@@ -289,7 +291,7 @@ def run_config(args: argparse.Namespace):
 def check_new_run(args: argparse.Namespace):
     """The run these `train` arguments start, once everything that would refuse it has been
     found out, before its directory exists: a missing sbx, --device cuda without CUDA, a
-    replay buffer smaller than an episode, --demos that do not load or fit. `sweep` checks
+    replay buffer smaller than two episodes, --demos that do not load or fit. `sweep` checks
     each cell's options with it before Ray starts."""
     from franka_composer.tasks import TASK_CONFIGS
     from franka_composer.training.models import algorithm_class, resolve_device
@@ -300,10 +302,15 @@ def check_new_run(args: argparse.Namespace):
     config = run_config(args)
     hp = config.hyperparameters
     episode = TASK_CONFIGS[config.task].max_episode_steps
-    if hp.buffer_size < episode:
-        raise ValueError(f"--buffer-size {hp.buffer_size} is smaller than one {config.task} "
-                         f"episode ({episode} steps): HER stores whole episodes (Table I: "
-                         "1e6)")
+    if hp.buffer_size < 2 * episode - 1:
+        # SB3's HER buffer drops an episode as it begins to overwrite it, and samples only
+        # finished ones: with less, the episode being written drops the one before it, and
+        # the next gradient step fails with no finished episode to sample (a run resumed
+        # from a checkpoint meets the same).
+        raise ValueError(f"--buffer-size {hp.buffer_size} holds less than two "
+                         f"{config.task} episodes ({episode} steps each): HER samples "
+                         "finished episodes, and one must stay whole while the next is "
+                         f"written: give {2 * episode - 1} or more (Table I: 1e6)")
     if hp.batch_size > hp.buffer_size:
         raise ValueError(f"--batch-size {hp.batch_size} is larger than the replay buffer "
                          f"(--buffer-size {hp.buffer_size}) it is sampled from")
@@ -341,13 +348,20 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
             + f": only {RESUME_FLAGS} may change")
 
 
-def check_threads(threads: int | None) -> None:
-    """More threads than this machine's CPUs only queue for them (thousands stall a gradient step, and with
-    it the stop at the episode's end that SIGTERM waits for)."""
+def check_threads(threads: int | None, run_dir=None) -> None:
+    """More threads than this machine's CPUs only queue for them (thousands stall a
+    gradient step, and with it the stop at the episode's end that SIGTERM waits for). With
+    `run_dir`: the threads a resume takes from the run's checkpoint."""
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if threads is not None and cpus and threads > cpus:
+    if threads is None or not cpus or threads <= cpus:
+        return
+    if run_dir is None:
         raise ValueError(f"--threads {threads} is more than the {cpus} CPUs this process may "
                          "use")
+    raise ValueError(f"{run_dir.root} was trained with {threads} threads (its checkpoint's "
+                     f"state.json), more than the {cpus} CPUs this process may use: resume it "
+                     f"where {threads} are free, or give --threads {cpus} (the thread count "
+                     "changes the results' last bits)")
 
 
 def _check_budget(args: argparse.Namespace, run_dir) -> None:
@@ -382,8 +396,11 @@ def _check_budget(args: argparse.Namespace, run_dir) -> None:
 
 def run(args: argparse.Namespace) -> int:
     settings = with_defaults(args)
-    out = args.out or pathlib.Path("runs") / (
-        f"{settings.task}-{settings.algo}-seed{settings.seed}")
+    # The default --out checked as a given one is (`output_folder`).
+    out = args.out or check_writable(pathlib.Path("runs") / (
+        f"{settings.task}-{settings.algo}-seed{settings.seed}"), folder=True)
+    if not args.resume:
+        check_not_inside_a_run(out)
     check_threads(args.threads)
     # SIGTERM before training begins (a scheduler, timeout) stops the run as Ctrl-C does, so
     # a new run leaves nothing; once it trains, the loop checkpoints on it.
@@ -406,6 +423,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
             run_dir.check_config_checkpointed()
             _check_resumed_as_given(args, run_dir)
             run_dir.recover_checkpoint()
+            run_dir.check_checkpoint_whole()  # Before its steps are taken for the budget's.
             _check_budget(args, run_dir)
         else:
             config = check_new_run(args)
@@ -420,6 +438,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     threads = args.threads
     if threads is None and args.resume:
         threads = run_dir.read_state().get("threads")
+        check_threads(threads, run_dir)
     try:
         # The removal outermost: a stop while the threads are limited (sbx starts JAX's
         # runtime there, seconds) leaves nothing of a new run either.

@@ -87,6 +87,9 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
     """Creates a run directory for `config`; a folder that already holds a run, or anything
     else, is a ValueError (a failed start removes what it made: nothing else may be there)."""
     run = RunDir(pathlib.Path(root))
+    if run.config_path.exists() and run.is_kept_copy():
+        raise ValueError(f"{run.root} holds a kept copy of a finished run (nothing to "
+                         "resume): choose another --out")
     if run.config_path.exists():
         raise ValueError(f"{run.root} already holds a run; pass --resume to continue it "
                          "or choose another --out")
@@ -143,6 +146,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     run.recover_checkpoint()
     if resume:  # A checkpoint just linked: checked as `check_resumable` checks a linked one.
         run.check_config_checkpointed()
+        run.check_checkpoint_whole()
     config = run.read_config()
     if total_steps is not None:  # Saved once the run goes on with it (below).
         config = dataclasses.replace(

@@ -219,7 +219,7 @@ def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed
                              f"{memory / 2**30:,.1f} GiB")
     try:
         return algo_class(_policy(algo_class, backend), env, **kwargs)
-    except (MemoryError, RuntimeError) as error:
+    except (MemoryError, RuntimeError, ValueError) as error:
         if not isinstance(error, MemoryError) and not any(
                 sign in str(error).lower() for sign in _OUT_OF_MEMORY):
             raise
@@ -252,9 +252,10 @@ def _physical_memory_bytes() -> int:
 
 
 #: How the libraries say that an allocation failed (lower case): numpy raises MemoryError,
-#: torch a RuntimeError from its CPU allocator (or CUDA's, a subclass). (JAX allocates as it
+#: or a ValueError for more elements than its index type counts (--buffer-size 1e19), torch
+#: a RuntimeError from its CPU allocator (or CUDA's, a subclass). (JAX allocates as it
 #: dispatches, after this: sbx's networks fail at their first use.)
-_OUT_OF_MEMORY = ("can't allocate memory", "out of memory")
+_OUT_OF_MEMORY = ("can't allocate memory", "out of memory", "maximum allowed dimension exceeded")
 
 
 def check_saved_by(path, algo: str, backend: str) -> None:

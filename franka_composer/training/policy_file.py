@@ -89,6 +89,19 @@ def load_policy(config: RunConfig, path: pathlib.Path, env: gym.Env,
     return ActorPolicy(policy.to(device), state["steps"])
 
 
+#: What torch's weights-only unpickler says before what it met: its first lines advise
+#: loading the file with `weights_only=False`, which runs whatever code a file holds.
+_WEIGHTS_ONLY_DETAIL = "WeightsUnpickler error:"
+
+
+def _what_torch_met(error: Exception) -> str:
+    """The first line of torch's error, or of what its weights-only unpickler met."""
+    text = str(error)
+    if _WEIGHTS_ONLY_DETAIL in text:
+        text = text.split(_WEIGHTS_ONLY_DETAIL, 1)[1].strip()
+    return (text.splitlines() or [""])[0]
+
+
 def read_policy_file(config: RunConfig, path: pathlib.Path, device: str = "cpu") -> dict:
     """The contents of the policy file at `path` of a run of `config` ({"actor", "steps",
     ...}); a ValueError naming it if it is not one franka_composer wrote for such a run."""
@@ -97,9 +110,8 @@ def read_policy_file(config: RunConfig, path: pathlib.Path, device: str = "cpu")
     try:
         state = torch.load(path, map_location=device, weights_only=True)
     except Exception as error:  # torch raises what its unpickler or zip reader meets.
-        first_line = (str(error).splitlines() or [""])[0]
         raise ValueError(f"{path} is not a policy file (torch cannot read it: "
-                         f"{type(error).__name__} {first_line})") from None
+                         f"{type(error).__name__} {_what_torch_met(error)})") from None
     if not isinstance(state, dict) or not {"actor", "steps"} <= state.keys():
         raise ValueError(f"{path} is not a policy file franka_composer wrote (no actor and "
                          "steps in it)")
@@ -166,6 +178,9 @@ def check_trained(run: RunDir) -> None:
                                 for path, damage in zip(models, damages))
             raise ValueError(f"{damaged}, and the run has no whole model to play instead "
                              "(model.zip, a checkpoint, policy.pt)")
+        if run.read_outcome():  # A finished run's kept copy, its policy.pt left out.
+            raise ValueError(f"{run.root} has ended ({run.outcome_path.name}) and was kept "
+                             "without its model (no model.zip, no checkpoint, no policy.pt)")
         raise ValueError(f"{run.root} has no model yet (no model.zip, no checkpoint, "
                          "no policy.pt)")
     read_policy_file(config, run.policy_file)

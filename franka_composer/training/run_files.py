@@ -30,15 +30,34 @@ def saved_policy_module(path: pathlib.Path) -> str | None:
     ("stable_baselines3.sac.policies"), as its "data" records it; None where it does not
     say (a damaged file is `model_damage`'s to name)."""
     try:
-        with zipfile.ZipFile(path) as archive:
-            return json.loads(archive.read("data"))["policy_class"]["__module__"]
-    except (zipfile.BadZipFile, OSError, EOFError, zlib.error, KeyError, TypeError,
-            ValueError):
+        return _saved_data(path)["policy_class"]["__module__"]
+    except (KeyError, TypeError):
         return None
 
 
+def saved_steps(path: pathlib.Path) -> int | None:
+    """The steps the SB3 (or sbx) model at `path` had trained when it was saved (its
+    "data"'s num_timesteps); None where it does not say."""
+    steps = _saved_data(path).get("num_timesteps")
+    return steps if isinstance(steps, int) and not isinstance(steps, bool) else None
+
+
+def _saved_data(path: pathlib.Path) -> dict:
+    """The "data" JSON object of the SB3 (or sbx) model at `path`; {} where it has none that
+    reads."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (zipfile.BadZipFile, OSError, EOFError, zlib.error, KeyError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
 def checked_model(path: pathlib.Path) -> pathlib.Path:
-    """`path`, if `model_damage` finds nothing wrong; else a ValueError naming it."""
+    """`path`, if `model_damage` finds nothing wrong; else a ValueError naming it (a
+    missing one as missing, as `unpickling` names a missing replay buffer)."""
+    if not path.exists():
+        raise ValueError(f"{path} is missing: a checkpoint cannot be resumed without it")
     damage = model_damage(path)
     if damage is not None:
         raise ValueError(f"{path} is damaged ({damage})")

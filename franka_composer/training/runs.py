@@ -36,7 +36,8 @@ from typing import TypedDict
 
 from franka_composer.atomic_files import replace_atomically, sync_to_disk
 from franka_composer.training.run_config import RunConfig
-from franka_composer.training.run_files import checked_model, model_damage, read_json, steps_of
+from franka_composer.training.run_files import (checked_model, model_damage, read_json,
+                                                  saved_steps, steps_of)
 
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
 #: state.json records a run's own, which a resume keeps.
@@ -96,9 +97,7 @@ class RunDir:
                              "number of steps, 0 or more, and stopped_early true or false")
         for name in ("wall_time_s", "cpu_time_s"):  # (CPU time: None where not recorded.)
             seconds = outcome.get(name)
-            if seconds is not None and not (isinstance(seconds, (int, float))
-                                            and not isinstance(seconds, bool)
-                                            and math.isfinite(seconds) and seconds >= 0):
+            if seconds is not None and not _is_seconds(seconds):
                 raise ValueError(f"{self.outcome_path} is not a run's outcome: its {name} "
                                  f"must be a number of seconds, 0 or more, got {seconds!r}")
         return outcome
@@ -143,6 +142,9 @@ class RunDir:
             yield
             return
         self.root.mkdir(parents=True, exist_ok=True)
+        if self.lock_path.is_dir():  # Else open's IsADirectoryError, naming nothing of it.
+            raise ValueError(f"{self.lock_path} is a folder, where the run keeps its lock "
+                             "file (made by hand?): remove it to train the run")
         with open(self.lock_path, "a+") as handle:
             try:
                 _take_lock(handle)
@@ -193,7 +195,7 @@ class RunDir:
                 except OSError:  # No locks on this file system: nothing to tell.
                     return None
                 fcntl.flock(handle, fcntl.LOCK_UN)
-        except FileNotFoundError:
+        except (FileNotFoundError, IsADirectoryError):  # No trainer could hold either.
             pass
         return None
 
@@ -306,17 +308,59 @@ class RunDir:
                 raise ValueError(f"{self.root} is being trained by {trainer} (no checkpoint "
                                  "yet): let it end, or stop it (SIGTERM checkpoints it) "
                                  "before resuming")
-            if (self.policy_file.is_file() and not self.final_model.is_file()
-                    and self.read_outcome()):  # What `keep` copies of a finished run.
-                raise ValueError(f"{self.root} is a kept copy of a finished run (its "
-                                 "policy.pt kept, no checkpoint to resume from): resume the "
-                                 "run it was kept from, or start a new one")
+            if self.is_kept_copy():
+                kept = ("its policy.pt kept" if self.policy_file.is_file() else
+                        "its outcome.json kept, no policy.pt")
+                raise ValueError(f"{self.root} is a kept copy of a finished run ({kept}, no "
+                                 "checkpoint to resume from): resume the run it was kept "
+                                 "from, or start a new one")
             raise ValueError(f"{self.root} has no complete checkpoint to resume from "
                              "(it stopped before its first one): delete it to start again")
         if not self.eval_csv.is_file():
             raise ValueError(f"{self.eval_csv} is missing: the run's evaluations up to its "
                              "checkpoint would be lost; put it back to resume")
         self.check_config_checkpointed()
+        self.check_checkpoint_whole()
+
+    def is_kept_copy(self) -> bool:
+        """Whether this is what `keep` copies of a finished run: its outcome.json, with
+        no model.zip or checkpoint to train on from (its policy.pt, where it was kept)."""
+        return (not self.final_model.is_file() and not self.checkpoint.exists()
+                and not self._complete_checkpoints() and bool(self.read_outcome()))
+
+    def check_checkpoint_whole(self) -> None:
+        """Refuses (ValueError) to resume from a checkpoint whose state.json has no
+        wall-clock time or says other steps than its model was saved at, or whose run's
+        eval.csv lacks an evaluation the checkpoint's steps passed (every eval_every steps
+        from 0; the one at the checkpoint's own step may be missing, cut short by a second
+        stop signal, and is made as the run resumes): the resumed run's evaluation episodes
+        follow the count of evaluations kept, and went on shifted, its curve with a gap."""
+        state = self.read_state()
+        if not state:
+            return
+        if "wall_time_s" not in state:  # Every checkpoint `train` writes records it.
+            raise ValueError(f"{self.checkpoint_state} is not a checkpoint's state (edited or "
+                             "damaged?): it has no wall_time_s")
+        steps = state["steps"]
+        saved = saved_steps(self.checkpoint_model) if self.checkpoint_model.is_file() else None
+        if saved is not None and saved != steps:
+            raise ValueError(f"{self.checkpoint_state} says {steps:,} steps, and the model "
+                             f"beside it was saved at step {saved:,}: edited, or another "
+                             "checkpoint's?")
+        if not self.eval_csv.is_file():
+            return  # `check_resumable` names it.
+        every = self.read_config().hyperparameters.eval_every
+        expected = range(0, steps + 1, every)
+        kept = [row["steps"] for row in self.kept_evaluations() if row["steps"] % every == 0]
+        if kept in (list(expected), list(expected[:-1]) if expected[-1] == steps else None):
+            return
+        missing = [step for step in expected if step not in kept]
+        raise ValueError(
+            f"{self.eval_csv} lacks the evaluation{'s' if len(missing) > 1 else ''} at step"
+            f"{'s' if len(missing) > 1 else ''} {', '.join(f'{step:,}' for step in missing)} "
+            f"(one every {every:,} steps from 0 to the checkpoint's {steps:,}): the resumed "
+            "run's evaluations would go on with other episodes than the run's, and its curve "
+            "with a gap; put them back (edited or cut?), or start the run again")
 
     def check_config_checkpointed(self) -> None:
         """Refuses (ValueError) to resume a run whose config.json says other than the
@@ -349,9 +393,10 @@ class RunDir:
         if not self.checkpoint_state.is_file():
             return {}
         state = read_json(self.checkpoint_state, "a checkpoint's state")
-        if not isinstance(state.get("steps"), int):
-            raise ValueError(f"{self.checkpoint_state} is not a checkpoint's state: it has "
-                             "no whole number of steps")
+        problem = _state_problem(state)
+        if problem is not None:
+            raise ValueError(f"{self.checkpoint_state} is not a checkpoint's state (edited or "
+                             f"damaged?): {problem}")
         return state
 
     def recorded_evaluations(self) -> list[EvalRow]:
@@ -408,6 +453,42 @@ class RunDir:
         if self.checkpoint_model.is_file():
             return checked_model(self.checkpoint_model)
         raise ValueError(f"{self.root} has no model yet (neither model.zip nor a checkpoint)")
+
+
+def _is_seconds(value) -> bool:
+    return (isinstance(value, (int, float)) and not isinstance(value, bool)
+            and math.isfinite(value) and value >= 0)
+
+
+def _is_count(value, least: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= least
+
+
+def _state_problem(state: dict) -> str | None:
+    """What is wrong with a checkpoint's state (`RunDir.read_state`'s keys), or None."""
+    if not _is_count(state.get("steps"), 0):
+        return f"its steps must be a whole number, 0 or more, got {state.get('steps')!r}"
+    for name in ("wall_time_s", "cpu_time_s"):  # CPU time: absent where not recorded.
+        if name in state and not _is_seconds(state[name]):
+            return f"its {name} must be a number of seconds, 0 or more, got {state.get(name)!r}"
+    for name in ("checkpoint_every", "threads"):
+        if state.get(name) is not None and not _is_count(state[name], 1):
+            return f"its {name} must be a whole number, 1 or more, got {state[name]!r}"
+    if "exact" in state and not isinstance(state["exact"], bool):
+        return f"its exact must be true or false, got {state['exact']!r}"
+    fresh = state.get("fresh_streams")
+    if fresh is not None and not (isinstance(fresh, list)
+                                  and all(_is_count(step, 0) for step in fresh)):
+        return f"its fresh_streams must be a list of steps, got {fresh!r}"
+    machines = state.get("machines")
+    if machines is not None and not (isinstance(machines, list) and all(
+            isinstance(entry, dict) and _is_count(entry.get("from_steps"), 0)
+            for entry in machines)):
+        return ("its machines must be a list of objects, each with its from_steps, got "
+                f"{machines!r}")
+    if "config" in state and not isinstance(state["config"], dict):
+        return f"its config must be an object, got {type(state['config']).__name__}"
+    return None
 
 
 #: How long a trainer waits for a run's lock held by another: a look (`RunDir.trainer`)
@@ -543,6 +624,15 @@ def check_out_apart(out: pathlib.Path | None, roots) -> None:
         if RunDir(root).holds(out):
             raise ValueError(f"--out {out} is one of the run {root}'s own files: give "
                              "another file")
+
+
+def check_not_inside_a_run(out: pathlib.Path) -> None:
+    """A ValueError where a new run's folder `out` lies inside another run, whose next
+    checkpoint (it replaces checkpoint-*/ folders) or `keep` would take it along."""
+    for folder in pathlib.Path(out).resolve().parents:
+        if is_run(folder):
+            raise ValueError(f"--out {out} is inside the run {folder}: give a folder outside "
+                             "it")
 
 
 def is_run(folder: pathlib.Path) -> bool:
