@@ -468,9 +468,12 @@ def _state_problem(state: dict) -> str | None:
     """What is wrong with a checkpoint's state (`RunDir.read_state`'s keys), or None."""
     if not _is_count(state.get("steps"), 0):
         return f"its steps must be a whole number, 0 or more, got {state.get('steps')!r}"
-    for name in ("wall_time_s", "cpu_time_s"):  # CPU time: absent where not recorded.
-        if name in state and not _is_seconds(state[name]):
-            return f"its {name} must be a number of seconds, 0 or more, got {state.get(name)!r}"
+    if "wall_time_s" in state and not _is_seconds(state["wall_time_s"]):
+        return ("its wall_time_s must be a number of seconds, 0 or more, got "
+                f"{state['wall_time_s']!r}")
+    # CPU time: absent, or null after a resume from such a checkpoint, where not recorded.
+    if state.get("cpu_time_s") is not None and not _is_seconds(state["cpu_time_s"]):
+        return f"its cpu_time_s must be a number of seconds, 0 or more, got {state['cpu_time_s']!r}"
     for name in ("checkpoint_every", "threads"):
         if state.get(name) is not None and not _is_count(state[name], 1):
             return f"its {name} must be a whole number, 1 or more, got {state[name]!r}"
@@ -486,7 +489,7 @@ def _state_problem(state: dict) -> str | None:
             for entry in machines)):
         return ("its machines must be a list of objects, each with its from_steps, got "
                 f"{machines!r}")
-    if "config" in state and not isinstance(state["config"], dict):
+    if state.get("config") is not None and not isinstance(state["config"], dict):
         return f"its config must be an object, got {type(state['config']).__name__}"
     return None
 
