@@ -140,16 +140,13 @@ class FastEnvironment(GoalEnvironment):
         if missing:
             self.close()
             raise FastPathUnavailable(", ".join(missing))
-        # The model compiled above is the one the first reset compiles again, unless an
-        # `initialize_episode_mjcf` hook changes it then: `_recompile_physics` keeps it.
-        self._compiled_model_unused = True
 
     # pylint: disable=protected-access
 
     def _recompile_physics(self) -> None:
-        unused = getattr(self, "_compiled_model_unused", False)  # Not yet at construction.
-        self._compiled_model_unused = False
-        if unused and not self._has_mjcf_hooks():
+        # Composer's first reset would compile again the model compiled at construction (the
+        # flag is not yet set then): kept, unless an `initialize_episode_mjcf` hook changed it.
+        if getattr(self, "_mjcf_never_compiled", False) and not self._has_mjcf_hooks():
             return
         physics = getattr(self, "_physics", None)
         if physics:

@@ -14,7 +14,7 @@ import shutil
 
 from franka_composer.atomic_files import replace_atomically
 from franka_composer.training.runs import (EvalRow, RunDir, is_run, read_eval_rows,
-                                           run_finished, write_eval_rows)
+                                           run_finished, runs_holding, write_eval_rows)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -130,7 +130,7 @@ def check_kept_apart(roots, kept: pathlib.Path, option: str) -> None:
         if root in inside.parents:
             raise ValueError(f"{option} {kept} is inside the run {root}: give a folder "
                              "outside the runs")
-    for folder in (inside, *inside.parents):
-        if is_run(folder):  # Another run, kept or training.
-            raise ValueError(f"{option} {kept} is {'' if folder == inside else 'inside '}"
-                             f"the run {folder}: give a folder outside the runs")
+    folder = inside if is_run(inside) else next(runs_holding(inside), None)
+    if folder is not None:  # Another run, kept or training.
+        raise ValueError(f"{option} {kept} is {'' if folder == inside else 'inside '}"
+                         f"the run {folder}: give a folder outside the runs")

@@ -32,7 +32,7 @@ import socket
 import time
 import uuid
 import warnings
-from typing import TypedDict
+from typing import Iterator, TypedDict
 
 from franka_composer.atomic_files import replace_atomically, sync_to_disk
 from franka_composer.training.run_config import RunConfig
@@ -622,7 +622,7 @@ def check_out_apart(out: pathlib.Path | None, roots) -> None:
     config, which nothing could then read."""
     if out is None:
         return
-    inside = [folder for folder in pathlib.Path(out).resolve().parents if is_run(folder)]
+    inside = list(runs_holding(out))
     for root in [*map(pathlib.Path, roots), *inside]:
         if RunDir(root).holds(out):
             raise ValueError(f"--out {out} is one of the run {root}'s own files: give "
@@ -632,10 +632,15 @@ def check_out_apart(out: pathlib.Path | None, roots) -> None:
 def check_not_inside_a_run(out: pathlib.Path) -> None:
     """A ValueError where a new run's folder `out` lies inside another run, whose next
     checkpoint (it replaces checkpoint-*/ folders) or `keep` would take it along."""
-    for folder in pathlib.Path(out).resolve().parents:
-        if is_run(folder):
-            raise ValueError(f"--out {out} is inside the run {folder}: give a folder outside "
-                             "it")
+    folder = next(runs_holding(out), None)
+    if folder is not None:
+        raise ValueError(f"--out {out} is inside the run {folder}: give a folder outside it")
+
+
+def runs_holding(path) -> Iterator[pathlib.Path]:
+    """The runs `path` lies inside, nearest first (read lazily: each folder on the way is
+    a config.json read)."""
+    return (folder for folder in pathlib.Path(path).resolve().parents if is_run(folder))
 
 
 def is_run(folder: pathlib.Path) -> bool:
