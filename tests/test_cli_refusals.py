@@ -389,6 +389,18 @@ def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path
     assert not kept.exists()
 
 
+def test_keep_refuses_a_folder_where_a_finished_runs_policy_file_belongs(tmp_path):
+    """It kept the run without its policy, saying nothing (a folder is not a file)."""
+    good, bad = _run(tmp_path / "runs" / "a"), _run(tmp_path / "runs" / "b", seed=1)
+    bad.policy_file.mkdir()
+    kept = tmp_path / "kept"
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{bad.policy_file} is a folder, where {bad.root} keeps a model file: move it "
+            "away") + "$"):
+        cli.main(["keep", str(good.root), str(bad.root), "--into", str(kept)])
+    assert not kept.exists()
+
+
 @pytest.mark.parametrize("command", ["keep", "report", "plot"])
 def test_a_run_that_has_ended_without_its_evaluations_is_refused(command, tmp_path):
     """`keep` copied it as a header-only eval.csv beside its outcome and policy, which

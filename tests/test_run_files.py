@@ -270,6 +270,34 @@ def test_evaluate_leaves_out_a_run_with_nothing_trained_yet_and_names_it(tmp_pat
     assert made == [] and "success" not in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("name", ["policy.pt", "model.zip", "checkpoint/model.zip"])
+def test_evaluate_names_a_folder_where_a_model_file_belongs(tmp_path, name, monkeypatch):
+    """A folder at policy.pt (a copy gone wrong) read as no policy.pt: the kept run was
+    called one kept without its model, and a run without outcome.json one not trained
+    yet, left out of `evaluate` with a word. Now refused, naming the folder, before any
+    env is made."""
+    import shutil
+
+    from franka_composer.training import policy_file
+
+    kept = pathlib.Path(__file__).parents[1] / "results" / "table2" / "push-ddpg-seed1"
+    for ended in (True, False):
+        run = tmp_path / f"push-ddpg-seed1-{ended}"
+        shutil.copytree(kept, run)
+        (run / "policy.pt").unlink()
+        if not ended:
+            (run / "outcome.json").unlink()
+        (run / name).mkdir(parents=True)
+        made = []
+        monkeypatch.setattr(policy_file, "make_env",
+                            lambda *args, **kwargs: made.append(args))
+        with pytest.raises(ValueError, match=re.escape(
+                f"{run / name} is a folder, where {run} keeps a model file: move it "
+                "away")):
+            cli.main(["evaluate", str(run), "--episodes", "2", "--device", "cpu"])
+        assert made == []
+
+
 @pytest.mark.slow
 def test_a_kill_while_the_final_model_is_written_leaves_no_damaged_model_zip(tmp_path,
                                                                              monkeypatch):

@@ -30,10 +30,12 @@ def files_to_keep(run: RunDir, kept: RunDir, budget: int | None = None) -> KeptF
     """What `run` has kept, to be copied into `kept`: its evaluations that a resume keeps,
     and whether it has finished (`run_finished` at `budget`). A damaged config.json,
     eval.csv or outcome.json is a ValueError naming it, and so is a copy in `kept` that
-    keeping `run` would replace or cut back (`check_extends`), and a policy file of a
-    finished run that is not one (`read_policy_file`): it would replace a whole one kept."""
-    from franka_composer.training.policy_file import read_policy_file
+    keeping `run` would replace or cut back (`check_extends`), a policy file of a finished
+    run that is not one (`read_policy_file`: it would replace a whole one kept), and a
+    folder where a model file belongs (`check_no_folders`: the policy would be left out)."""
+    from franka_composer.training.policy_file import check_no_folders, read_policy_file
 
+    check_no_folders(run)
     files = KeptFiles(run, run.kept_evaluations(), run_finished(run, budget))
     check_extends(files, kept)
     if files.finished and run.policy_file.is_file():

@@ -165,6 +165,7 @@ def check_trained(run: RunDir) -> None:
     algorithm or library saved than its config.json says (`check_saved_by`): asked before
     an env is made for it, so that `evaluate` finds a bad run among many before playing any."""
     config = run.read_config()
+    check_no_folders(run)
     models = [path for path in (run.final_model, run.checkpoint_model) if path.is_file()]
     damages = [model_damage(path) for path in models]
     for path, damage in zip(models, damages):
@@ -186,6 +187,16 @@ def check_trained(run: RunDir) -> None:
     read_policy_file(config, run.policy_file)
 
 
+def check_no_folders(run: RunDir) -> None:
+    """A ValueError naming the first of `run`'s model files that is a folder (made by hand,
+    or a copy gone wrong), where it would otherwise read as absent: the run taken for one
+    not trained yet, or kept without its policy."""
+    for path in (run.final_model, run.checkpoint_model, run.policy_file):
+        if path.is_dir():
+            raise ValueError(f"{path} is a folder, where {run.root} keeps a model file: "
+                             "move it away")
+
+
 def split_trained(roots) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
     """`roots` split into the runs with something trained to play (each checked,
     `check_trained`) and those not yet (a sweep under way: a cell not begun, or before its
@@ -195,6 +206,7 @@ def split_trained(roots) -> tuple[list[pathlib.Path], list[pathlib.Path]]:
     for root in roots:
         run = RunDir(pathlib.Path(root))
         run.read_config()
+        check_no_folders(run)
         if (not any(path.is_file() for path in (run.final_model, run.checkpoint_model,
                                                  run.policy_file))
                 and not run.read_outcome()):
