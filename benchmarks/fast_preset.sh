@@ -2,8 +2,9 @@
 # The fast preset against its targets (docs/experiments/fast-preset.md): `train --preset
 # fast` on TASK for each seed in turn, one process on one core, to a step budget (push 62k
 # steps, ~33 minutes at ~32 ms a step, past its 30-minute target; pick-and-place 60k, ~32
-# minutes of its 60) or 5 evaluations at 95 %, runs outside the work tree; a run already
-# there resumes, STEPS=N raising its budget.
+# minutes of its 60; stack and flip, which Table I's recipe does not learn, 300k) or 5
+# evaluations at 95 %, runs outside the work tree; a run already there resumes, STEPS=N
+# raising its budget.
 #
 #   benchmarks/fast_preset.sh TASK [SEED ...]   default seeds 0 1 2
 #   benchmarks/fast_preset.sh sync              the runs' config.json, eval.csv and, once
@@ -22,8 +23,9 @@ task=${1:-}
 case "$task" in
   push) steps=${STEPS:-62000} ;;
   pick_and_place) steps=${STEPS:-60000} ;;
+  stack|flip) steps=${STEPS:-300000} ;;
   sync) exec "$BIN/franka-composer" keep "$RUNS"/*-seed*/ --into results/fast-preset ;;
-  *) sed -n '2,15p' "$0"; exit 2 ;;
+  *) sed -n '2,16p' "$0"; exit 2 ;;
 esac
 shift
 read -ra seeds <<< "${*:-0 1 2}"
