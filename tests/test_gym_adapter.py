@@ -275,6 +275,30 @@ def test_step_before_reset_raises_gymnasiums_error():
         env.unwrapped.step(np.zeros(3, np.float32))
 
 
+def test_a_step_after_a_reset_that_raised_is_refused_until_a_reset_succeeds():
+    """A mass factor drawn too light is refused at its reset; the next step went on from
+    what the failed reset left: the arm at the model's qpos0 (pointing up), the block
+    inside the robot's base and rising, the last episode's goal and draws."""
+    from dm_control.composer.variation import distributions
+
+    env = gym.make("FrankaPushSparse-v0",
+                   randomization={"object_mass": distributions.LogNormal(0, 5)})
+    env.reset(seed=0)
+    env.step(np.zeros(3, np.float32))
+    with pytest.raises(ValueError, match="lighter than any body compiles"):
+        env.reset(seed=110)
+    message = ("^" + re.escape("Cannot call env.step() before calling env.reset(): the last "
+                               "reset() raised, and left no episode to step") + "$")
+    for _ in range(2):
+        with pytest.raises(gym.error.ResetNeeded, match=message):
+            env.unwrapped.step(np.zeros(3, np.float32))
+    first, _ = env.reset(seed=0)
+    again = gym.make("FrankaPushSparse-v0",
+                     randomization={"object_mass": distributions.LogNormal(0, 5)})
+    np.testing.assert_equal(first, again.reset(seed=0)[0])  # Bit for bit.
+    env.unwrapped.step(np.zeros(3, np.float32))
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("control, size", [("mocap", 18), ("osc", 18), ("joints", 25)])
 def test_async_vector_env_with_two_workers_steps(control, size):

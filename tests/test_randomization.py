@@ -57,7 +57,8 @@ def test_every_task_controller_and_mode_keeps_the_goal_contract_under_the_defaul
     assert env_checker_findings(env) == UNBOUNDED_OBSERVATIONS
     records = _rollout(env, seed=1, steps=SPEC[task_name]["steps"] + 5)
     applied = {name for name in DEFAULT if PARAMETERS[name].episode
-               and (mode != "state" or not PARAMETERS[name].observed_cameras)}
+               and (mode != "state" or not PARAMETERS[name].observed_cameras)
+               and (task_name != "reach" or not PARAMETERS[name].per_object)}
     for obs, reward, info in records:
         assert env.observation_space.contains(obs)
         assert set(info["randomization"]) == applied
@@ -355,6 +356,28 @@ def test_observation_noise_has_its_spread_per_field_and_leaves_the_goals_exact()
     np.testing.assert_array_equal(layout.read(errors, "object_orientation"), 0.0)
 
 
+def test_angle_noise_turns_a_quaternion_reading_and_leaves_it_unit():
+    """Angle noise was added to a quaternion's components: under the preset's Normal(0,
+    0.01) flip's cube read as norm 0.9925, no orientation. It now turns the reading by a
+    rotation vector of three draws: unit to rounding, turned by the draws' norm (about
+    0.016 rad on average, for 0.01 rad each), and the goals stay exact."""
+    noise = {"angle_noise": distributions.Normal(0.0, 0.01)}
+    plain = _make("flip", terminate_on_success=False)
+    noisy = _make("flip", randomization=noise, terminate_on_success=False)
+    layout = plain.unwrapped.observation_layout
+    steps, size = 100, plain.action_space.shape[0]
+    actions = np.random.default_rng(2).uniform(-1, 1, (steps, size)).astype(np.float32)
+    a_records, b_records = _rollout(plain, 0, steps, actions), _rollout(noisy, 0, steps, actions)
+    exact = np.array([layout.read(a[0]["observation"], "object_orientation") for a in a_records])
+    read = np.array([layout.read(b[0]["observation"], "object_orientation") for b in b_records])
+    np.testing.assert_allclose(np.linalg.norm(read, axis=1), 1.0, rtol=0, atol=1e-12)
+    turn = 2 * np.arccos(np.clip(np.abs(np.sum(exact * read, axis=1)), 0.0, 1.0))
+    assert 0.013 < turn.mean() < 0.019 and turn.max() < 0.06, turn
+    for a, b in zip(a_records, b_records):
+        for key in ("achieved_goal", "desired_goal"):
+            np.testing.assert_array_equal(a[0][key], b[0][key])
+
+
 def test_composers_noise_wrappers_act_on_the_reading_as_its_corruptors_do():
     """noises.Additive(d) on a reading gave the reading twice plus the noise (the wrapper's
     value, the reading plus d's draw, was added to the reading again); on the action, a
@@ -632,6 +655,22 @@ def test_a_custom_randomisation_of_what_the_env_does_not_have_is_refused(task, o
     franka_composer.load(task, randomization={**PRESETS["default"], "observation_delay": 2})
     with pytest.raises(ValueError, match=re.escape(message)):
         franka_composer.load(task, randomization={**PRESETS["default"], **options["randomization"]})
+
+
+@pytest.mark.parametrize("name", ["position_noise", "angle_noise", "velocity_noise"])
+def test_sensing_noise_without_a_state_vector_is_refused(name):
+    """observation_mode='pixels' observes no state vector, and the noise (added to its
+    readings) was taken, reported nowhere and did nothing: the observations were those of
+    an env without it, bit for bit. Where a state vector is observed it is taken; the
+    preset leaves it out there."""
+    noisy = {name: distributions.Normal(0.0, 0.01)}
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"randomization {name!r} does nothing here: no state vector is observed "
+            "(observation_mode 'pixels'), and the noise is added to its readings, not to "
+            "images: leave it out") + "$"):
+        franka_composer.load("push", observation_mode="pixels", randomization=noisy)
+    franka_composer.load("push", observation_mode="state+pixels", randomization=noisy).close()
+    franka_composer.load("push", observation_mode="pixels", randomization="default").close()
 
 
 def test_a_light_intensity_past_float32_is_a_value_error_naming_it():

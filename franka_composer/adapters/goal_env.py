@@ -113,7 +113,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         self._width, self._height, self._camera = width, height, camera
         self._renderer = None
         self._timestep: dm_env.TimeStep | None = None
-        self._an_episode_ended = False  # Then a step before reset() says why it needs one.
+        self._an_episode_ended = False  # Then a step before reset() says why it needs one;
+        self._reset_failed = False  # and so after a reset that raised.
         self._stream_started = False  # Whether a reset has seeded the episode stream.
         self._randomization = None  # This episode's randomised parameters, if randomised.
         self._closed = False
@@ -177,7 +178,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             seeding.reseed(self._env.random_state,
                            seed if seed is not None else int(self.np_random.integers(2**63 - 1)))
             self._stream_started = True
+        self._timestep = None  # A reset that raises leaves no episode to step.
+        self._reset_failed = True
         self._timestep = self._env.reset()
+        self._reset_failed = False
         self._randomization = (self._task.randomization
                                if self._task.config.randomization.enabled else None)
         obs = self.goal_observation(self._timestep.observation)
@@ -190,6 +194,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         if self._timestep is None:
             raise gym.error.ResetNeeded(
                 "Cannot call env.step() before calling env.reset()" + (
+                    ": the last reset() raised, and left no episode to step"
+                    if self._reset_failed else
                     ": the episode ended at its last step (terminated or truncated), and "
                     "reset() begins the next" if self._an_episode_ended else ""))
         self._timestep = self._env.step(action)

@@ -179,7 +179,8 @@ PARAMETERS: dict[str, Parameter] = {
     "position_noise": Parameter("sensing", "noise",
                                 "added to every position reading (TCP, objects, fingers)", "m"),
     "angle_noise": Parameter("sensing", "noise",
-                             "added to every angle reading (orientations, joint angles)",
+                             "added to every angle reading (Euler angles, joint angles); a "
+                             "quaternion is turned by a rotation vector of three draws",
                              "rad"),
     "velocity_noise": Parameter("sensing", "noise",
                                 "added to every velocity reading, before it is made per step",
@@ -201,14 +202,18 @@ def noise_parameter(field) -> str:
     return "position_noise" if field.unit == "m" else "angle_noise"
 
 
-def unread_parameter(name: str, task: str, objects: bool, cameras: bool) -> str | None:
-    """Why the parameter `name` would do nothing on `task` (with `objects` to move, and
-    `cameras` whose images are observed), or None: a custom mapping naming it is refused
-    (a preset, and a mapping's entries taken from one, give what applies where they are
-    used)."""
+def unread_parameter(name: str, task: str, objects: bool, cameras: bool,
+                     state: bool) -> str | None:
+    """Why the parameter `name` would do nothing on `task` (with `objects` to move,
+    `cameras` whose images are observed, and a `state` vector observed), or None: a custom
+    mapping naming it is refused (a preset, and a mapping's entries taken from one, give
+    what applies where they are used)."""
     parameter = PARAMETERS[name]
     if parameter.per_object and not objects:
         return f"{task} has no object"
     if parameter.observed_cameras and not cameras:
         return "no camera's images are observed (observation_mode 'state')"
+    if parameter.group == "sensing" and parameter.kind == "noise" and not state:
+        return ("no state vector is observed (observation_mode 'pixels'), and the noise is "
+                "added to its readings, not to images")
     return None

@@ -37,7 +37,8 @@ class Randomizer:
       settings: what is randomised and how.
       arena, panda, props, controller: the task's parts whose values are written.
       sensed: the observables the policy reads (the state vector's and the cameras'), each
-        with the noise parameter its readings get ("position_noise"...; None for images).
+        with the noise parameter its readings get ("position_noise"...; None for images)
+        and whether it reads a unit quaternion (turned by its noise, not added to).
       cameras: the camera elements the observation renders (for the pose jitter).
       substeps: physics steps per control step (Composer counts delays in them).
     """
@@ -52,10 +53,10 @@ class Randomizer:
         self._nominal: dict = {}
         # Counts resets and control steps: readings within one tick share their noise.
         self._tick = 0
-        self._sensed = [observable for observable, _ in sensed]
-        for observable, parameter in sensed:
+        self._sensed = [observable for observable, _, _ in sensed]
+        for observable, parameter, quaternion in sensed:
             if parameter is not None and parameter in self._ranges:
-                observable.corruptor = _StepNoise(self._ranges[parameter], self)
+                observable.corruptor = _StepNoise(self._ranges[parameter], self, quaternion)
         self._action_noise = self._ranges.get("action_noise")
         self._probe_object_colours()
         self._check_mass_range()
@@ -165,9 +166,11 @@ class Randomizer:
                 values[name] = self._draw(name, distribution, parameter.nominal(), stream)
         self._write(physics, values)
         # Reported where it applies: a preset's camera jitter is drawn (the visual stream's
-        # draws stay those of a pixel env) and moves nothing where no camera is observed.
+        # draws stay those of a pixel env) and moves nothing where no camera is observed;
+        # a per-object parameter draws nothing where there is no object (reach).
         self._values = {name: _plain(value) for name, value in values.items()
-                        if self._cameras or not PARAMETERS[name].observed_cameras}
+                        if (self._cameras or not PARAMETERS[name].observed_cameras)
+                        and (self._props or not PARAMETERS[name].per_object)}
 
     @property
     def tick(self) -> int:
@@ -297,18 +300,27 @@ class _StepNoise:
     control step, from the randomizer's sensing stream (not the environment's, which draws
     the episodes). However often Composer reads an observable within a step (its updater
     reads each once more when it is rebuilt at a reset), the step's reading gets the same
-    noise: the fast and stock paths observe the same values."""
+    noise: the fast and stock paths observe the same values. A unit `quaternion` reading is
+    turned instead, by the rotation vector of three draws (rad), and stays unit: added to
+    its components, angle noise made it no orientation (norm 0.99 under the preset)."""
 
-    def __init__(self, distribution, randomizer: Randomizer) -> None:
+    def __init__(self, distribution, randomizer: Randomizer, quaternion: bool = False) -> None:
         self._distribution, self._randomizer = distribution, randomizer
+        self._quaternion = quaternion
         self._tick, self._noise = None, None
 
     def __call__(self, value, random_state=None):
         randomizer = self._randomizer
         if self._tick != randomizer.tick:
-            self._noise = noise(self._distribution, value, randomizer.stream("sensing"))
+            shape = np.zeros(3) if self._quaternion else value
+            self._noise = noise(self._distribution, shape, randomizer.stream("sensing"))
             self._tick = randomizer.tick
-        return value + self._noise
+        if not self._quaternion:
+            return value + self._noise
+        turned = np.array(value, dtype=np.float64)
+        mujoco.mju_quatIntegrate(turned, np.broadcast_to(
+            np.asarray(self._noise, dtype=np.float64), (3,)).copy(), 1.0)
+        return turned
 
 
 def _plain(value):

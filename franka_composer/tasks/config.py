@@ -343,7 +343,7 @@ class TaskConfig:
         randomized = config.randomization
         for parameter, distribution in randomized.ranges if randomized.name == "custom" else ():
             why = unread_parameter(parameter, config.name, bool(config.objects),
-                                   config.observations.pixels)
+                                   config.observations.pixels, config.observations.state)
             if why is not None and not from_a_preset(parameter, distribution):
                 raise ValueError(f"randomization {parameter!r} does nothing here: {why}: "
                                  "leave it out")

@@ -128,11 +128,12 @@ class GoalTask(composer.Task):
     def _make_randomizer(self, config: TaskConfig) -> Randomizer:
         """The randomizer, with what the policy senses: the state vector's observables
         (each with its noise) and the cameras' images (delayed, not noised)."""
-        sensed: list[tuple[observable.Observable, str | None]] = []
+        sensed: list[tuple[observable.Observable, str | None, bool]] = []
         if config.observations.state:
-            sensed += [(self._entity_observable(field.key), noise_parameter(field))
-                       for field in self._observation_layout.fields]
-        sensed += [(self._task_observables[f"{name}_pixels"], None) for name in self._cameras]
+            sensed += [(self._entity_observable(field.key), noise_parameter(field),
+                        field.quaternion) for field in self._observation_layout.fields]
+        sensed += [(self._task_observables[f"{name}_pixels"], None, False)
+                   for name in self._cameras]
         return Randomizer(config.randomization, arena=self._arena, panda=self._panda,
                           props=self._props, controller=self._controller, sensed=sensed,
                           cameras=list(self._cameras.values()),

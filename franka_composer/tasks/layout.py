@@ -28,6 +28,11 @@ class ObservationField(NamedTuple):
     per_control_step: bool  # Multiplied by the velocity period: a displacement per step.
     frame: str = "world"  # "world", or "–" for a quantity without one (a finger width).
 
+    @property
+    def quaternion(self) -> bool:
+        """Whether it is an orientation as a unit quaternion (angle noise turns it)."""
+        return self.key.rsplit("/", 1)[1] == _ORIENTATIONS["quaternion"][0]
+
 
 class ObservationLayout:
     """The fields of the flat observation vector, in order; velocities are multiplied by
