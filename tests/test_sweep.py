@@ -581,6 +581,21 @@ def test_a_two_cell_sweep_trains_skips_and_resumes_on_ray(tmp_path, capsys, monk
             "trained steps 300, 300") in capsys.readouterr().out
 
 
+def _sweep_in_learn(out: pathlib.Path, run: RunDir, **popen) -> subprocess.Popen:
+    """A one-cell push SAC sweep into `out`, started in a process of its own (`popen`: its
+    environment or set-up) and returned once its run (`run`) is past learning_starts."""
+    sweep = subprocess.Popen(
+        [sys.executable, "-m", "franka_composer", "sweep", "--out", str(out), "--tasks", "push",
+         "--algos", "sac", "--seeds", "0", "--steps", "100000", "--num-cpus", "1",
+         "--refresh", "1000", "--", *TINY], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True, **popen)
+    deadline = time.monotonic() + 120
+    while len(read_eval_rows(run.eval_csv)) < 3:  # Past learning_starts: inside learn.
+        assert sweep.poll() is None and time.monotonic() < deadline, sweep.communicate()[0]
+        time.sleep(0.2)
+    return sweep
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path, signum):
@@ -590,15 +605,8 @@ def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path,
     they are (a folder with a space in its name split in two)."""
     out = tmp_path / "the sweep"
     run = RunDir(out / "push-sac-seed0")
-    sweep = subprocess.Popen(
-        [sys.executable, "-m", "franka_composer", "sweep", "--out", str(out), "--tasks", "push",
-         "--algos", "sac", "--seeds", "0", "--steps", "100000", "--num-cpus", "1",
-         "--refresh", "1000", "--", *TINY], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-        text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
-    deadline = time.monotonic() + 120
-    while len(read_eval_rows(run.eval_csv)) < 3:  # Past learning_starts: inside learn.
-        assert sweep.poll() is None and time.monotonic() < deadline, sweep.communicate()[0]
-        time.sleep(0.2)
+    sweep = _sweep_in_learn(out, run, preexec_fn=lambda: signal.signal(signal.SIGINT,
+                                                                       signal.SIG_IGN))
     sweep.send_signal(signum)
     output = sweep.communicate(timeout=120)[0]
     assert sweep.returncode == 130, output
@@ -612,6 +620,65 @@ def test_a_signal_stops_a_background_sweep_with_its_cells_checkpointed(tmp_path,
     left = subprocess.run(["pgrep", "-f", "--", f"--out {run.root}"], capture_output=True,
                           text=True)
     assert (left.returncode, left.stdout) == (1, "")  # 1: no process matched.
+
+
+#: Put on PYTHONPATH, makes every run's stop checkpoint wait SLOW_STOP_S seconds first: a
+#: run whose checkpoint takes that long to write (a 1e6-step replay buffer, a loaded machine).
+SLOW_STOP = """
+import importlib.abc, importlib.util, os, sys, time
+
+class _SlowStop(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name != "franka_composer.training.callbacks":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        run_module = spec.loader.exec_module
+
+        def exec_module(module):
+            run_module(module)
+            save = module.LatestCheckpoint.save
+
+            def slow_save(self, *, exact):
+                if self.stop_requested:
+                    time.sleep(float(os.environ["SLOW_STOP_S"]))
+                return save(self, exact=exact)
+
+            module.LatestCheckpoint.save = slow_save
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+sys.meta_path.insert(0, _SlowStop())
+"""
+
+
+@pytest.mark.slow
+def test_a_stopped_sweep_waits_for_a_slow_checkpoint_and_names_a_cell_stopped_without_one(
+        tmp_path):
+    """The sweep waited 60 s for its cells to checkpoint, then shut Ray down, which killed
+    a run still writing its checkpoint, and said "each running cell saved a checkpoint".
+    It now waits however long the checkpoint takes (here past those 60 s), and a second
+    SIGTERM stops the cells at once: its last line names the cell that stopped without a
+    checkpoint, and where it resumes from."""
+    hook = tmp_path / "hook"
+    hook.mkdir()
+    (hook / "sitecustomize.py").write_text(SLOW_STOP)
+    out = tmp_path / "sweep"
+    run = RunDir(out / "push-sac-seed0")
+    sweep = _sweep_in_learn(out, run, env={**os.environ, "PYTHONPATH": str(hook),
+                                           "SLOW_STOP_S": "3600"})
+    sweep.send_signal(signal.SIGTERM)
+    time.sleep(70)
+    assert sweep.poll() is None, sweep.communicate()[0]  # Still waiting for the checkpoint,
+    assert run.trainer() is not None  # and the run still making it.
+    sweep.send_signal(signal.SIGTERM)
+    output = sweep.communicate(timeout=120)[0]
+    assert sweep.returncode == 130, output
+    assert output.splitlines()[-1] == (
+        "interrupted: stopped at once without saving a checkpoint: push-sac-seed0 (resumes "
+        "from zero: it had none); the same command resumes the sweep")
+    assert run.read_state() == {} and run.trainer() is None  # No checkpoint.
 
 
 def test_one_cpu_runs_one_cell_while_the_others_queue(tmp_path):

@@ -267,12 +267,26 @@ def run(args: argparse.Namespace) -> int:
         statuses = run_sweep(cells, args.out, train_args, address=args.address,
                              num_cpus=args.num_cpus, refresh_s=args.refresh,
                              show=lambda table: print(table + "\n", flush=True))
-    except KeyboardInterrupt:  # Ctrl-C, SIGINT or SIGTERM: the running cells checkpointed.
-        print("interrupted: each running cell saved a checkpoint; the same command resumes "
-              "the sweep", flush=True)
+    except KeyboardInterrupt as stop:  # Ctrl-C, SIGINT or SIGTERM.
+        print(f"interrupted: {_what_the_stop_kept(stop)}; the same command resumes the "
+              "sweep", flush=True)
         return 130
     failed = [s.name for s in statuses if s.state == "failed"]
     if failed:
         print(f"failed: {', '.join(failed)} (see {args.out}/<cell>.log)")
         return 1
     return 0
+
+
+def _what_the_stop_kept(stop: KeyboardInterrupt) -> str:
+    """What a stop left of the cells that were training (`SweepStopped`), as measured."""
+    from franka_composer.training.sweep import SweepStopped
+
+    if not isinstance(stop, SweepStopped) or not stop.running:
+        return "no cell was training"
+    if not stop.unsaved:
+        return "each running cell saved a checkpoint"
+    return "stopped at once without saving a checkpoint: " + "; ".join(
+        f"{name} (resumes from zero: it had none)" if steps is None else
+        f"{name} (resumes from its checkpoint at step {steps:,})"
+        for name, steps in stop.unsaved.items())

@@ -298,7 +298,9 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
               refresh_s: float = 30.0, show=print) -> list[CellStatus]:
     """Runs every unfinished cell as a Ray task of one CPU; shows the table every
     `refresh_s` seconds and at the end; returns the final statuses. SIGTERM or SIGINT (also
-    in the background) stops it as Ctrl-C does: each running cell checkpoints first."""
+    in the background) stops it as Ctrl-C does: each running cell checkpoints first, however
+    long that takes, and a second signal stops them at once; `SweepStopped` says which cells
+    ended without a checkpoint."""
     import ray
 
     twice = repeated([cell.name for cell in cells])
@@ -317,6 +319,8 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     if todo:
         started = not ray.is_initialized()
         pending: dict = {}
+        stopped: dict[str, int | None] | None = None  # The running cells' steps at a stop.
+        submitted = time.time()
         try:
             # Signals stop it from here, Ray's start included: a stop while Ray starts
             # shuts down what it started (it left Ray's agents running, and no message).
@@ -333,22 +337,76 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
                 with interrupt_on(signal.SIGTERM, signal.SIGINT):
                     root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
                     remote = ray.remote(num_cpus=1, max_retries=0)(run_cell)
-                    submitted = time.time()
                     pending = {remote.remote(cell, root, tuple(train_args)): cell
                                for cell in todo}
                     _wait_for_cells(pending, cells, root, failed, submitted, refresh_s, show)
-        except BaseException:
+        except BaseException as error:
+            running = [cell for cell in pending.values()
+                       if _started_since(cell, root, submitted)]
+            if isinstance(error, KeyboardInterrupt):
+                stopped = {cell.name: _checkpoint_steps(root / cell.name) for cell in running}
             for ref in pending:
                 ray.cancel(ref)  # KeyboardInterrupt in the task: its run checkpoints.
-            if pending:
-                ray.wait(list(pending), num_returns=len(pending), timeout=60)
-            raise
+            if running:
+                show("stopping: each running cell saves a checkpoint at its episode's end "
+                     "(a second Ctrl-C or SIGTERM stops them at once, without one)")
+            _wait_for_stopped_cells(list(pending))
+            if stopped is None:
+                raise
         finally:
             if started:
                 ray.shutdown()
+        if stopped is not None:
+            raise SweepStopped(list(stopped), _stopped_without_a_checkpoint(stopped, root))
     statuses = [cell_status(cell, root, cell.name in failed) for cell in cells]
     show(status_table(statuses))
     return statuses
+
+
+class SweepStopped(KeyboardInterrupt):
+    """A sweep stopped by Ctrl-C or a signal: `running`, the cells that were training;
+    `unsaved`, those of them that ended without a checkpoint since (a second signal stops
+    them at once), each with the steps of the checkpoint it resumes from (None: none, it
+    starts again)."""
+
+    def __init__(self, running: list[str], unsaved: dict[str, int | None]) -> None:
+        super().__init__()
+        self.running, self.unsaved = running, unsaved
+
+
+def _wait_for_stopped_cells(refs: list) -> None:
+    """Waits for the cancelled cells' tasks to end, each after its run has checkpointed at
+    its episode's end (however long that takes: a 1e6-step replay buffer is written in
+    minutes on a loaded machine; a minute's limit killed such a run before it had saved
+    it); a second Ctrl-C or SIGTERM ends the wait, and the shutdown then stops them."""
+    import ray
+
+    try:
+        with interrupt_on(signal.SIGTERM, signal.SIGINT):
+            while refs:
+                _, refs = ray.wait(refs, num_returns=len(refs), timeout=1.0)
+    except KeyboardInterrupt:
+        pass
+
+
+def _checkpoint_steps(root: pathlib.Path) -> int | None:
+    """The steps of the run's latest checkpoint (None: none yet)."""
+    state = RunDir(root).read_state()
+    return state["steps"] if state else None
+
+
+def _stopped_without_a_checkpoint(stopped: dict[str, int | None],
+                                  root: pathlib.Path) -> dict[str, int | None]:
+    """Of the cells running at a stop (`stopped`: each one's checkpoint steps then), those
+    that ended without a new checkpoint or finishing, once their train processes have let
+    go of their runs (stopped at once, they do within seconds)."""
+    deadline = time.monotonic() + 60
+    while (any(RunDir(root / name).trainer() for name in stopped)
+           and time.monotonic() < deadline):
+        time.sleep(0.5)
+    return {name: steps for name, steps in stopped.items()
+            if _checkpoint_steps(root / name) == steps
+            and not RunDir(root / name).read_outcome()}
 
 
 def _wait_for_cells(pending: dict, cells: list[Cell], root: pathlib.Path, failed: set[str],
