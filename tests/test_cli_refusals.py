@@ -378,6 +378,9 @@ def test_plot_and_report_refuse_a_success_rate_out_of_range(command, written, tm
      "eval.csv, line 4: an evaluation at step 3,000, past the run's end at step 2,000 "
      "(outcome.json): edited, or another run's?"),
     (("config.json", "{x"), "config.json is not a run's config: Expecting property name"),
+    (("eval.csv", HEADER + "0,1,0.0,-1\n"),
+     "eval.csv ends at step 0, and the run ended at step 2,000 (outcome.json), where it "
+     "evaluated last: cut short, or another run's?"),
 ])
 def test_keep_checks_every_run_before_copying_anything(damage, message, tmp_path):
     good, bad = _run(tmp_path / "runs" / "a"), _run(tmp_path / "runs" / "b", seed=1)
@@ -412,6 +415,21 @@ def test_a_run_that_has_ended_without_its_evaluations_is_refused(command, tmp_pa
            "plot": ["--out", str(tmp_path / "curves.png")]}[command]
     with pytest.raises(ValueError, match="^" + re.escape(
             f"{run.root} has ended and has no evaluations (its eval.csv lost or emptied?)")):
+        cli.main([command, str(run.root), *out])
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["run"]
+
+
+@pytest.mark.parametrize("command", ["keep", "report", "plot"])
+def test_a_run_that_has_ended_with_its_evaluations_cut_short_is_refused(command, tmp_path):
+    """`report` read the curve as ending where eval.csv was cut (no crossing found past it,
+    exit 0) and `plot` drew it so; an ended run evaluates at its last step."""
+    run = _run(tmp_path / "run", rows="0,1,0.0,-1\n1000,2,0.5,-1\n")
+    out = {"keep": ["--into", str(tmp_path / "kept")],
+           "report": ["--out", str(tmp_path / "report.md")],
+           "plot": ["--out", str(tmp_path / "curves.png")]}[command]
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{run.eval_csv} ends at step 1,000, and the run ended at step 2,000 "
+            "(outcome.json), where it evaluated last: cut short, or another run's?") + "$"):
         cli.main([command, str(run.root), *out])
     assert sorted(path.name for path in tmp_path.iterdir()) == ["run"]
 

@@ -402,8 +402,10 @@ class RunDir:
     def recorded_evaluations(self) -> list[EvalRow]:
         """eval.csv's rows (`read_eval_rows`: [] before the first), checked against the
         run's end where it has ended (outcome.json): none at all (its eval.csv lost or
-        emptied), or one past its last step (edited, or another run's: `keep` copied it,
-        and `report` counted it), is a ValueError naming the file."""
+        emptied), one past its last step (edited, or another run's: `keep` copied it, and
+        `report` counted it), or none at its last step, where an ended run evaluates last
+        (cut short: `report` read the curve as ending there, and `plot` drew it so), is a
+        ValueError naming the file."""
         rows = read_eval_rows(self.eval_csv)
         outcome = self.read_outcome()
         if not outcome:
@@ -417,6 +419,11 @@ class RunDir:
                     f"{self.eval_csv}, line {line}: an evaluation at step {row['steps']:,}, "
                     f"past the run's end at step {outcome['steps']:,} "
                     f"({self.outcome_path.name}): edited, or another run's?")
+        if rows[-1]["steps"] != outcome["steps"]:
+            raise ValueError(
+                f"{self.eval_csv} ends at step {rows[-1]['steps']:,}, and the run ended at "
+                f"step {outcome['steps']:,} ({self.outcome_path.name}), where it evaluated "
+                "last: cut short, or another run's?")
         return rows
 
     def evaluations(self) -> list[EvalRow]:
