@@ -9,7 +9,9 @@
 #   benchmarks/fast_preset.sh TASK [SEED ...]   default seeds 0 1 2
 #   benchmarks/fast_preset.sh sync              the runs' config.json, eval.csv and, once
 #                                               finished, outcome.json and policy.pt into
-#                                               results/fast-preset/ (`franka-composer keep`)
+#                                               results/fast-preset/ (`franka-composer keep`;
+#                                               stack's and flip's into
+#                                               results/fast-preset-stack-flip/)
 #
 # RUNS (default ~/franka_runs/fast-preset); FROZEN=COMMIT trains that commit's code (a
 # worktree beside $RUNS). Read the runs with
@@ -24,8 +26,15 @@ case "$task" in
   push) steps=${STEPS:-62000} ;;
   pick_and_place) steps=${STEPS:-60000} ;;
   stack|flip) steps=${STEPS:-300000} ;;
-  sync) exec "$BIN/franka-composer" keep "$RUNS"/*-seed*/ --into results/fast-preset ;;
-  *) sed -n '2,16p' "$0"; exit 2 ;;
+  sync)
+    shopt -s nullglob
+    for lane in "push pick_and_place:results/fast-preset" "stack flip:results/fast-preset-stack-flip"; do
+      runs=()
+      for name in ${lane%%:*}; do runs+=("$RUNS/$name"-seed*/); done
+      [ ${#runs[@]} -eq 0 ] || "$BIN/franka-composer" keep "${runs[@]}" --into "${lane#*:}" || exit 1
+    done
+    exit 0 ;;
+  *) sed -n '2,18p' "$0"; exit 2 ;;
 esac
 shift
 read -ra seeds <<< "${*:-0 1 2}"

@@ -1000,6 +1000,14 @@ def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_
     synced = _benchmark_sh(tmp_path, "fast_preset.sh", "sync")
     assert synced.stdout == (f"franka-composer keep {tmp_path}/runs/push-seed1/ --into "
                              "results/fast-preset\n")
+    # Stack and flip, beyond the preset's measured lane, are kept apart from it.
+    (tmp_path / "runs" / "stack-seed0").mkdir()
+    (tmp_path / "runs" / "pick_and_place-seed2").mkdir()
+    synced = _benchmark_sh(tmp_path, "fast_preset.sh", "sync")
+    assert synced.stdout.splitlines() == [
+        f"franka-composer keep {tmp_path}/runs/push-seed1/ {tmp_path}/runs/pick_and_place-seed2/ "
+        "--into results/fast-preset",
+        f"franka-composer keep {tmp_path}/runs/stack-seed0/ --into results/fast-preset-stack-flip"]
 
 
 def test_a_cell_another_process_is_training_is_refused_before_the_sweep_starts(tmp_path):
