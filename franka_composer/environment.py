@@ -89,6 +89,10 @@ class GoalEnvironment(composer.Environment):
 
     def reset(self) -> dm_env.TimeStep:
         self._check_can_step()
+        # A reset that raises leaves no episode to step, so the next step resets, as after a
+        # LAST step: Composer sets this only once a reset has succeeded, and mid-episode a
+        # step went on from what the failed reset left (the arm at qpos0, pointing up).
+        self._reset_next_step = True
         return super().reset()
 
     def step(self, action) -> dm_env.TimeStep:

@@ -297,6 +297,15 @@ def test_a_step_after_a_reset_that_raised_is_refused_until_a_reset_succeeds():
                      randomization={"object_mass": distributions.LogNormal(0, 5)})
     np.testing.assert_equal(first, again.reset(seed=0)[0])  # Bit for bit.
     env.unwrapped.step(np.zeros(3, np.float32))
+    # dm_env, mid-episode: its next step resets (as after a LAST step) and starts an
+    # episode with the arm at its neutral pose; it stepped on from the failed reset's state.
+    with pytest.raises(ValueError, match="lighter than any body compiles"):
+        env.reset(seed=110)
+    composer_env = env.unwrapped.composer_env
+    timestep = composer_env.step(np.zeros(3))
+    assert timestep.first()
+    np.testing.assert_allclose(timestep.observation["panda/tcp_position"], first["observation"][:3],
+                               atol=0.02)  # Any episode's start: the hand over the floor.
 
 
 @pytest.mark.slow

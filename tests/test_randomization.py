@@ -376,6 +376,16 @@ def test_angle_noise_turns_a_quaternion_reading_and_leaves_it_unit():
     for a, b in zip(a_records, b_records):
         for key in ("achieved_goal", "desired_goal"):
             np.testing.assert_array_equal(a[0][key], b[0][key])
+    # A scale cannot turn an orientation: as a multiplicative noise it changed nothing.
+    with pytest.raises(ValueError, match="^" + re.escape(
+            "randomization 'angle_noise' as noises.Multiplicative scales each angle reading, "
+            "and flip observes its object's orientation as a unit quaternion, which a scale "
+            "cannot turn: give a distribution (three draws a step turn it, in rad) or "
+            "noises.Additive") + "$"):
+        _make("flip", randomization={"angle_noise": noises.Multiplicative(
+            distributions.Normal(1.0, 0.5))})
+    _make("flip", randomization={"angle_noise": noises.Additive(
+        distributions.Normal(0.0, 0.01))}).close()
 
 
 def test_composers_noise_wrappers_act_on_the_reading_as_its_corruptors_do():

@@ -676,8 +676,8 @@ def test_a_stopped_sweep_waits_for_a_slow_checkpoint_and_names_a_cell_stopped_wi
     output = sweep.communicate(timeout=120)[0]
     assert sweep.returncode == 130, output
     assert output.splitlines()[-1] == (
-        "interrupted: stopped at once without saving a checkpoint: push-sac-seed0 (resumes "
-        "from zero: it had none); the same command resumes the sweep")
+        "interrupted: wrote no checkpoint at the stop: push-sac-seed0 (resumes from zero: it "
+        "had none); the same command resumes the sweep")
     assert run.read_state() == {} and run.trainer() is None  # No checkpoint.
 
 

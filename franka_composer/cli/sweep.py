@@ -279,14 +279,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _what_the_stop_kept(stop: KeyboardInterrupt) -> str:
-    """What a stop left of the cells that were training (`SweepStopped`), as measured."""
+    """What a stop left of the cells that were training (`SweepStopped`), as measured;
+    nothing is claimed of a stop that cut the measuring short."""
     from franka_composer.training.sweep import SweepStopped
 
-    if not isinstance(stop, SweepStopped) or not stop.running:
+    if not isinstance(stop, SweepStopped):
+        return "the cells' checkpoints were not checked (stopped again)"
+    if not stop.running:
         return "no cell was training"
     if not stop.unsaved:
         return "each running cell saved a checkpoint"
-    return "stopped at once without saving a checkpoint: " + "; ".join(
-        f"{name} (resumes from zero: it had none)" if steps is None else
-        f"{name} (resumes from its checkpoint at step {steps:,})"
-        for name, steps in stop.unsaved.items())
+    return "wrote no checkpoint at the stop: " + "; ".join(
+        f"{name} ({where})" for name, where in stop.unsaved.items())

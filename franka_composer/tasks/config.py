@@ -17,6 +17,7 @@ import dataclasses
 from typing import Any, Callable, NamedTuple, Union
 
 import numpy as np
+from dm_control.composer.variation import noises
 
 from franka_composer.arenas.floor import MAX_RENDER_SIZE
 from franka_composer.controllers import CONTROLS, ControlSettings
@@ -347,6 +348,14 @@ class TaskConfig:
             if why is not None and not from_a_preset(parameter, distribution):
                 raise ValueError(f"randomization {parameter!r} does nothing here: {why}: "
                                  "leave it out")
+            if (parameter == "angle_noise" and isinstance(distribution, noises.Multiplicative)
+                    and config.object_orientation == "quaternion"
+                    and config.observations.state):
+                raise ValueError(
+                    "randomization 'angle_noise' as noises.Multiplicative scales each angle "
+                    f"reading, and {config.name} observes its object's orientation as a unit "
+                    "quaternion, which a scale cannot turn: give a distribution (three draws "
+                    "a step turn it, in rad) or noises.Additive")
         images = [name for name in IMAGE_OPTIONS if name in options]
         if images and not config.observations.pixels:
             raise ValueError(f"{', '.join(images)} set the camera observations, and "

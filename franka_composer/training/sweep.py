@@ -319,7 +319,8 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     if todo:
         started = not ray.is_initialized()
         pending: dict = {}
-        stopped: dict[str, int | None] | None = None  # The running cells' steps at a stop.
+        # At a stop, each running cell's checkpoint then (`_checkpoint_link`).
+        stopped: dict[str, str | None] | None = None
         submitted = time.time()
         try:
             # Signals stop it from here, Ray's start included: a stop while Ray starts
@@ -344,7 +345,7 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
             running = [cell for cell in pending.values()
                        if _started_since(cell, root, submitted)]
             if isinstance(error, KeyboardInterrupt):
-                stopped = {cell.name: _checkpoint_steps(root / cell.name) for cell in running}
+                stopped = {cell.name: _checkpoint_link(root / cell.name) for cell in running}
             for ref in pending:
                 ray.cancel(ref)  # KeyboardInterrupt in the task: its run checkpoints.
             if running:
@@ -365,11 +366,10 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
 
 class SweepStopped(KeyboardInterrupt):
     """A sweep stopped by Ctrl-C or a signal: `running`, the cells that were training;
-    `unsaved`, those of them that ended without a checkpoint since (a second signal stops
-    them at once), each with the steps of the checkpoint it resumes from (None: none, it
-    starts again)."""
+    `unsaved`, those of them that wrote no checkpoint at the stop (a second signal stops
+    them at once; a run that failed meanwhile), each with where it resumes from."""
 
-    def __init__(self, running: list[str], unsaved: dict[str, int | None]) -> None:
+    def __init__(self, running: list[str], unsaved: dict[str, str]) -> None:
         super().__init__()
         self.running, self.unsaved = running, unsaved
 
@@ -389,24 +389,48 @@ def _wait_for_stopped_cells(refs: list) -> None:
         pass
 
 
-def _checkpoint_steps(root: pathlib.Path) -> int | None:
-    """The steps of the run's latest checkpoint (None: none yet)."""
-    state = RunDir(root).read_state()
-    return state["steps"] if state else None
+def _checkpoint_link(root: pathlib.Path) -> str | None:
+    """Which folder the run's checkpoint link names (each checkpoint is a new one), None
+    where there is none; never an error (read in a stop, before the cells are stopped)."""
+    try:
+        return os.readlink(RunDir(root).checkpoint)
+    except OSError:
+        return None
 
 
-def _stopped_without_a_checkpoint(stopped: dict[str, int | None],
-                                  root: pathlib.Path) -> dict[str, int | None]:
-    """Of the cells running at a stop (`stopped`: each one's checkpoint steps then), those
-    that ended without a new checkpoint or finishing, once their train processes have let
-    go of their runs (stopped at once, they do within seconds)."""
+def _stopped_without_a_checkpoint(stopped: dict[str, str | None],
+                                  root: pathlib.Path) -> dict[str, str]:
+    """Of the cells running at a stop (`stopped`: each one's checkpoint then), those that
+    wrote none since and have not finished, each with where it resumes from, once their
+    train processes have let go of their runs (stopped at once, they do within seconds; a
+    further signal ends the wait)."""
     deadline = time.monotonic() + 60
-    while (any(RunDir(root / name).trainer() for name in stopped)
-           and time.monotonic() < deadline):
-        time.sleep(0.5)
-    return {name: steps for name, steps in stopped.items()
-            if _checkpoint_steps(root / name) == steps
-            and not RunDir(root / name).read_outcome()}
+    try:
+        while (any(_trainer(root / name) for name in stopped)
+               and time.monotonic() < deadline):
+            time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    unsaved = {}
+    for name, link in stopped.items():
+        run = RunDir(root / name)
+        try:
+            if _checkpoint_link(run.root) != link or run.read_outcome():
+                continue
+            state = run.read_state()
+        except (ValueError, OSError) as error:
+            unsaved[name] = f"its checkpoint cannot be read: {error}"
+            continue
+        unsaved[name] = (f"resumes from its checkpoint at step {state['steps']:,}" if state
+                         else "resumes from zero: it had none")
+    return unsaved
+
+
+def _trainer(root: pathlib.Path) -> str | None:
+    try:
+        return RunDir(root).trainer()
+    except OSError:
+        return None
 
 
 def _wait_for_cells(pending: dict, cells: list[Cell], root: pathlib.Path, failed: set[str],
