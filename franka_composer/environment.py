@@ -87,6 +87,12 @@ class GoalEnvironment(composer.Environment):
             super().close()
             self._closed = True
 
+    @property
+    def reset_due(self) -> bool:
+        """Whether the next step resets: no episode is under way (none begun, the last one
+        ended, or a reset raised part-way)."""
+        return self._reset_next_step
+
     def reset(self) -> dm_env.TimeStep:
         self._check_can_step()
         # A reset that raises leaves no episode to step, so the next step resets, as after a

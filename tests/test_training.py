@@ -980,22 +980,32 @@ def test_a_resume_refuses_a_checkpoint_whose_steps_or_evaluations_do_not_add_up(
         cli.main(["train", "--resume", "--out", str(steps.root), "--total-steps", "400"])
     rows = run.eval_csv.read_text().splitlines(keepends=True)
     assert [row.split(",")[0] for row in rows] == ["steps", "0", "100", "200", "300"]
-    for kept, missing in (([0, 1, 3, 4], "the evaluation at step 100"),
-                          ([0, 1], "the evaluations at steps 100, 200, 300")):
+    lacks = ("{csv} lacks {missing} (one every 100 steps from 0 to the checkpoint's 300): the "
+             "resumed run's evaluations would go on with other episodes than the run's, and "
+             "its curve with a gap; put them back (edited or cut?), or start the run again")
+    # (The run has ended at 300: an eval.csv that stops before then is cut short, which is
+    # said first.)
+    cut = ("{csv} ends at step 0, and the run ended at step 300 (outcome.json), where it "
+           "evaluated last: cut short, or another run's?")
+    for kept, message, missing in (([0, 1, 3, 4], lacks, "the evaluation at step 100"),
+                                   ([0, 1], cut, None)):
         copy = _copied_run(runs, tmp_path, f"rows-{len(kept)}")
         copy.eval_csv.write_text("".join(rows[i] for i in kept))
         files = _files(copy)
         with pytest.raises(ValueError, match="^" + re.escape(
-                f"{copy.eval_csv} lacks {missing} (one every 100 steps from 0 to the "
-                "checkpoint's 300): the resumed run's evaluations would go on with other "
-                "episodes than the run's, and its curve with a gap; put them back (edited or "
-                "cut?), or start the run again") + "$"):
+                message.format(csv=copy.eval_csv, missing=missing)) + "$"):
             cli.main(["train", "--resume", "--out", str(copy.root), "--total-steps", "400"])
         assert _files(copy) == files
-    # The last one may be missing where the checkpoint is: a stop at once cut it short,
-    # and the resume makes it (test_an_evaluation_cut_short_by_a_stop_at_once_is_made_on_resume).
+    # The last one may be missing where the checkpoint is, in a run that has not ended: a
+    # stop at once cut it short, and the resume makes it
+    # (test_an_evaluation_cut_short_by_a_stop_at_once_is_made_on_resume).
+    copy.outcome_path.unlink()
     copy.eval_csv.write_text("".join(rows[:4]))
     copy.check_checkpoint_whole()
+    copy.eval_csv.write_text("".join(rows[:3]))
+    with pytest.raises(ValueError, match="^" + re.escape(lacks.format(
+            csv=copy.eval_csv, missing="the evaluations at steps 200, 300")) + "$"):
+        copy.check_checkpoint_whole()
 
 
 def test_a_resume_refuses_threads_its_checkpoint_recorded_past_the_cpus(runs, tmp_path):

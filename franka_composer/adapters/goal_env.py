@@ -178,9 +178,12 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             seeding.reseed(self._env.random_state,
                            seed if seed is not None else int(self.np_random.integers(2**63 - 1)))
             self._stream_started = True
-        self._timestep = None  # A reset that raises leaves no episode to step.
-        self._reset_failed = True
-        self._timestep = self._env.reset()
+        try:
+            self._timestep = self._env.reset()
+        except BaseException:
+            if self._env.reset_due:  # Begun and failed: it left no episode to step. (One
+                self._timestep, self._reset_failed = None, True  # refused changed nothing.)
+            raise
         self._reset_failed = False
         self._randomization = (self._task.randomization
                                if self._task.config.randomization.enabled else None)
