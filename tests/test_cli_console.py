@@ -129,6 +129,23 @@ def test_a_panda_that_cannot_be_found_is_one_line_naming_what_to_set(tmp_path):
     assert not out.exists()  # No empty video folder left behind.
 
 
+@pytest.mark.parametrize("command", [["report"], ["plot", "--out", "{tmp}/curves.png"],
+                                     ["keep", "--into", "{tmp}/kept"]])
+def test_reading_runs_needs_no_panda(tmp_path, command):
+    """Reading a run's config.json (timing options set, as in the reference-timing cells)
+    built Menagerie's Panda to check objects' clearance, which no option read changes:
+    report, plot and keep failed offline without MENAGERIE_ROOT."""
+    empty = tmp_path / "no-menagerie"
+    empty.mkdir()
+    env = {**os.environ, "MENAGERIE_ROOT": str(empty)}
+    run = REPO / "results" / "reference-timing" / "pick_and_place-tqc-seed0"
+    argv = [part.format(tmp=tmp_path) for part in command]
+    done = franka_composer(*argv, str(run), env=env, stdout=subprocess.PIPE)
+    assert (done.returncode, done.stderr) == (0, "")
+    assert (argv[0] != "report"
+            or "| pick_and_place (reference timing, sbx) | TQC | 0 | 500,000 |" in done.stdout)
+
+
 #: Runs the command in a Python where the package `missing` is not installed (its imports
 #: fail as they do then), as `franka_composer.cli.console` runs it.
 _WITHOUT = """

@@ -24,6 +24,18 @@ from franka_composer.entities.panda import MAX_FINGER_WIDTH, Panda
 HAND_CLEARANCE = 0.01
 
 
+def clearance_inputs(config) -> tuple:
+    """All that `check_clearance` reads of `config` (a `TaskConfig`): an option that leaves
+    it as it was (a timing, a reward) needs no new check, and no Menagerie Panda, which
+    reading a run's config.json (`franka-composer report`) should not."""
+    box = config.workspace.object_box
+    return (tuple(map(float, config.neutral_arm_qpos)), float(config.initial_finger_width),
+            config.lifts_objects, config.control.actuated_gripper, tuple(map(float, box.low)),
+            tuple(map(float, box.high)),
+            tuple((spec.height, spec.footprint_radius, spec.grasp_width)
+                  for spec in config.objects))
+
+
 def check_clearance(config) -> None:
     """A ValueError unless every object of `config` (a `TaskConfig`) starts, anywhere in its
     square, `HAND_CLEARANCE` below the hand and fingers at the neutral pose, and unless

@@ -29,7 +29,7 @@ from franka_composer.entities.panda import MAX_FINGER_WIDTH, NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.randomization.parameters import unread_parameter
 from franka_composer.randomization.settings import from_a_preset
-from franka_composer.tasks.clearance import check_clearance
+from franka_composer.tasks.clearance import check_clearance, clearance_inputs
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -362,15 +362,16 @@ class TaskConfig:
                              f"observation_mode={config.observations.mode!r} has none: give "
                              "observation_mode='pixels' or 'state+pixels', or leave "
                              f"{'it' if len(images) == 1 else 'them'} out")
-        config.check()
+        config.check(since=self)
         return config
 
-    def check(self) -> None:
+    def check(self, since: "TaskConfig | None" = None) -> None:
         """Checks what no single option can: the timestep ratio, a whole number of physics
         steps (to within Composer's own 1e-6 of a step, which it checks again) that MuJoCo's
         step count (a C int) holds; room to place the objects apart; a neutral pose within
         the joints' ranges with the hand above the floor, objects that start clear of the
-        hand, and that can be grasped where goals need them lifted (`clearance`)."""
+        hand, and that can be grasped where goals need them lifted (`clearance`), unless
+        what that reads is as in `since`, a config already checked or a task's own."""
         substeps = self.control_timestep / self.physics.timestep
         if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6:
             raise ValueError(f"control_timestep must be a whole multiple of the physics "
@@ -391,7 +392,8 @@ class TaskConfig:
                              f"them; of {CHECKED_PLACEMENTS} simulated starts, one found no "
                              f"room in {MAX_ATTEMPTS} draws): give a wider object_range or "
                              "smaller objects")
-        check_clearance(self)
+        if since is None or clearance_inputs(self) != clearance_inputs(since):
+            check_clearance(self)
 
     @property
     def initial_finger_width(self) -> float:
