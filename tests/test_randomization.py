@@ -415,7 +415,7 @@ def test_composers_noise_wrappers_act_on_the_reading_as_its_corruptors_do():
 def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():
     """It was refused: the option probed it about white."""
     colour = np.array(franka_composer.load("push").task.prop.rgba[:3])
-    env = _make(randomization={"object_rgb": noises.Multiplicative(
+    env = _make(render_mode="rgb_array", randomization={"object_rgb": noises.Multiplicative(
         distributions.Uniform(0.9, 1.1))})
     drawn = np.array(env.reset(seed=0)[1]["randomization"]["object_rgb"][0])
     assert np.all((drawn >= 0.9 * colour - 1e-12) & (drawn <= 1.1 * colour + 1e-12))
@@ -423,18 +423,18 @@ def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():
     # About the colour, out of [0, 1] (its blue is 0.9): refused as the task is made.
     with pytest.raises(ValueError, match=re.escape(
             "randomization 'object_rgb' is a colour and must draw numbers in [0, 1]")):
-        _make(randomization={"object_rgb": noises.Multiplicative(
+        _make(render_mode="rgb_array", randomization={"object_rgb": noises.Multiplicative(
             distributions.Uniform(0.9, 1.5))})
     # Its range is known from the colour: one that leaves [0, 1] by 0.0005 (blue 0.9 x 1.1117)
     # is refused as well, though 64 probe draws miss it (a later reset met it).
     with pytest.raises(ValueError, match=re.escape(
             "draws in [0.05, 1.00053]: refused now, not at the first reset that draws outside")):
-        _make(randomization={"object_rgb": noises.Multiplicative(
+        _make(render_mode="rgb_array", randomization={"object_rgb": noises.Multiplicative(
             distributions.Uniform(0.5, 1.1117))})
 
 
 def test_a_light_direction_offset_that_cancels_a_light_is_refused_by_name():
-    env = _make(randomization={"light_direction": (0.0, 0.0, 1.0)})
+    env = _make(render_mode="rgb_array", randomization={"light_direction": (0.0, 0.0, 1.0)})
     with pytest.raises(ValueError, match=re.escape(
             "randomization 'light_direction' drew [0.0, 0.0, 1.0], which cancels a light's "
             "direction [0.0, 0.0, -1.0]: offsets must leave every direction some length")):
@@ -451,7 +451,7 @@ def test_a_reset_whose_draw_is_refused_is_not_drawn_again_by_the_next(interface)
     if interface == "dm_env":
         reset = franka_composer.load("push", seed=0, randomization=light).reset
     else:
-        env = _make(randomization=light)
+        env = _make(render_mode="rgb_array", randomization=light)
         env.reset(seed=0)
         reset = env.reset  # Unseeded: each continues the stream.
     outcomes = []
@@ -667,6 +667,27 @@ def test_a_custom_randomisation_of_what_the_env_does_not_have_is_refused(task, o
         franka_composer.load(task, randomization={**PRESETS["default"], **options["randomization"]})
 
 
+@pytest.mark.parametrize("name", ["object_rgb", "floor_tint", "robot_tint",
+                                  "light_direction", "light_intensity"])
+def test_visual_randomisation_where_no_image_shows_it_is_refused(name):
+    """A Gymnasium env without render_mode observing the state alone draws no image: its
+    colours and lights were drawn each episode, reported in info, and shown nowhere. Where
+    frames or camera images show them, and in dm_env (whose physics renders), they are
+    taken; a preset gives them where it is used."""
+    visual = {name: distributions.Uniform(0.9, 1.0)}
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"randomization {name!r} does nothing here: it changes what images show, and "
+            "render_mode=None with observation_mode='state' has none: give render_mode="
+            "'rgb_array' or 'human', or observation_mode='pixels' or 'state+pixels', or "
+            "leave it out") + "$"):
+        _make(randomization={**PRESETS["default"], "object_mass": 2.0, **visual})
+    for shown in (dict(render_mode="rgb_array"), dict(observation_mode="pixels")):
+        _make(randomization=visual, **shown).close()
+    franka_composer.load("push", randomization=visual).close()
+    _make(randomization="default").close()
+    _make(randomization={**PRESETS["default"], "object_mass": 2.0}).close()
+
+
 @pytest.mark.parametrize("name", ["position_noise", "angle_noise", "velocity_noise"])
 def test_sensing_noise_without_a_state_vector_is_refused(name):
     """observation_mode='pixels' observes no state vector, and the noise (added to its
@@ -686,7 +707,7 @@ def test_sensing_noise_without_a_state_vector_is_refused(name):
 def test_a_light_intensity_past_float32_is_a_value_error_naming_it():
     """MuJoCo keeps a light's colour in float32: a factor of 1e39 wrote inf there (numpy's
     overflow warning the only sign)."""
-    env = _make(randomization={"light_intensity": 1e39})
+    env = _make(render_mode="rgb_array", randomization={"light_intensity": 1e39})
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # Not numpy's overflow warning on the way.
         with pytest.raises(ValueError, match=re.escape(

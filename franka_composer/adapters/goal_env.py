@@ -24,6 +24,8 @@ from gymnasium.utils import EzPickle
 from franka_composer import render_owner, seeding, suite
 from franka_composer.environment import ended_by_divergence
 from franka_composer.headless_gl import has_display
+from franka_composer.randomization import PARAMETERS, randomization_settings
+from franka_composer.randomization.settings import from_a_preset
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.config import ObservationSettings
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
@@ -97,6 +99,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
             _check_display()
         _check_rendering_asked(render_mode, width=width, height=height, camera=camera)
         _check_goal_marker_seen(render_mode, task_kwargs)
+        _check_visuals_seen(render_mode, task_kwargs)
         width = RENDER_SIZE if width is None else width
         height = RENDER_SIZE if height is None else height
         camera = CAMERAS[0] if camera is None else camera
@@ -327,6 +330,26 @@ def _check_goal_marker_seen(render_mode: str | None, task_kwargs: dict) -> None:
         raise ValueError("goal_marker_visible shows or hides the goal in rendered frames and "
                          "camera observations, and render_mode=None with observation_mode="
                          "'state' has neither: give render_mode='rgb_array' or 'human', or "
+                         "observation_mode='pixels' or 'state+pixels', or leave it out")
+
+
+def _check_visuals_seen(render_mode: str | None, task_kwargs: dict) -> None:
+    """A ValueError for a custom randomisation's visual parameters (colours, lights) given
+    to an env with neither frames nor camera observations, where no image shows them: the
+    task takes them, for a dm_env user may render its physics. A preset's own entries apply
+    where they can, as the preset does (`from_a_preset`)."""
+    if render_mode is not None or task_kwargs.get(
+            "observation_mode", ObservationSettings.mode) != "state":
+        return
+    settings = randomization_settings("randomization", task_kwargs.get("randomization"))
+    visual = [parameter for parameter, distribution in settings.ranges
+              if PARAMETERS[parameter].group == "visual"
+              and not PARAMETERS[parameter].observed_cameras  # (The task refuses those.)
+              and not from_a_preset(parameter, distribution)]
+    if settings.name == "custom" and visual:
+        raise ValueError(f"randomization {visual[0]!r} does nothing here: it changes what "
+                         "images show, and render_mode=None with observation_mode='state' "
+                         "has none: give render_mode='rgb_array' or 'human', or "
                          "observation_mode='pixels' or 'state+pixels', or leave it out")
 
 
