@@ -627,6 +627,45 @@ def test_stop_after_without_a_rate_is_refused_before_the_run_exists(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
+def test_train_names_a_folder_that_holds_a_run_before_loading_its_demos(tmp_path,
+                                                                        monkeypatch):
+    """It loaded and checked the whole dataset (seconds, an env built) first."""
+    from franka_composer.training import demos
+
+    run = _run(tmp_path / "run", outcome=False)
+    monkeypatch.setattr(demos, "load_episodes",
+                        lambda *args, **kwargs: pytest.fail("the demos were loaded"))
+    with pytest.raises(ValueError, match=re.escape(f"{run.root} already holds a run; pass "
+                                                   "--resume to continue it")):
+        cli.main(["train", "--task", "push", "--algo", "sac", "--out", str(run.root),
+                  "--demos", str(tmp_path / "push.npz")])
+
+
+@pytest.mark.skipif(__import__("torch").cuda.is_available(), reason="a CUDA GPU is here")
+def test_device_cuda_without_a_gpu_is_refused_before_an_env_is_built(tmp_path, monkeypatch):
+    """evaluate built the first run's env, and a resume two, before saying so."""
+    from franka_composer.training import models
+
+    monkeypatch.setattr(models, "make_env",
+                        lambda *args, **kwargs: pytest.fail("an env was built"))
+    run = _run(tmp_path / "run")
+    message = "^--device cuda, but torch sees no CUDA GPU"
+    with pytest.raises(ValueError, match=message):
+        cli.main(["evaluate", str(run.root), "--device", "cuda"])
+    with pytest.raises(ValueError, match=message):
+        cli.main(["train", "--resume", "--out", str(run.root), "--device", "cuda"])
+
+
+def test_demo_refuses_videos_inside_a_run(tmp_path):
+    """Into a run's checkpoint folder they went, and its next checkpoint deleted them."""
+    run = _run(tmp_path / "run", outcome=False)
+    inside = run.root / "checkpoint-500-0a1b2c3d"
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"--out {inside} is inside the run {run.root}: give a folder outside it") + "$"):
+        cli.main(["demo", "--tasks", "reach", "--episodes", "1", "--out", str(inside)])
+    assert sorted(path.name for path in run.root.iterdir()) == ["config.json", "eval.csv"]
+
+
 def test_a_control_step_longer_than_mujoco_steps_in_one_call_is_refused():
     """1e9 s reached MuJoCo as 5e11 steps and failed there with a traceback."""
     import franka_composer

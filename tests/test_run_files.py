@@ -394,6 +394,14 @@ def test_a_model_of_another_algorithm_or_library_than_config_json_says_is_named(
     run.config_path.write_text(json.dumps({**config, **edit}))
     made = []
     monkeypatch.setattr(policy_file, "make_env", lambda *args, **kwargs: made.append(args))
+    # Its checkpoint's record of the settings names the edit first; without one (a
+    # checkpoint from before it was recorded), the model itself does.
+    with pytest.raises(ValueError, match=re.escape(
+            f"{run.config_path} says other than the settings the run's checkpoint")):
+        cli.main(["evaluate", str(run.root), "--episodes", "1", "--device", "cpu"])
+    state = json.loads(run.checkpoint_state.read_text())
+    del state["config"]
+    run.checkpoint_state.write_text(json.dumps(state))
     with pytest.raises(ValueError, match="^" + re.escape(
             f"{run.final_model} holds a model of stable_baselines3.sac, and its run's "
             f"config.json says {says}: put them back as the run was trained") + "$"):

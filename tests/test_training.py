@@ -1090,6 +1090,26 @@ def test_a_resume_refuses_an_option_that_says_otherwise_than_the_run(runs):
     assert run.eval_csv.read_text() == before
 
 
+def test_a_resume_compares_the_options_given_over_the_runs_own_settings(tmp_path):
+    """They were laid over the defaults: --learning-starts 10, the run's own, on a run that
+    updates per episode read as an update every step from 10 steps, and was refused for
+    the step schedule the run does not have."""
+    out = tmp_path / "episodes"
+    assert _train(out, "sac", 100, "--update-schedule", "episode", "--learning-starts",
+                  "10") == 0
+    resume = ["train", "--resume", "--out", str(out), "--total-steps", "200", "--no-progress"]
+    assert cli.main([*resume, "--learning-starts", "10", "--task", "push"]) == 0
+    assert RunDir(out).read_state()["steps"] >= 200
+    with pytest.raises(ValueError, match=re.escape(
+            f"{out} has learning_starts 10, not --learning-starts's 5: only")):
+        cli.main([*resume, "--learning-starts", "5"])
+    # A given option that no run could take with the run's others is named with why.
+    with pytest.raises(ValueError, match=re.escape(
+            "--resume goes on with the run's own settings, and --update-schedule would "
+            f"change {out}'s into ones no run takes (learning_starts must be >= 49")):
+        cli.main([*resume, "--update-schedule", "step"])
+
+
 def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_path):
     """The checkpoint records the settings it was trained with: a hand edit of config.json
     is refused before anything is built or written, naming what differs (another algo ended
@@ -1113,6 +1133,13 @@ def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_pa
                 f"at step {run.read_state()['steps']:,} was trained with ({differs}): a run "
                 "goes on with its own; put them back, or start a new run with the new ones")):
             cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
+        # Nor is it played or kept as the run (evaluate played it under osc, and its table
+        # named it so; keep copied it, its policy then fitting no config).
+        for command in (["evaluate", str(copy), "--episodes", "1"],
+                        ["keep", str(copy), "--into", str(tmp_path / "kept")]):
+            with pytest.raises(ValueError, match=re.escape(f"({differs}): a run goes on")):
+                cli.main(command)
+        assert not (tmp_path / "kept").exists()
         assert {path.name: path.read_bytes() for path in copy.iterdir()
                 if path.is_file()} == files
     # TQC under SAC's settings is no run's config at all: refused as such, first.
@@ -2148,6 +2175,15 @@ def test_the_runs_expert_records_its_demonstrations_at_its_start(tmp_path):
             "for its demonstrations, so at most 1900 steps keep them")):
         _train(out, "sac", 1901, "--resume")
     assert run.config_path.read_bytes() == config_before
+    # So does a budget edited into config.json: the resume trained on over them.
+    edited = json.loads(config_before)
+    edited["hyperparameters"]["total_steps"] = 1901
+    run.config_path.write_text(json.dumps(edited))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{run.config_path}'s total_steps 1901 (edited since the run began?): {out}'s "
+            "replay buffer holds 2000 transitions, 100 of them for its demonstrations, so "
+            "at most 1900 steps keep them")):
+        cli.main(["train", "--resume", "--out", str(out)])
 
 
 def test_expert_demonstrations_are_refused_beside_a_dataset_or_past_the_buffer(tmp_path):

@@ -86,7 +86,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"--video-episodes {args.video_episodes} is more than --episodes "
                          f"{args.episodes}: each task's video shows its first episodes")
     if not args.no_video:
+        from franka_composer.training.runs import check_not_inside_a_run
+
         check_writable(args.out, folder=True)  # Also the default, which the parser passes.
+        check_not_inside_a_run(args.out)  # (A checkpoint folder: the next one replaces it.)
         odd = [f"--{name} {getattr(args, name)}" for name in ("width", "height")
                if getattr(args, name) % 2]
         if odd:  # ffmpeg writes an empty file, and the demo said it wrote the videos.

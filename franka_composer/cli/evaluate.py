@@ -34,12 +34,14 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from franka_composer.training.evaluation import measure_success
+    from franka_composer.training.models import resolve_device
     from franka_composer.training.policy_file import split_trained, trained_on_its_task
     from franka_composer.training.report import (RunResult, markdown_table, seeds_note,
                                                  with_variant)
     from franka_composer.training.runs import check_out_apart
     from franka_composer.training.sweep import run_directories
 
+    resolve_device(args.device)  # Before an env is built for the first run.
     roots = run_directories(args.runs)
     check_out_apart(args.out, roots)
     # Every run checked before the first is played, not after; those not trained yet (a

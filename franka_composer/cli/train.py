@@ -334,7 +334,19 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
              and name not in (*RESUME_OPTIONS, "out", "resume", "func")}
     if not given:
         return
-    differing = run_config(args).differing(run_dir.read_config())
+    recorded = run_dir.read_config()
+    own = _the_runs_options(recorded, given)
+    try:
+        ours = run_config(argparse.Namespace(**{**vars(args), **own, **{
+            name: getattr(args, name) for name in given}}))
+    except ValueError as error:  # (The run's own settings pass: a given one broke them.)
+        changed = [name for name in sorted(given) if name in own and getattr(args, name)
+                   != own[name]] or sorted(given)
+        raise ValueError(f"--resume goes on with the run's own settings, and "
+                         f"{', '.join(map(_flag, changed))} would change {run_dir.root}'s "
+                         f"into ones no run takes ({error}): only {RESUME_FLAGS} may "
+                         "change") from None
+    differing = ours.differing(recorded)
     option_of = dict(_OPTION_OF_SETTING, **({"control_timestep": "timing"}
                                             if "timing" in given else {}))
     conflicts = [(option_of.get(name, name), name, ours, theirs)
@@ -346,6 +358,31 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
             + "; ".join(f"{name} {theirs}, not {_flag(option)}'s {ours}"
                         for option, name, ours, theirs in conflicts)
             + f": only {RESUME_FLAGS} may change")
+
+
+#: The hyperparameters `train` sets by an option (named as `_OPTION_OF_SETTING` says).
+_HYPERPARAMETER_OPTIONS = ("update_schedule", "train_every", "net_arch", "batch_size",
+                           "buffer_size", "learning_starts", "eval_every", "eval_episodes",
+                           "stop_success_rate", "stop_after_evaluations", "clip_q_targets")
+
+
+def _the_runs_options(config, given: set) -> dict:
+    """The `train` options that start the run of `config` (its timing as a control timestep,
+    unless a --timing is `given`): what a resume's options are laid over, to be compared
+    whole (laid over the defaults, they mixed another run's settings with the given ones,
+    which no run may take: an update every step from 10 steps, say)."""
+    hp = config.hyperparameters
+    return dict(task=config.task, algo=config.algo, seed=config.seed, control=config.control,
+                backend=config.backend, precision=config.precision,
+                terminate_on_success=config.terminate_on_success,
+                randomization=config.randomization,
+                demos=None if config.demos is None else pathlib.Path(config.demos),
+                demo_episodes=config.demo_episodes, expert_demos=config.expert_demos,
+                preset=config.preset, object_damping=config.object_damping,
+                guard_ignores_carried=config.guard_ignores_carried, timing=None,
+                control_timestep=None if "timing" in given else config.control_timestep,
+                **{_OPTION_OF_SETTING.get(name, name): getattr(hp, name)
+                   for name in _HYPERPARAMETER_OPTIONS})
 
 
 def check_threads(threads: int | None, run_dir=None) -> None:
@@ -369,29 +406,33 @@ def _check_budget(args: argparse.Namespace, run_dir) -> None:
     nor so far that the steps would overwrite its demonstrations in the replay buffer (its
     start checked its budget so: `_check_demos`)."""
     steps = run_dir.read_state().get("steps", 0)
-    if args.total_steps is None:
-        return
-    if args.total_steps < steps:
+    if args.total_steps is not None and args.total_steps < steps:
         raise ValueError(f"{run_dir.root} has trained {steps} steps already, more than "
                          f"--total-steps {args.total_steps}")
     config = run_dir.read_config()
     if config.demos is None and config.expert_demos is None:
         return
+    # Without --total-steps, config.json's budget: its start checked it, unless edited since.
+    budget = args.total_steps or config.hyperparameters.total_steps
+    named = (f"--total-steps {budget}" if args.total_steps else
+             f"{run_dir.config_path}'s total_steps {budget} (edited since the run began?)")
     if config.demos is not None and not pathlib.Path(config.demos).exists():
-        raise ValueError(f"--total-steps {args.total_steps}: {run_dir.root} keeps the "
-                         f"demonstrations of {config.demos} in its replay buffer, and that "
-                         "dataset is not there to count them (whether more steps would "
-                         "overwrite them): put it back, or resume without --total-steps")
+        if args.total_steps is None:
+            return  # (Its buffer holds them; the budget it began with was checked.)
+        raise ValueError(f"{named}: {run_dir.root} keeps the demonstrations of "
+                         f"{config.demos} in its replay buffer, and that dataset is not "
+                         "there to count them (whether more steps would overwrite them): "
+                         "put it back, or resume without --total-steps")
     from franka_composer.training import demos
 
     transitions = demos.transitions(config.task, config.expert_demos, config.demos,
                                     config.demo_episodes, config.env_options)
     buffer_size = config.hyperparameters.buffer_size
-    if transitions + args.total_steps > buffer_size:
-        raise ValueError(f"--total-steps {args.total_steps}: {run_dir.root}'s replay buffer "
-                         f"holds {buffer_size} transitions, {transitions} of them for its "
-                         f"demonstrations, so at most {buffer_size - transitions} steps keep "
-                         "them (more would overwrite them)")
+    if transitions + budget > buffer_size:
+        raise ValueError(f"{named}: {run_dir.root}'s replay buffer holds {buffer_size} "
+                         f"transitions, {transitions} of them for its demonstrations, so at "
+                         f"most {buffer_size - transitions} steps keep them (more would "
+                         "overwrite them)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -410,12 +451,14 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
     from franka_composer.training import loop
+    from franka_composer.training.models import resolve_device
     from franka_composer.training.runs import RunDir
 
     # The folders on the way to --out (`..` taken out as parsed) that are not there yet:
     # made here, and removed with the run if it fails before its first checkpoint.
     made = missing_folders(out)
     try:  # The checks (seconds where they load --demos): stopped here, nothing is written.
+        resolve_device(args.device)  # (Evaluation envs are built before the model.)
         if args.resume:
             run_dir = RunDir(out)
             # First: an edited config.json would otherwise be taken for the run's settings.
@@ -426,6 +469,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
             run_dir.check_checkpoint_whole()  # Before its steps are taken for the budget's.
             _check_budget(args, run_dir)
         else:
+            loop.check_can_start(out)  # Before --demos are loaded, seconds.
             config = check_new_run(args)
     except KeyboardInterrupt:
         print("interrupted before training: " + ("the run is as its checkpoint left it"

@@ -35,6 +35,7 @@ def files_to_keep(run: RunDir, kept: RunDir, budget: int | None = None) -> KeptF
     folder where a model file belongs (`check_no_folders`: the policy would be left out)."""
     from franka_composer.training.policy_file import check_no_folders, read_policy_file
 
+    run.check_config_checkpointed()  # Else a hand edit is kept, and plays as another run.
     check_no_folders(run)
     files = KeptFiles(run, run.kept_evaluations(), run_finished(run, budget))
     check_extends(files, kept)

@@ -84,8 +84,16 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str, goes_
 
 
 def start(root: pathlib.Path, config: RunConfig) -> RunDir:
-    """Creates a run directory for `config`; a folder that already holds a run, or anything
-    else, is a ValueError (a failed start removes what it made: nothing else may be there)."""
+    """Creates a run directory for `config` where `check_can_start` lets one begin."""
+    run = check_can_start(root)
+    run.write_config(config)
+    return run
+
+
+def check_can_start(root: pathlib.Path) -> RunDir:
+    """The run directory a new run at `root` would be; a folder that already holds a run, or
+    anything else, is a ValueError (a failed start removes what it made: nothing else may be
+    there). `train` asks before it loads --demos or builds an env."""
     run = RunDir(pathlib.Path(root))
     if run.config_path.exists() and run.is_kept_copy():
         raise ValueError(f"{run.root} holds a kept copy of a finished run (nothing to "
@@ -96,7 +104,6 @@ def start(root: pathlib.Path, config: RunConfig) -> RunDir:
     if run.root.is_dir() and any(run.root.iterdir()):
         raise ValueError(f"{run.root} is not empty and holds no run: give a new or empty "
                          "folder as --out")
-    run.write_config(config)
     return run
 
 

@@ -165,6 +165,7 @@ def check_trained(run: RunDir) -> None:
     algorithm or library saved than its config.json says (`check_saved_by`): asked before
     an env is made for it, so that `evaluate` finds a bad run among many before playing any."""
     config = run.read_config()
+    run.check_config_checkpointed()  # (A hand edit: played at settings it never trained at.)
     check_no_folders(run)
     models = [path for path in (run.final_model, run.checkpoint_model) if path.is_file()]
     damages = [model_damage(path) for path in models]
