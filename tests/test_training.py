@@ -2180,10 +2180,31 @@ def test_the_runs_expert_records_its_demonstrations_at_its_start(tmp_path):
     edited["hyperparameters"]["total_steps"] = 1901
     run.config_path.write_text(json.dumps(edited))
     with pytest.raises(ValueError, match=re.escape(
-            f"{run.config_path}'s total_steps 1901 (edited since the run began?): {out}'s "
+            f"{run.config_path}'s total_steps 1901 (its checkpoint's: 100): {out}'s "
             "replay buffer holds 2000 transitions, 100 of them for its demonstrations, so "
             "at most 1900 steps keep them")):
         cli.main(["train", "--resume", "--out", str(out)])
+
+
+def test_a_plain_resume_of_a_demos_run_does_not_count_its_dataset_again(tmp_path,
+                                                                        monkeypatch):
+    """Its replay buffer holds the demonstrations it began with: a resume without
+    --total-steps counted the dataset now at their path, recorded again since with more
+    episodes, and refused the budget that fits."""
+    from franka_composer.datasets import record
+
+    dataset = tmp_path / "push.npz"
+    record("push", 2, dataset, seed=0)
+    out = tmp_path / "run"
+    assert _train(out, "sac", 200, "--demos", str(dataset), "--buffer-size", "300") == 0
+    record("push", 10, dataset, seed=0)
+    assert cli.main(["train", "--resume", "--out", str(out), "--no-progress"]) == 0
+    # Its --demos given again, as a relative path, agrees: only what breaks the run is named.
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=re.escape(
+            "--resume goes on with the run's own settings, and --expert-demos would change")):
+        cli.main(["train", "--resume", "--out", str(out), "--demos", "push.npz",
+                  "--expert-demos", "5"])
 
 
 def test_expert_demonstrations_are_refused_beside_a_dataset_or_past_the_buffer(tmp_path):

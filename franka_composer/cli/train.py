@@ -160,7 +160,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--update-schedule", choices=UPDATE_SCHEDULES, default=None,
                         help="'step' (the paper's, default): one gradient step after each "
                              "env step; 'episode': collect an episode, then as many gradient "
-                             "steps as steps collected: the same updates per step, 10-23 %% "
+                             "steps as steps collected: the same updates per step, 11-23 %% "
                              "more steps/s on CPU (RESULTS.md)")
     parser.add_argument("--train-every", type=positive_int, default=None,
                         help="env steps per gradient step with the 'step' schedule (paper: "
@@ -340,10 +340,11 @@ def _check_resumed_as_given(args: argparse.Namespace, run_dir) -> None:
         ours = run_config(argparse.Namespace(**{**vars(args), **own, **{
             name: getattr(args, name) for name in given}}))
     except ValueError as error:  # (The run's own settings pass: a given one broke them.)
-        changed = [name for name in sorted(given) if name in own and getattr(args, name)
-                   != own[name]] or sorted(given)
+        changed = [name for name in sorted(given) if name in own and (
+            args.demos.resolve() if name == "demos" else getattr(args, name)) != own[name]]
         raise ValueError(f"--resume goes on with the run's own settings, and "
-                         f"{', '.join(map(_flag, changed))} would change {run_dir.root}'s "
+                         f"{', '.join(map(_flag, changed or sorted(given)))} would change "
+                         f"{run_dir.root}'s "
                          f"into ones no run takes ({error}): only {RESUME_FLAGS} may "
                          "change") from None
     differing = ours.differing(recorded)
@@ -405,20 +406,25 @@ def _check_budget(args: argparse.Namespace, run_dir) -> None:
     """A resume's --total-steps may raise the run's budget, not go below what it trained,
     nor so far that the steps would overwrite its demonstrations in the replay buffer (its
     start checked its budget so: `_check_demos`)."""
-    steps = run_dir.read_state().get("steps", 0)
+    state = run_dir.read_state()
+    steps = state.get("steps", 0)
     if args.total_steps is not None and args.total_steps < steps:
         raise ValueError(f"{run_dir.root} has trained {steps} steps already, more than "
                          f"--total-steps {args.total_steps}")
     config = run_dir.read_config()
     if config.demos is None and config.expert_demos is None:
         return
-    # Without --total-steps, config.json's budget: its start checked it, unless edited since.
     budget = args.total_steps or config.hyperparameters.total_steps
-    named = (f"--total-steps {budget}" if args.total_steps else
-             f"{run_dir.config_path}'s total_steps {budget} (edited since the run began?)")
+    named = f"--total-steps {budget}"
+    if args.total_steps is None:
+        # config.json's budget, checked as the run began or was raised; unless it is more
+        # than its checkpoint's (a hand edit), which is checked as a --total-steps would be.
+        trained_to = state.get("config", {}).get("hyperparameters", {}).get("total_steps")
+        if trained_to is None or budget <= trained_to:
+            return
+        named = (f"{run_dir.config_path}'s total_steps {budget} (its checkpoint's: "
+                 f"{trained_to})")
     if config.demos is not None and not pathlib.Path(config.demos).exists():
-        if args.total_steps is None:
-            return  # (Its buffer holds them; the budget it began with was checked.)
         raise ValueError(f"{named}: {run_dir.root} keeps the demonstrations of "
                          f"{config.demos} in its replay buffer, and that dataset is not "
                          "there to count them (whether more steps would overwrite them): "
