@@ -24,7 +24,8 @@ from gymnasium.utils import EzPickle
 from franka_composer import render_owner, seeding, suite
 from franka_composer.environment import ended_by_divergence
 from franka_composer.headless_gl import has_display
-from franka_composer.randomization import PARAMETERS, randomization_settings
+from franka_composer.randomization import (PARAMETERS, RandomizationSettings,
+                                          randomization_settings)
 from franka_composer.randomization.settings import from_a_preset
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.config import ObservationSettings
@@ -338,10 +339,11 @@ def _check_visuals_seen(render_mode: str | None, task_kwargs: dict) -> None:
     to an env with neither frames nor camera observations, where no image shows them: the
     task takes them, for a dm_env user may render its physics. A preset's own entries apply
     where they can, as the preset does (`from_a_preset`)."""
-    if render_mode is not None or task_kwargs.get(
-            "observation_mode", ObservationSettings.mode) != "state":
-        return
-    settings = randomization_settings("randomization", task_kwargs.get("randomization"))
+    given = task_kwargs.get("randomization")
+    if render_mode is not None or not isinstance(given, (Mapping, RandomizationSettings)) or (
+            task_kwargs.get("observation_mode", ObservationSettings.mode) != "state"):
+        return  # (A preset's name is not probed here: ~55 ms, which the task does again.)
+    settings = randomization_settings("randomization", given)
     visual = [parameter for parameter, distribution in settings.ranges
               if PARAMETERS[parameter].group == "visual"
               and not PARAMETERS[parameter].observed_cameras  # (The task refuses those.)

@@ -405,7 +405,8 @@ def check_threads(threads: int | None, run_dir=None) -> None:
 def _check_budget(args: argparse.Namespace, run_dir) -> None:
     """A resume's --total-steps may raise the run's budget, not go below what it trained,
     nor so far that the steps would overwrite its demonstrations in the replay buffer (its
-    start checked its budget so: `_check_demos`)."""
+    start checked its budget so: `_check_demos`); nor may a budget edited into config.json
+    above its checkpoint's."""
     state = run_dir.read_state()
     steps = state.get("steps", 0)
     if args.total_steps is not None and args.total_steps < steps:
