@@ -40,7 +40,7 @@ import gymnasium as gym
 
 from franka_composer import cli
 from franka_composer.cli import train as train_cli
-from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
+from franka_composer.tasks.records import REFERENCE_OBJECT_DAMPING
 from franka_composer.training import models
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))

@@ -196,7 +196,7 @@ def held_press(control: str, seed: int, steps: int, timing: str) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     from franka_composer.controllers import CONTROLS
-    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.tasks.options import TIMINGS
 
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

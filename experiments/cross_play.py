@@ -36,7 +36,7 @@ import numpy as np
 
 from franka_composer.cli.options import add_object_damping, episode_seed, positive_int
 from franka_composer.policies import make_expert
-from franka_composer.tasks.config import TIMINGS
+from franka_composer.tasks.options import TIMINGS
 from franka_composer.training.models import make_env
 from franka_composer.training.policy_file import load_trained
 from franka_composer.training.runs import RunDir

@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     import gymnasium as gym
 
     import franka_composer  # noqa: F401  (registers the ids)
-    from franka_composer.tasks.config import TIMINGS, expand_timing
+    from franka_composer.tasks.options import TIMINGS, expand_timing
 
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -32,7 +32,8 @@ import mujoco
 import numpy as np
 
 from franka_composer.cli.options import episode_seed, positive_int
-from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING, TIMINGS
+from franka_composer.tasks.options import TIMINGS
+from franka_composer.tasks.records import REFERENCE_OBJECT_DAMPING
 from franka_composer.training.evaluation import measure_success
 from franka_composer.training.models import make_env
 from franka_composer.training.policy_file import load_trained

@@ -35,7 +35,7 @@ def shares(env, commanded: list[int], sign: int, steps: int) -> np.ndarray:
 
 def main(argv: list[str] | None = None) -> int:
     import franka_composer
-    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.tasks.options import TIMINGS
 
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -43,7 +43,7 @@ def shares(env, start, axis: int, sign: int) -> tuple[list[float], np.ndarray]:
 
 def main(argv: list[str] | None = None) -> int:
     import franka_composer
-    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.tasks.options import TIMINGS
 
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)

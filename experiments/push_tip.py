@@ -25,7 +25,7 @@ import sys
 
 import numpy as np
 
-from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
+from franka_composer.tasks.records import REFERENCE_OBJECT_DAMPING
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import grasp_reach  # noqa: E402  (experiments/, not a package)

@@ -17,7 +17,7 @@ from franka_composer import environment
 from franka_composer.adapters.registration import ENV_IDS, env_id
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.tasks.config import TIMINGS
+from franka_composer.tasks.options import TIMINGS
 
 
 def _steps_to_last(env, actions) -> tuple[int, object]:

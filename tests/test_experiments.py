@@ -882,7 +882,7 @@ def test_env_differences_let_the_guard_go_for_their_row_only():
 
 
 def test_env_differences_row_of_nothing_undone_is_what_evaluate_measures(capsys):
-    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.tasks.options import TIMINGS
     from franka_composer.training.evaluation import measure_success
     from franka_composer.training.models import make_env
     from franka_composer.training.policy_file import load_trained

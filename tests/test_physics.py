@@ -7,7 +7,7 @@ import pytest
 
 import franka_composer
 from conftest import grasp_block, hand_tilt_degrees, move_tcp_to
-from franka_composer.tasks.config import REFERENCE_OBJECT_DAMPING
+from franka_composer.tasks.records import REFERENCE_OBJECT_DAMPING
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
 pytestmark = pytest.mark.usefixtures("composer_path")

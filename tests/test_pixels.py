@@ -1,5 +1,5 @@
 """Camera observations (`observation_mode`): Composer camera observables beside state goals,
-so rewards and HER relabelling are unchanged (tasks/config.py ObservationSettings,
+so rewards and HER relabelling are unchanged (tasks/records.py ObservationSettings,
 tasks/goal_task.py, adapters/goal_env.py)."""
 
 from __future__ import annotations

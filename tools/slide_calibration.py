@@ -29,7 +29,7 @@ import numpy as np
 
 from franka_composer.adapters.registration import env_id
 from franka_composer.policies import make_expert
-from franka_composer.tasks.config import TIMINGS
+from franka_composer.tasks.options import TIMINGS
 
 KICKS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
 ANGLES = tuple(np.round(np.arange(-75.0, 75.01, 2.5), 1))

@@ -28,8 +28,8 @@ from franka_composer.randomization import (PARAMETERS, RandomizationSettings,
                                           randomization_settings)
 from franka_composer.randomization.settings import from_a_preset
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
-from franka_composer.tasks.config import ObservationSettings
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
+from franka_composer.tasks.records import ObservationSettings
 from franka_composer.validation import check_bool, check_choice
 
 #: `suite.load`'s parameters that the adapter sets itself, and how a Gymnasium user sets

@@ -11,10 +11,11 @@ from __future__ import annotations
 import textwrap
 
 from franka_composer.arenas.floor import CAMERAS, RENDER_SIZE
-from franka_composer.tasks.config import (OPTIONS, REFERENCE_CODE_OBJECT_DAMPING,
-                                          REFERENCE_OBJECT_DAMPING, TIMINGS, TaskConfig,
-                                          read_with, unread_option)
+from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.layout import layout_for
+from franka_composer.tasks.options import OPTIONS, TIMINGS, read_with, unread_option
+from franka_composer.tasks.records import (REFERENCE_CODE_OBJECT_DAMPING,
+                                           REFERENCE_OBJECT_DAMPING)
 
 #: Line width of the page.
 WIDTH = 88

@@ -253,9 +253,9 @@ def add_tasks_argument(parser: argparse.ArgumentParser, default, help_text: str)
 
 
 def add_timing(parser: argparse.ArgumentParser, control_timestep_help: str) -> None:
-    """--control-timestep SECONDS and --timing NAME (`tasks.config.TIMINGS`), one or the
+    """--control-timestep SECONDS and --timing NAME (`tasks.options.TIMINGS`), one or the
     other; `timing_options` reads them."""
-    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.tasks.options import TIMINGS
 
     parser.add_argument("--control-timestep", type=finite_number, default=None,
                         metavar="SECONDS",
@@ -299,7 +299,7 @@ def true_or_false(text: str) -> bool:
 def timing_options(args: argparse.Namespace) -> dict:
     """`control_timestep`, `velocity_timestep` and `weld_time_constant` from --timing or
     --control-timestep (None: the task's); both given is refused."""
-    from franka_composer.tasks.config import TIMINGS
+    from franka_composer.tasks.options import TIMINGS
 
     if args.timing is None:
         return {"control_timestep": args.control_timestep, "velocity_timestep": None,

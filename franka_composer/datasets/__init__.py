@@ -21,7 +21,7 @@ from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.episodes import npz_file
 from franka_composer.policies import rollout
 from franka_composer.policies.rollout import check_episodes_end, recorded_with
-from franka_composer.tasks.config import expand_timing, plain_value, readable_options
+from franka_composer.tasks.options import expand_timing, plain_value, readable_options
 from franka_composer.validation import check_choice, check_number, check_path, check_writable
 
 #: The formats `record` writes.

@@ -24,7 +24,7 @@ import mujoco
 import numpy as np
 
 from franka_composer.policies.base import Expert
-from franka_composer.tasks.config import BlockSpec
+from franka_composer.tasks.records import BlockSpec
 
 #: Fingertips this far (m) below the cube's top edge when tipping it, and the tipping push's
 #: speed (fraction of a full step): measured to tip the 4 cm cube once (deeper or faster

@@ -9,7 +9,7 @@ import numpy as np
 
 from franka_composer.entities.panda import MAX_FINGER_WIDTH
 from franka_composer.policies.base import Expert
-from franka_composer.tasks.config import BlockSpec
+from franka_composer.tasks.records import BlockSpec
 
 #: Height (m) above the block's centre at which the open hand lines up before descending.
 HOVER_HEIGHT = 0.08

@@ -10,7 +10,7 @@ import numpy as np
 
 from franka_composer.episodes import STEP_KEYS, Trajectories
 from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.tasks.config import OPTIONS, readable_options
+from franka_composer.tasks.options import OPTIONS, readable_options
 from franka_composer.validation import check_number
 
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from franka_composer.policies.base import Expert
-from franka_composer.tasks.config import PuckSpec
+from franka_composer.tasks.records import PuckSpec
 
 #: Half-size (m) of the closed fingers seen from above (x, y), from where they first touch
 #: the puck approached from each direction.

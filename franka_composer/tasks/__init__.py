@@ -7,7 +7,9 @@ Gymnasium ids, the test cases and the command line's choices all come from `ALL_
 from __future__ import annotations
 
 from franka_composer.tasks.builder import build_task
-from franka_composer.tasks.config import OPTIONS, PhysicsSettings, TaskConfig
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.options import OPTIONS
+from franka_composer.tasks.records import PhysicsSettings
 from franka_composer.tasks.goal_task import GoalTask
 from franka_composer.tasks.layout import ObservationField, ObservationLayout
 from franka_composer.tasks.flip import FLIP

@@ -1,7 +1,8 @@
 """Flip (panda-gym's, with goals this hand can reach): tip a cube onto a face and turn it."""
 
 from franka_composer.controllers import ControlSettings
-from franka_composer.tasks.config import BlockSpec, OrientationGoalSettings, TaskConfig
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.records import BlockSpec, OrientationGoalSettings
 
 # A 4 cm cube of 0.1 kg (graspable, like pick and place's block; panda-gym's weighs 1 kg)
 # with six distinctly coloured faces, so its orientation shows in images. The goal is an

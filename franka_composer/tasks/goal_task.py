@@ -21,11 +21,11 @@ from franka_composer.randomization import Randomizer
 from franka_composer.randomization.parameters import noise_parameter
 from franka_composer.tasks import rewards
 from franka_composer.tasks.cameras import EpisodeCamera
-from franka_composer.tasks.config import (ObservationSettings, PhysicsSettings, TaskConfig,
-                                         Workspace)
+from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.goals import GOALS, Goal
 from franka_composer.tasks.layout import ObservationLayout, layout_for
 from franka_composer.tasks.placement import MAX_ATTEMPTS, PLACEMENT_RESTARTS, place_apart
+from franka_composer.tasks.records import ObservationSettings, PhysicsSettings, Workspace
 
 
 class GoalTask(composer.Task):

@@ -1,7 +1,8 @@
 """Pick and place: grasp a light block and carry it to a goal, in the air 70 % of the time."""
 
 from franka_composer.controllers import ControlSettings
-from franka_composer.tasks.config import BlockSpec, TaskConfig, Workspace
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.records import BlockSpec, Workspace
 
 # Grasping is held by the finger contacts (friction 2, condim 4, 10 N squeeze: see
 # entities/panda.py). Measured over a 0.15 m lift and 0.1 m carry, impratio 1, 3 and 10 all

@@ -1,6 +1,7 @@
 """Reach (panda-gym's): bring the tool centre point to a point in the air, no object."""
 
-from franka_composer.tasks.config import TaskConfig, Workspace
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.records import Workspace
 
 # The goal is uniform in the 0.3 m cube above the goal square: lifted from the surface
 # with probability 1, up to 0.3 m. The fingers are locked (3 actions).

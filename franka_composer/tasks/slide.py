@@ -1,6 +1,7 @@
 """Slide: strike a puck across a slippery floor to a goal that is often out of reach."""
 
-from franka_composer.tasks.config import Box2D, PuckSpec, TaskConfig, Workspace
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.records import Box2D, PuckSpec, Workspace
 
 # Low friction on both the floor and the puck (MuJoCo takes the larger of the two): a struck
 # puck glides. Noslip would fight the intended sliding, so it stays off (the default).

@@ -1,7 +1,8 @@
 """Stack (panda-gym's): put block 1 at a goal on the floor and block 2 on top of it."""
 
 from franka_composer.controllers import ControlSettings
-from franka_composer.tasks.config import BlockSpec, TaskConfig
+from franka_composer.tasks.config import TaskConfig
+from franka_composer.tasks.records import BlockSpec
 
 # Two 4 cm blocks of 0.1 kg, light enough to grasp like pick and place's (panda-gym's are
 # 2 and 1 kg), told apart by colour. Success is panda-gym's rule: the six coordinates of

@@ -21,7 +21,7 @@ from franka_composer.adapters.registration import ENV_IDS, other_version, split_
 from franka_composer.controllers import CONTROL_VERSIONS
 from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
 from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.tasks.config import OPTIONS, readable_options
+from franka_composer.tasks.options import OPTIONS, readable_options
 from franka_composer.tasks.rewards import reward_from_distance
 from franka_composer.validation import check_path
 
@@ -198,7 +198,7 @@ _UNSAID = {"npz": "an npz written before franka_composer recorded them?",
            "rlds": "an RLDS dataset written without franka_composer's metadata?"}
 
 
-#: The task options that say how long a step is and what it does (`tasks.config.TIMINGS`),
+#: The task options that say how long a step is and what it does (`tasks.options.TIMINGS`),
 #: and how the objects move under it.
 _DYNAMICS_OPTIONS = ("timing", "control_timestep", "velocity_timestep", "weld_time_constant",
                      "object_damping")

@@ -11,7 +11,7 @@ from franka_composer.controllers import CONTROLS
 from franka_composer.controllers.settings import WELD_TIME_CONSTANT
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import TASK_CONFIGS
-from franka_composer.tasks.config import timing_name
+from franka_composer.tasks.options import timing_name
 from franka_composer.training.hyperparams import (ALGORITHM_SETTINGS, ALGOS, BACKENDS,
                                                   PRECISIONS, Hyperparameters,
                                                   hyperparameters)
@@ -49,10 +49,10 @@ class RunConfig:
     `velocity_timestep` the seconds the observation's velocities are multiplied by (None:
     the control period), and `weld_time_constant` the mocap weld's (None: the task's, 0.01
     s). The paper's code runs 0.5 s per step, multiplies by 0.05 s and welds with 0.02 s
-    (`tasks.config.TIMINGS["reference"]`, `train --timing reference`).
+    (`tasks.options.TIMINGS["reference"]`, `train --timing reference`).
 
     `object_damping` damps the objects' free joints (the task option; 0: undamped, this
-    suite's default; 0.01 the reference code's block, `tasks.config.REFERENCE_OBJECT_DAMPING`).
+    suite's default; 0.01 the reference code's block, `tasks.records.REFERENCE_OBJECT_DAMPING`).
 
     `guard_ignores_carried` is the surface guard's setting the run trained under (the task
     option; None: the task's own, kept as that value): stack's v1 leaves a carried block out
@@ -250,7 +250,7 @@ class RunConfig:
 
     @property
     def timing_options(self) -> dict:
-        """The task options of its timing (`tasks.config.TIMINGS` names some)."""
+        """The task options of its timing (`tasks.options.TIMINGS` names some)."""
         return {"control_timestep": self.control_timestep,
                 "velocity_timestep": self.velocity_timestep,
                 "weld_time_constant": self.weld_time_constant}
