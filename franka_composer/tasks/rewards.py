@@ -62,7 +62,10 @@ def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
     """The angle (rad, in [0, pi]) of the rotation between two orientations given as unit
     quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation
     (`compute_reward` and `is_success` refuse others: `_given_distance`)."""
-    achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, 4, "w, x, y, z")
+    return _angle(*_goals(achieved_goal, desired_goal, 4, "w, x, y, z"))
+
+
+def _angle(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
     cosine = np.abs(np.add.reduce(achieved_goal * desired_goal, axis=-1))
     return 2.0 * np.arccos(np.minimum(cosine, 1.0))
 
@@ -96,6 +99,7 @@ def _given_distance(achieved_goal, desired_goal, metric: str, size: int) -> np.n
         achieved_goal, desired_goal = _goals(achieved_goal, desired_goal, 4, "w, x, y, z")
         _check_unit(achieved_goal, "achieved")
         _check_unit(desired_goal, "desired")
+        return _angle(achieved_goal, desired_goal)
     return distance(achieved_goal, desired_goal, metric, size)
 
 
