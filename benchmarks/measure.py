@@ -205,11 +205,16 @@ def median_reset_ms(env: gym.Env, samples: int) -> float:
 
 
 def compute_reward_us(env: gym.Env, batch: int = REWARD_BATCH) -> float:
-    """Median microseconds of `compute_reward` on `batch` (achieved, desired) pairs."""
+    """Median microseconds of `compute_reward` on `batch` (achieved, desired) pairs: random
+    positions, or random unit quaternions where the goal is an orientation (flip's
+    `compute_reward` refuses others)."""
     rng = np.random.default_rng(0)
     size = env.observation_space["achieved_goal"].shape[0]  # 3, 6 (stack) or 4 (flip).
     achieved = rng.uniform(0.3, 0.9, size=(batch, size))
     desired = rng.uniform(0.3, 0.9, size=(batch, size))
+    if env.unwrapped.task.goal_metric == "rotation_angle":
+        achieved, desired = (goals / np.linalg.norm(goals, axis=-1, keepdims=True)
+                             for goals in (achieved, desired))
     info = [{}] * batch
     reward = env.unwrapped.compute_reward(achieved, desired, info)
     if np.shape(reward) != (batch,):

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import load_script
+from franka_composer.adapters.registration import env_id
 from franka_composer.cli import main
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parents[1] / "benchmarks"
@@ -82,6 +83,15 @@ def test_bench_rejects_an_unknown_task_naming_the_valid_ones(capsys):
     assert capsys.readouterr().err.endswith(
         "argument --tasks: unknown task(s) lift; valid tasks: push, slide, pick_and_place, "
         "reach, stack, flip\n")
+
+
+@pytest.mark.parametrize("task", ["push", "stack", "flip"])
+def test_compute_reward_is_timed_on_goals_the_task_takes(task):
+    """Positions, two blocks' six coordinates, flip's unit quaternions (its compute_reward
+    refuses others, which failed `bench.py` on its default tasks)."""
+    measure = load_script(BENCHMARKS / "measure.py")
+    env = gym.make(env_id(task, "sparse"))
+    assert measure.compute_reward_us(env, batch=8) > 0
 
 
 @pytest.mark.parametrize("control", ["mocap", "osc", "joints"])

@@ -71,7 +71,9 @@ def _angle(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
 
 
 def _check_unit(quaternions: np.ndarray, which: str) -> None:
-    squared = np.add.reduce(quaternions * quaternions, axis=-1)
+    # (einsum: the squared norms in one pass, half the time of a product and a reduction
+    # over an axis of four.)
+    squared = np.einsum("...i,...i->...", quaternions, quaternions)
     off = np.abs(squared - 1.0) > UNIT_TOLERANCE
     if off.any():
         index = np.argwhere(off)[0] if off.ndim else ()
