@@ -444,11 +444,17 @@ def test_a_run_that_has_ended_with_its_evaluations_cut_short_is_refused(command,
     ({"seed": 7.9}, "seed must be a whole number >= 0 and <= 2147483647, got 7.9"),
     ({"seed": -3}, "seed must be >= 0 and <= 2147483647, got -3"),
     ({"demo_episodes": "abc"}, "demo_episodes must be a whole number >= 1, got 'abc'"),
+    ({"contrl": "joints"}, "unknown key(s) 'contrl'; valid keys: algo, backend, control, "
+                           "control_timestep, demo_episodes, demos, environment, "
+                           "expert_demos, guard_ignores_carried, hyperparameters, "
+                           "object_damping, precision, preset, randomization, seed, task, "
+                           "terminate_on_success, velocity_timestep, weld_time_constant"),
 ])
 def test_a_config_json_value_of_the_wrong_type_or_null_is_refused_by_name(edit, message,
                                                                           tmp_path):
     """A null total_steps was read as 500,000 steps, "false" as True and seed 7.9 as 7;
-    demos 5 raised a TypeError from `report`, `evaluate` and `keep`. The nulls that some
+    demos 5 raised a TypeError from `report`, `evaluate` and `keep`; a misspelt key was
+    passed over (the default read in its place). The nulls that some
     runs record (SAC's n_critics, no stopping rule) stay readable."""
     run = _run(tmp_path / "run")
     config = json.loads(run.config_path.read_text())

@@ -443,6 +443,35 @@ def test_a_dataset_that_is_not_there_or_whose_options_are_no_mapping_is_refused(
                                "mapping of option names to values (damaged metadata?)")
 
 
+def test_a_dataset_recorded_with_an_option_this_version_has_not_is_refused(
+        recorded, push_env, tmp_path):
+    """An option it does not know was passed over: the dataset trained as the task's own,
+    whatever that option did to its transitions. The env's own arguments beside the options
+    in a Minari env spec are read as before."""
+    import shutil
+
+    metadata = Trajectories.load(recorded / "push.npz").metadata
+    listed = _rewrite(recorded / "push.npz", tmp_path / "options.npz", metadata=np.array(
+        json.dumps(dict(metadata, options={"bogus_option": 3}))))
+    message = ("says it was recorded with 'bogus_option', which this version of "
+               "franka_composer has no task option of (a later release's, or damaged "
+               "metadata?): whether its transitions are this run's task cannot be checked")
+    _refused(listed, push_env, message)
+    path = tmp_path / "minari"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", path)
+    spec_file = path / "data" / "metadata.json"
+    metadata = json.loads(spec_file.read_text())
+    spec = json.loads(metadata["env_spec"])
+    spec["kwargs"].update(render_mode=None, width=84, height=84, camera="workspace")
+    metadata["env_spec"] = json.dumps(spec)
+    spec_file.write_text(json.dumps(metadata))
+    assert len(demos.load_episodes(path, push_env)) == 2
+    spec["kwargs"]["bogus_option"] = 1
+    metadata["env_spec"] = json.dumps(spec)
+    spec_file.write_text(json.dumps(metadata))
+    _refused(path, push_env, message)
+
+
 def test_an_npz_from_before_metadata_is_refused_saying_how_to_record_it_again(recorded,
                                                                               push_env,
                                                                               tmp_path):
@@ -537,6 +566,10 @@ def test_a_changed_or_missing_rlds_file_is_refused_by_name(recorded, push_env, t
     (listing / DIGESTS_FILE).write_text("[1, 2]")
     _refused(listing, push_env, f"{listing / DIGESTS_FILE} is damaged (not a mapping of file "
                                 "names to digests)")
+    (listing / DIGESTS_FILE).unlink()  # A folder in its place was read as no listing.
+    (listing / DIGESTS_FILE).mkdir()
+    _refused(listing, push_env, f"{listing / DIGESTS_FILE} is not a file: it should list the "
+                                "SHA-256 of each file of the dataset (damaged?)")
     assert len(demos.load_episodes(recorded / "rlds", push_env)) == 2
 
 

@@ -1133,10 +1133,13 @@ def test_a_resume_refuses_a_config_json_edited_since_its_checkpoint(runs, tmp_pa
                 f"at step {run.read_state()['steps']:,} was trained with ({differs}): a run "
                 "goes on with its own; put them back, or start a new run with the new ones")):
             cli.main(["train", "--resume", "--out", str(copy), "--total-steps", "400"])
-        # Nor is it played or kept as the run (evaluate played it under osc, and its table
-        # named it so; keep copied it, its policy then fitting no config).
+        # Nor is it played, kept or reported as the run (evaluate played it under osc, and
+        # its table named it so; keep copied it, its policy then fitting no config; report
+        # and plot filed it under the edited cell).
         for command in (["evaluate", str(copy), "--episodes", "1"],
-                        ["keep", str(copy), "--into", str(tmp_path / "kept")]):
+                        ["keep", str(copy), "--into", str(tmp_path / "kept")],
+                        ["report", str(copy)],
+                        ["plot", str(copy), "--out", str(tmp_path / "kept" / "curves.png")]):
             with pytest.raises(ValueError, match=re.escape(f"({differs}): a run goes on")):
                 cli.main(command)
         assert not (tmp_path / "kept").exists()

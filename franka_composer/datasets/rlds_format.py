@@ -116,8 +116,11 @@ def check_digests(root: pathlib.Path) -> None:
     without `DIGESTS_FILE` passes (logged by envlogger itself, or by a version that wrote
     none)."""
     listing = root / DIGESTS_FILE
-    if not listing.is_file():
+    if not listing.exists():
         return
+    if not listing.is_file():
+        raise ValueError(f"{listing} is not a file: it should list the SHA-256 of each file "
+                         "of the dataset (damaged?)")
     try:
         digests = json.loads(listing.read_text())
         if not (isinstance(digests, dict)

@@ -217,13 +217,28 @@ def _recorded_config(path, recorded: dict):
                          f"valid: {error}") from None
 
 
+#: What a Minari dataset's env spec holds beside the task options: the env's own arguments,
+#: and what `_recorded_by_spec` adds.
+_SPEC_ENTRIES = ("id", "task", "reward_type", "render_mode", "width", "height", "camera",
+                 "time_limit", "max_episode_steps")
+
+
 def _recorded_options(path, recorded: dict) -> dict:
     """The task options the dataset was recorded with (under "options" in npz and RLDS
-    metadata, beside the id in a Minari env spec)."""
-    given = (recorded["options"] if "options" in recorded else recorded) or {}
+    metadata, beside the id in a Minari env spec). A name that is no option of this
+    version's is refused: what it did to the transitions cannot be checked."""
+    nested = "options" in recorded
+    given = (recorded["options"] if nested else recorded) or {}
     if not isinstance(given, dict):
         raise ValueError(f"{path} says it was recorded with the options {given!r}, which "
                          "are not a mapping of option names to values (damaged metadata?)")
+    unknown = sorted(set(given) - {*OPTIONS, "timing", *(() if nested else _SPEC_ENTRIES)},
+                     key=repr)
+    if unknown:
+        raise ValueError(f"{path} says it was recorded with {', '.join(map(repr, unknown))}, "
+                         "which this version of franka_composer has no task option of (a "
+                         "later release's, or damaged metadata?): whether its transitions "
+                         "are this run's task cannot be checked")
     return given
 
 

@@ -63,6 +63,7 @@ class RunRecord:
 
 def read_run(root: pathlib.Path) -> RunRecord:
     run = RunDir(pathlib.Path(root))
+    run.check_config_checkpointed()  # (A hand edit would be reported as another cell.)
     config = run.read_config()
     rows = run.evaluations()
     outcome = run.read_outcome()

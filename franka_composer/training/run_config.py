@@ -16,7 +16,7 @@ from franka_composer.training.hyperparams import (ALGORITHM_SETTINGS, ALGOS, BAC
                                                   PRECISIONS, Hyperparameters,
                                                   hyperparameters)
 from franka_composer.training.presets import TRAINING_PRESETS
-from franka_composer.validation import check_bool, check_choice, check_number
+from franka_composer.validation import check_bool, check_choice, check_names, check_number
 
 #: Training seeds stay below 2**31: SB3 seeds NumPy's legacy generator (at most 2**32 - 1)
 #: with the seed plus the evaluation offset, and with the seed plus the steps on a resume.
@@ -328,7 +328,9 @@ class RunConfig:
         # weld's time constant, the default weld (the reference timing's runs included);
         # those before other suites' envs, this package's; those before object damping,
         # undamped objects; those before the guard could leave carried blocks out, v0's
-        # guard, which counted them as surfaces.
+        # guard, which counted them as surfaces. A name no run has recorded (a misspelt
+        # "contrl" would else read as the default controller) is refused.
+        check_names("key", data, (field.name for field in dataclasses.fields(cls)))
         return cls(task=data["task"], algo=data["algo"], seed=data["seed"],
                    terminate_on_success=data["terminate_on_success"],
                    backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
