@@ -217,23 +217,16 @@ def _recorded_config(path, recorded: dict):
                          f"valid: {error}") from None
 
 
-#: What a Minari dataset's env spec holds beside the task options: the env's own arguments,
-#: and what `_recorded_by_spec` adds.
-_SPEC_ENTRIES = ("id", "task", "reward_type", "render_mode", "width", "height", "camera",
-                 "time_limit", "max_episode_steps")
-
-
 def _recorded_options(path, recorded: dict) -> dict:
     """The task options the dataset was recorded with (under "options" in npz and RLDS
-    metadata, beside the id in a Minari env spec). A name that is no option of this
-    version's is refused: what it did to the transitions cannot be checked."""
-    nested = "options" in recorded
-    given = (recorded["options"] if nested else recorded) or {}
+    metadata, and as `_recorded_by_spec` reads a Minari env spec; none in an npz from before
+    they were recorded, which was recorded with the task's own). A name that is no option of
+    this version's is refused: what it did to the transitions cannot be checked."""
+    given = recorded.get("options") or {}
     if not isinstance(given, dict):
         raise ValueError(f"{path} says it was recorded with the options {given!r}, which "
                          "are not a mapping of option names to values (damaged metadata?)")
-    unknown = sorted(set(given) - {*OPTIONS, "timing", *(() if nested else _SPEC_ENTRIES)},
-                     key=repr)
+    unknown = sorted(set(given) - {*OPTIONS, "timing"}, key=repr)
     if unknown:
         raise ValueError(f"{path} says it was recorded with {', '.join(map(repr, unknown))}, "
                          "which this version of franka_composer has no task option of (a "
@@ -382,10 +375,19 @@ def _recorded_by_spec(env_spec) -> dict:
     if env_spec is None:
         return {}
     registered = ENV_IDS.get(env_spec.id)
-    limit = (env_spec.max_episode_steps if env_spec.kwargs.get("time_limit") is None
-             else None)
-    return {"id": env_spec.id, **(registered._asdict() if registered else {}),
-            **env_spec.kwargs, "max_episode_steps": limit}
+    kwargs = env_spec.kwargs
+    limit = env_spec.max_episode_steps if kwargs.get("time_limit") is None else None
+    said = {name: kwargs[name] for name in ("task", "reward_type", "control") if name in kwargs}
+    return {"id": env_spec.id, **(registered._asdict() if registered else {}), **said,
+            "options": {name: value for name, value in kwargs.items()
+                        if name not in _ENV_ARGUMENTS},
+            "max_episode_steps": limit}
+
+
+#: The arguments of a Minari dataset's env beside its task options (`FrankaGoalEnv`'s own,
+#: and the registered ids' `time_limit`).
+_ENV_ARGUMENTS = ("task", "reward_type", "render_mode", "width", "height", "camera",
+                  "time_limit")
 
 
 def _not_registered(path, recorded_id: str) -> ValueError:
