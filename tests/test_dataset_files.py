@@ -457,6 +457,12 @@ def test_a_dataset_recorded_with_an_option_this_version_has_not_is_refused(
                "franka_composer has no task option of (a later release's, or damaged "
                "metadata?): whether its transitions are this run's task cannot be checked")
     _refused(listed, push_env, message)
+    # Recorded before options were (no "options"): the task's own, its other entries not
+    # read as options.
+    unsaid = _rewrite(recorded / "push.npz", tmp_path / "unsaid.npz", metadata=np.array(
+        json.dumps({key: value for key, value in metadata.items() if key != "options"})))
+    assert {"source", "seed"} <= metadata.keys()
+    assert len(demos.load_episodes(unsaid, push_env)) == 2
     path = tmp_path / "minari"
     shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", path)
     spec_file = path / "data" / "metadata.json"
