@@ -60,7 +60,7 @@ import pathlib
 import sys
 from franka_composer.training.runs import RunDir, run_finished
 kept, budget, seeds = pathlib.Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3:]
-runs = {path.name: path for path in sorted(kept.glob("*/"))
+runs = {path.name: path for path in sorted(kept.glob("pick_and_place-*-seed*/"))
         if (path / "config.json").is_file()}
 finished = [name for name, path in runs.items() if run_finished(RunDir(path), budget)]
 complete, waiting = [], []

@@ -392,6 +392,50 @@ def test_a_cell_trained_as_another_run_is_refused_before_anything_runs(tmp_path)
         _check_trained_as(run, run_config(args))
 
 
+def test_an_out_that_is_a_run_or_holds_other_things_under_a_cells_name_is_refused(
+        tmp_path, monkeypatch):
+    """A folder holding no run under a cell's name was taken for a cell stopped before its
+    first checkpoint and removed, with what the user kept there; a file there was refused
+    as an option after --; --out a run, or inside one, failed its cell after Ray started,
+    leaving a log and folders inside the run. All refused before Ray starts."""
+    from franka_composer.training import sweep
+
+    monkeypatch.setattr(sweep, "run_sweep", lambda *args, **kwargs: pytest.fail("started"))
+    base = ["--tasks", "reach", "--algos", "sac", "--seeds", "0", "--steps", "300"]
+    out = tmp_path / "s"
+    (out / "reach-sac-seed0").mkdir(parents=True)
+    (out / "reach-sac-seed0" / "notes.txt").write_text("precious")
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{out / 'reach-sac-seed0'} is not empty and holds no run, where the sweep's "
+            "cell reach-sac-seed0 would train: move it aside, or sweep into another --out")
+            + "$"):
+        cli.main(["sweep", "--out", str(out), *base])
+    assert (out / "reach-sac-seed0" / "notes.txt").read_text() == "precious"
+    # A cell begun on such a folder all the same (made after the check) leaves it to train,
+    # which refuses it.
+    cell, = sweep.grid(["reach"], ["sac"], [0], 300)
+    assert sweep.run_cell(cell, out, ())[1] != 0
+    assert (out / "reach-sac-seed0" / "notes.txt").read_text() == "precious"
+    assert "is not empty and holds no run" in sweep.cell_log(cell, out).read_text()
+    (out / "reach-sac-seed0" / "notes.txt").unlink()
+    (out / "reach-sac-seed0").rmdir()
+    (out / "reach-sac-seed0").write_text("x")
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{out / 'reach-sac-seed0'} is a file where the sweep's cell reach-sac-seed0 "
+            "would train: move it aside, or sweep into another --out") + "$"):
+        cli.main(["sweep", "--out", str(out), *base])
+    run = _write_run(tmp_path, "run", [(0, 1.0, 0.0)]).root
+    before = sorted(path.relative_to(run) for path in run.rglob("*"))
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"--out {run} is a training run, not a sweep's folder (a sweep's cells are runs "
+            "in it)") + "$"):
+        cli.main(["sweep", "--out", str(run), *base])
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"--out {run / 'sub'} is inside the run {run}: give a folder outside it") + "$"):
+        cli.main(["sweep", "--out", str(run / "sub"), *base])
+    assert sorted(path.relative_to(run) for path in run.rglob("*")) == before
+
+
 def test_a_grid_needing_sbx_is_refused_without_it_before_anything_runs(tmp_path,
                                                                         monkeypatch):
     from franka_composer.training.models import SBX_MISSING
@@ -729,9 +773,9 @@ def _cpu_with_flags(folder: pathlib.Path, flags: str) -> pathlib.Path:
     return folder
 
 
-def _benchmark_sh(tmp_path, script, command, **env):
-    """benchmarks/SCRIPT COMMAND, its franka-composer one that prints its arguments, on a
-    CPU with bf16 units (`ZEN_4_FLAGS`)."""
+def _benchmark_sh(tmp_path, script, command, *arguments, **env):
+    """benchmarks/SCRIPT COMMAND ARGUMENTS, its franka-composer one that prints its
+    arguments, on a CPU with bf16 units (`ZEN_4_FLAGS`)."""
     bin_dir = tmp_path / "bin"
     if not bin_dir.exists():
         bin_dir.mkdir()
@@ -741,7 +785,8 @@ def _benchmark_sh(tmp_path, script, command, **env):
             (bin_dir / name).chmod(0o755)
     cpu = _cpu_with_flags(tmp_path / "zen4", ZEN_4_FLAGS)
     return subprocess.run(
-        [str(REPO / "benchmarks" / script), command], capture_output=True, text=True,
+        [str(REPO / "benchmarks" / script), command, *arguments], capture_output=True,
+        text=True,
         env={**os.environ, "BIN": str(bin_dir), "RUNS": str(tmp_path / "runs"),
              "KEPT": str(tmp_path / "kept"), "PYTHONPATH": str(cpu), **env})
 
@@ -954,6 +999,7 @@ def test_reference_timing_sh_reports_the_algorithms_whose_every_seed_has_finishe
     _write_run(kept, "pick_and_place-tqc-seed1", [(0, 1, 0.0)], (500000, False, 2))
     _write_run(kept, "pick_and_place-tqc-seed2", [(0, 1, 0.0)], (120000, True, 2))
     _write_run(kept, "pick_and_place-sac-seed0", [(0, 1, 0.0)])
+    _write_run(kept, "notes", [(0, 1, 0.0)])  # Not a cell's name: passed over (a traceback).
     reported = _benchmark_sh(tmp_path, "reference_timing.sh", "report")
     assert reported.returncode == 0, reported.stderr
     assert reported.stderr == ("not reported until every seed has finished: sac "
@@ -997,6 +1043,12 @@ def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_
         for seed, resume in ((0, ""), (1, " --resume"), (2, ""))]
     usage = _benchmark_sh(tmp_path, "fast_preset.sh", "slide")
     assert usage.returncode == 2 and usage.stdout.startswith("# The fast preset")
+    # Every seed is checked before the first trains (seed 0 trained, then x was refused).
+    mistyped = _benchmark_sh(tmp_path, "fast_preset.sh", "push", "0", "x",
+                             RUNS=str(tmp_path / "new-runs"))
+    assert (mistyped.returncode, mistyped.stdout, mistyped.stderr) == (
+        2, "", "a seed is a whole number >= 0, not 'x'\n")
+    assert not (tmp_path / "new-runs").exists()
     synced = _benchmark_sh(tmp_path, "fast_preset.sh", "sync")
     assert synced.stdout == (f"franka-composer keep {tmp_path}/runs/push-seed1/ --into "
                              "results/fast-preset\n")

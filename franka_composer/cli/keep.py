@@ -15,7 +15,8 @@ def add_parser(subparsers) -> None:
         "keep", help="copy runs' config, evaluations and finished policy into a folder to commit",
         description="Copy into DIR/<run> what each run has kept, small enough to commit while "
                     "it goes on: config.json, eval.csv up to its checkpoint (the evaluations "
-                    "a resume keeps), and once it has finished outcome.json and policy.pt "
+                    "a resume keeps; all of them before its first checkpoint, which a run "
+                    "begun again from zero retraces), and once it has finished outcome.json and policy.pt "
                     "(the actor alone). Run it again as the runs go on; a run taken on to a "
                     "larger budget loses its outcome and policy in DIR until it finishes "
                     "again. What DIR holds is only extended by the same run: a copy of "

@@ -66,9 +66,10 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--sync", type=output_folder, default=None, metavar="DIR",
                         help="copy into DIR/<cell> what each cell has kept, small enough to "
                              "commit as the sweep goes on: config.json, eval.csv up to its "
-                             "checkpoint, and once it has finished outcome.json and "
-                             "policy.pt (what DIR holds is only extended by the same run, as "
-                             "`keep` does); then exit")
+                             "checkpoint (all of it before the first: a cell without one "
+                             "begins again and retraces them), and once it has finished "
+                             "outcome.json and policy.pt (what DIR holds is only extended by "
+                             "the same run, as `keep` does); then exit")
     parser.add_argument("train_args", nargs="*", metavar="-- TRAIN_OPTION",
                         help="options passed to every cell's `train`")
     parser.set_defaults(func=run)
@@ -154,6 +155,26 @@ def _check_sweep_folder(out, *, synced: bool) -> None:
                          "cells are runs in it)")
     if synced and not out.is_dir():
         raise ValueError(f"--out {out} does not exist: no sweep there to sync")
+
+
+def _check_cell_folders(cells, out) -> None:
+    """--out to train in: a sweep's folder, not a run nor inside one (its next checkpoint or
+    `keep` would take the cells along), where each cell's name is free, a run, or an empty
+    folder: anything else there would be taken for a cell stopped before its first
+    checkpoint, and removed."""
+    from franka_composer.training.runs import RunDir, check_not_inside_a_run
+
+    _check_sweep_folder(out, synced=False)
+    check_not_inside_a_run(out)
+    for cell in cells:
+        run = RunDir(out / cell.name)
+        if run.root.exists() and not run.root.is_dir():
+            raise ValueError(f"{run.root} is a file where the sweep's cell {cell.name} would "
+                             "train: move it aside, or sweep into another --out")
+        if run.root.is_dir() and not run.config_path.is_file() and any(run.root.iterdir()):
+            raise ValueError(f"{run.root} is not empty and holds no run, where the sweep's "
+                             f"cell {cell.name} would train: move it aside, or sweep into "
+                             "another --out")
 
 
 def cell_arguments(cell, out, train_args: tuple[str, ...], *,
@@ -257,6 +278,7 @@ def run(args: argparse.Namespace) -> int:
         check_writable(args.out, folder=True)
     except ValueError as error:
         raise ValueError(f"--out: {error}") from None
+    _check_cell_folders(cells, args.out)
     try:
         import ray  # noqa: F401
     except ImportError as error:

@@ -146,13 +146,14 @@ def _resume_args(train_args: tuple[str, ...]) -> list[str]:
 
 
 def run_cell(cell: Cell, root: pathlib.Path, train_args: tuple[str, ...]) -> tuple[str, int]:
-    """Trains one cell to its budget in a process of its own; (cell name, exit code). A
-    directory without a checkpoint (stopped before its first one) starts again. Cancelled
-    (Ctrl-C on the sweep), it passes SIGTERM on, so the run checkpoints first."""
+    """Trains one cell to its budget in a process of its own; (cell name, exit code). A run
+    without a checkpoint (stopped before its first one) starts again; a folder there that
+    holds no run is left as it is, for train to refuse. Cancelled (Ctrl-C on the sweep), it
+    passes SIGTERM on, so the run checkpoints first."""
     run = RunDir(root / cell.name)
     if cell_finished(run, cell):
         return cell.name, 0
-    if run.root.exists():
+    if run.config_path.is_file():
         with run.training_lock():  # Not from under a process training it.
             run.recover_checkpoint()
             if not run.read_state():
