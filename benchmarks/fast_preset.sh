@@ -38,8 +38,9 @@ case "$task" in
 esac
 shift
 read -ra seeds <<< "${*:-0 1 2}"
-for seed in "${seeds[@]}"; do  # All of them before the first trains.
-  [[ $seed =~ ^[0-9]+$ ]] || { echo "a seed is a whole number >= 0, not '$seed'" >&2; exit 2; }
+for seed in "${seeds[@]}"; do  # All of them before the first trains, as train takes them.
+  [[ $seed =~ ^[0-9]{1,10}$ ]] && (( 10#$seed <= 2147483647 )) || {
+    echo "a seed is a whole number from 0 to 2147483647, not '$seed'" >&2; exit 2; }
 done
 refuse_emulated_bf16 "The fast preset's runs" || exit 1
 if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi

@@ -463,12 +463,18 @@ def test_a_dataset_recorded_with_an_option_this_version_has_not_is_refused(
         json.dumps({key: value for key, value in metadata.items() if key != "options"})))
     assert {"source", "seed"} <= metadata.keys()
     assert len(demos.load_episodes(unsaid, push_env)) == 2
+    # 0.3.0 kept the env's own arguments given to gym.make among the options.
+    given = _rewrite(recorded / "push.npz", tmp_path / "given.npz", metadata=np.array(
+        json.dumps(dict(metadata, options={"time_limit": 2.5, "render_mode": None}))))
+    assert len(demos.load_episodes(given, push_env)) == 2
     path = tmp_path / "minari"
     shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", path)
     spec_file = path / "data" / "metadata.json"
     metadata = json.loads(spec_file.read_text())
     spec = json.loads(metadata["env_spec"])
-    spec["kwargs"].update(render_mode=None, width=84, height=84, camera="workspace")
+    # As 0.4.0's ids wrote their spec (registered_id), with gym.make's own arguments.
+    spec["kwargs"].update(registered_id="FrankaPushSparse-v0", render_mode=None, width=84,
+                          height=84, camera="workspace")
     metadata["env_spec"] = json.dumps(spec)
     spec_file.write_text(json.dumps(metadata))
     assert len(demos.load_episodes(path, push_env)) == 2

@@ -1044,11 +1044,15 @@ def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_
     usage = _benchmark_sh(tmp_path, "fast_preset.sh", "slide")
     assert usage.returncode == 2 and usage.stdout.startswith("# The fast preset")
     # Every seed is checked before the first trains (seed 0 trained, then x was refused).
-    mistyped = _benchmark_sh(tmp_path, "fast_preset.sh", "push", "0", "x",
-                             RUNS=str(tmp_path / "new-runs"))
-    assert (mistyped.returncode, mistyped.stdout, mistyped.stderr) == (
-        2, "", "a seed is a whole number >= 0, not 'x'\n")
+    for seed in ("x", "2147483648", "99999999999999999999"):
+        mistyped = _benchmark_sh(tmp_path, "fast_preset.sh", "push", "0", seed,
+                                 RUNS=str(tmp_path / "new-runs"))
+        assert (mistyped.returncode, mistyped.stdout, mistyped.stderr) == (
+            2, "", f"a seed is a whole number from 0 to 2147483647, not '{seed}'\n")
     assert not (tmp_path / "new-runs").exists()
+    largest = _benchmark_sh(tmp_path, "fast_preset.sh", "push", "2147483647",
+                            RUNS=str(tmp_path / "new-runs"))
+    assert largest.returncode == 0 and "--seed 2147483647 " in largest.stdout
     synced = _benchmark_sh(tmp_path, "fast_preset.sh", "sync")
     assert synced.stdout == (f"franka-composer keep {tmp_path}/runs/push-seed1/ --into "
                              "results/fast-preset\n")

@@ -16,12 +16,13 @@ def add_parser(subparsers) -> None:
         description="Copy into DIR/<run> what each run has kept, small enough to commit while "
                     "it goes on: config.json, eval.csv up to its checkpoint (the evaluations "
                     "a resume keeps; all of them before its first checkpoint, which a run "
-                    "begun again from zero retraces), and once it has finished outcome.json and policy.pt "
-                    "(the actor alone). Run it again as the runs go on; a run taken on to a "
-                    "larger budget loses its outcome and policy in DIR until it finishes "
-                    "again. What DIR holds is only extended by the same run: a copy of "
-                    "another run, or evaluations the run has not reached or has otherwise, "
-                    "are refused. `sweep --sync DIR` does this for a sweep's cells.")
+                    "begun again from zero retraces), and once it has finished outcome.json "
+                    "and policy.pt (the actor alone). Run it again as the runs go on; a run "
+                    "taken on to a larger budget loses its outcome and policy in DIR until it "
+                    "finishes again. What DIR holds is only extended by the same run: a copy "
+                    "of another run, or evaluations the run has not reached or has "
+                    "otherwise, are refused. `sweep --sync DIR` does this for a sweep's "
+                    "cells.")
     add_run_dirs(parser)
     parser.add_argument("--into", type=output_folder, required=True, metavar="DIR",
                         help="the folder to copy into (made if missing)")

@@ -146,8 +146,8 @@ def _check_trained_as(run, config, *, started: bool = True) -> None:
 
 
 def _check_sweep_folder(out, *, synced: bool) -> None:
-    """--out for --status or --sync: a sweep's folder (its cells are runs in it), or, for
-    --status, none yet (the grid's cells listed, all waiting)."""
+    """--out for --status, --sync or training: a sweep's folder (its cells are runs in it),
+    or, but for --sync, none yet (--status lists the grid's cells, all waiting)."""
     from franka_composer.training.runs import RunDir
 
     if RunDir(out).config_path.is_file():

@@ -226,7 +226,7 @@ def _recorded_options(path, recorded: dict) -> dict:
     if not isinstance(given, dict):
         raise ValueError(f"{path} says it was recorded with the options {given!r}, which "
                          "are not a mapping of option names to values (damaged metadata?)")
-    unknown = sorted(set(given) - {*OPTIONS, "timing"}, key=repr)
+    unknown = sorted(set(given) - {*OPTIONS, "timing", *_ENV_ARGUMENTS}, key=repr)
     if unknown:
         raise ValueError(f"{path} says it was recorded with {', '.join(map(repr, unknown))}, "
                          "which this version of franka_composer has no task option of (a "
@@ -384,10 +384,11 @@ def _recorded_by_spec(env_spec) -> dict:
             "max_episode_steps": limit}
 
 
-#: The arguments of a Minari dataset's env beside its task options (`FrankaGoalEnv`'s own,
-#: and the registered ids' `time_limit`).
+#: The arguments of an env beside its task options: `FrankaGoalEnv`'s own, `load`'s
+#: `time_limit`, and the `registered_id` that 0.4.0's ids passed. A Minari env spec holds
+#: them beside the options, and 0.3.0's datasets kept those given to `gym.make` among them.
 _ENV_ARGUMENTS = ("task", "reward_type", "render_mode", "width", "height", "camera",
-                  "time_limit")
+                  "time_limit", "registered_id")
 
 
 def _not_registered(path, recorded_id: str) -> ValueError:
