@@ -38,10 +38,17 @@ case "$task" in
 esac
 shift
 read -ra seeds <<< "${*:-0 1 2}"
-for seed in "${seeds[@]}"; do  # All of them before the first trains, as train takes them.
-  [[ $seed =~ ^[0-9]{1,10}$ ]] && (( 10#$seed <= 2147483647 )) || {
-    echo "a seed is a whole number from 0 to 2147483647, not '$seed'" >&2; exit 2; }
-done
+# Every seed as train takes it (its own check), before the first trains.
+"$BIN/python" - "${seeds[@]}" <<'PY' || exit 2
+import argparse
+import sys
+from franka_composer.cli.options import training_seed
+for seed in sys.argv[1:]:
+    try:
+        training_seed(seed)
+    except argparse.ArgumentTypeError as error:
+        sys.exit(f"a seed {error}")
+PY
 refuse_emulated_bf16 "The fast preset's runs" || exit 1
 if [ -n "${FROZEN:-}" ]; then use_frozen_tree "$FROZEN" "$RUNS" || exit 1; fi
 mkdir -p "$RUNS"

@@ -1048,7 +1048,7 @@ def test_fast_preset_sh_trains_each_seed_in_turn_and_resumes_a_run_it_finds(tmp_
         mistyped = _benchmark_sh(tmp_path, "fast_preset.sh", "push", "0", seed,
                                  RUNS=str(tmp_path / "new-runs"))
         assert (mistyped.returncode, mistyped.stdout, mistyped.stderr) == (
-            2, "", f"a seed is a whole number from 0 to 2147483647, not '{seed}'\n")
+            2, "", f"a seed must be an integer from 0 to 2147483647, got '{seed}'\n")
     assert not (tmp_path / "new-runs").exists()
     largest = _benchmark_sh(tmp_path, "fast_preset.sh", "push", "2147483647",
                             RUNS=str(tmp_path / "new-runs"))

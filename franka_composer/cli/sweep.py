@@ -171,7 +171,7 @@ def _check_cell_folders(cells, out) -> None:
         if run.root.exists() and not run.root.is_dir():
             raise ValueError(f"{run.root} is a file where the sweep's cell {cell.name} would "
                              "train: move it aside, or sweep into another --out")
-        if run.root.is_dir() and not run.config_path.is_file() and any(run.root.iterdir()):
+        if run.holds_other_things():
             raise ValueError(f"{run.root} is not empty and holds no run, where the sweep's "
                              f"cell {cell.name} would train: move it aside, or sweep into "
                              "another --out")

@@ -101,7 +101,7 @@ def check_can_start(root: pathlib.Path) -> RunDir:
     if run.config_path.exists():
         raise ValueError(f"{run.root} already holds a run; pass --resume to continue it "
                          "or choose another --out")
-    if run.root.is_dir() and any(run.root.iterdir()):
+    if run.holds_other_things():
         raise ValueError(f"{run.root} is not empty and holds no run: give a new or empty "
                          "folder as --out")
     return run

@@ -322,6 +322,12 @@ class RunDir:
         self.check_config_checkpointed()
         self.check_checkpoint_whole()
 
+    def holds_other_things(self) -> bool:
+        """Whether its folder holds files but no run (no config.json, which a run writes
+        first): nothing a run may be begun over, nor removed as one stopped early."""
+        return (self.root.is_dir() and not self.config_path.exists()
+                and any(self.root.iterdir()))
+
     def is_kept_copy(self) -> bool:
         """Whether this is what `keep` copies of a finished run: its outcome.json, with
         no model.zip or checkpoint to train on from (its policy.pt, where it was kept)."""
