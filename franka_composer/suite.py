@@ -9,7 +9,8 @@ from franka_composer import seeding
 from franka_composer.environment import GoalEnvironment, check_time_limit
 from franka_composer.fast_path import make_environment
 from franka_composer.tasks import build_task, task_config
-from franka_composer.validation import check_bool
+from franka_composer.tasks.options import OPTION_NAMES
+from franka_composer.validation import check_bool, check_names, named_parameters
 
 #: Times Composer retries an episode whose initialisation raised EpisodeInitializationError.
 MAX_RESET_ATTEMPTS = 10
@@ -57,6 +58,7 @@ def load(name: str, *, reward_type: str = "sparse", seed=None, renderable: bool 
         except ValueError:  # check_seed's words, which know of ints alone.
             raise ValueError(f"seed must be a non-negative int, a np.random.RandomState or "
                              f"None, got {seed!r}") from None
+    check_names("task option", task_kwargs, OPTION_NAMES, own=("load", named_parameters(load)))
     config = task_config(name, reward_type=reward_type, **task_kwargs)
     seconds = (config.time_limit if isinstance(time_limit, str) and time_limit == TASK_TIME_LIMIT
                else check_time_limit(time_limit))

@@ -3,6 +3,7 @@ says what it accepts, raised before anything is built or reaches MuJoCo."""
 
 from __future__ import annotations
 
+import inspect
 import math
 import numbers
 import os
@@ -24,14 +25,28 @@ def check_choice(kind: str, value, choices: Sequence[str], *, also: str | None =
     raise ValueError(f"unknown {kind} {value!r}; valid {kinds}: {valid}")
 
 
-def check_names(kind: str, names: Iterable[str], valid: Iterable[str]) -> None:
-    """Raises "unknown KIND(s) 'a', 'b'; valid KINDs: ..." for names not in `valid`."""
+def check_names(kind: str, names: Iterable[str], valid: Iterable[str], *,
+                own: tuple[str, Iterable[str]] | None = None) -> None:
+    """Raises "unknown KIND(s) 'a', 'b'; valid KINDs: ..." for names not in `valid`, then
+    "; CALLER's own arguments: ..." where `own` is (CALLER, the names it takes beside them):
+    a misspelt `render_mode` passed with the task options is listed among what was meant."""
     valid = sorted(valid)
     # By their text: names of mixed types ({1: ..., "foo": ...}) do not sort as they are.
     unknown = sorted(set(names) - set(valid), key=repr)
     if unknown:
+        also = ""
+        if own is not None:
+            caller, arguments = own
+            also = f"; {caller}'s own arguments: {', '.join(sorted(set(arguments) - set(valid)))}"
         raise ValueError(f"unknown {kind}(s) {', '.join(map(repr, unknown))}; "
-                         f"valid {kind}s: {', '.join(valid)}")
+                         f"valid {kind}s: {', '.join(valid)}{also}")
+
+
+def named_parameters(function) -> tuple[str, ...]:
+    """The parameters a call to `function` can name (not self, *args or **kwargs)."""
+    return tuple(name for name, parameter in inspect.signature(function).parameters.items()
+                 if name != "self" and parameter.kind in (parameter.POSITIONAL_OR_KEYWORD,
+                                                          parameter.KEYWORD_ONLY))
 
 
 def repeated(values) -> list[str]:

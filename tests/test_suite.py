@@ -317,6 +317,15 @@ def test_unknown_option_lists_valid_options():
         franka_composer.load("push", goal_radius=0.1)
 
 
+def test_a_misspelt_argument_of_load_is_listed_among_its_own():
+    """`seed`, `renderable` and `time_limit` are no task options, but a misspelling of one
+    lands among them: the error lists them too, and no name twice."""
+    with pytest.raises(ValueError, match=r"unknown task option\(s\) 'seeed'; valid task options: "
+                                         r"[^;]*reward_type[^;]*; load's own arguments: name, "
+                                         r"renderable, seed, time_limit$"):
+        franka_composer.load("push", seeed=1)
+
+
 def test_bad_option_values_raise_clear_errors():
     with pytest.raises(ValueError, match="unknown reward_type 'shaped'"):
         franka_composer.load("push", reward_type="shaped")

@@ -30,7 +30,8 @@ from franka_composer.randomization.settings import from_a_preset
 from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.tasks.records import ObservationSettings
-from franka_composer.validation import check_bool, check_choice
+from franka_composer.tasks.options import OPTION_NAMES
+from franka_composer.validation import check_bool, check_choice, check_names, named_parameters
 
 #: `suite.load`'s parameters that the adapter sets itself, and how a Gymnasium user sets
 #: what they stand for.
@@ -92,6 +93,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         EzPickle.__init__(self, task, reward_type, render_mode, width, height, camera,
                           **task_kwargs)
         _check_not_loads_own(task_kwargs)
+        check_names("task option", set(task_kwargs) - {"time_limit"}, OPTION_NAMES,
+                    own=("the env", _OWN_ARGUMENTS))
         # Every rendering argument is checked before anything is built or reaches MuJoCo.
         if render_mode is not None:
             check_choice("render_mode", render_mode, tuple(self.metadata["render_modes"]),
@@ -369,6 +372,10 @@ def _check_display() -> None:
         raise RuntimeError("render_mode='human' needs a display, and none was found (neither "
                            "DISPLAY nor WAYLAND_DISPLAY is set): use render_mode='rgb_array' "
                            "for headless frames, or set DISPLAY")
+
+
+#: What the env takes beside the task options: its own parameters and `load`'s time limit.
+_OWN_ARGUMENTS = (*named_parameters(FrankaGoalEnv.__init__), "time_limit")
 
 
 def _check_not_loads_own(options: dict) -> None:

@@ -16,7 +16,7 @@ from franka_composer.controllers import ControlSettings
 from franka_composer.entities.panda import MAX_FINGER_WIDTH, NEUTRAL_ARM_QPOS
 from franka_composer.randomization import RandomizationSettings
 from franka_composer.tasks.clearance import check_clearance, clearance_inputs
-from franka_composer.tasks.options import (LIFTED_GOALS, OPTIONS, expand_timing,
+from franka_composer.tasks.options import (LIFTED_GOALS, OPTION_NAMES, OPTIONS, expand_timing,
                                            refuse_unread, timing_name, unread_option)
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
@@ -89,7 +89,7 @@ class TaskConfig:
         """A copy with `options` (names of `OPTIONS`) set; an unknown name is a ValueError
         listing the valid ones, a bad value one naming the option and what it accepts."""
         options = expand_timing(options)
-        check_names("task option", options, [*OPTIONS, "timing"])
+        check_names("task option", options, OPTION_NAMES)
         config = self
         for name, value in options.items():
             option = OPTIONS[name]

@@ -379,3 +379,6 @@ OPTIONS: dict[str, Option] = {
                                lambda name, value: check_vector(name, value, 7)),
 }
 
+#: The names `TaskConfig.replace` takes: the options and `timing` (which sets three).
+OPTION_NAMES = (*OPTIONS, "timing")
+
