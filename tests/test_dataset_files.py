@@ -996,8 +996,9 @@ def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_pat
     assert len(demos.load_episodes(dataset, push_env)) == 2
     data = dataset / "data" / "main_data.hdf5"
     data.write_bytes(data.read_bytes()[:3000])
-    _refused(dataset, push_env, "is not a readable Minari dataset (damaged?): OSError: "
-                                "Unable to synchronously open file (truncated file")
+    _refused(dataset, push_env, "is not a readable Minari dataset (damaged?): its "
+                                "main_data.hdf5: OSError: Unable to synchronously open file "
+                                "(truncated file")
 
 
 def test_a_minari_dataset_whose_episode_attributes_are_damaged_is_refused_by_name(
@@ -1022,6 +1023,34 @@ def test_a_minari_dataset_whose_episode_attributes_are_damaged_is_refused_by_nam
                                 "main_data.hdf5: RuntimeError: Can't synchronously determine "
                                 "if attribute exists by name (wrong version number in "
                                 "dataspace message)")
+
+
+def test_a_minari_array_whose_header_declares_more_than_its_file_is_refused_unread(
+        recorded, push_env, tmp_path):
+    """One flipped bit in the dimensions of episode 1's actions (25 rows, 2**28 + 25 after
+    it) had h5py allocate the 3.2 GB they declare, and more, until the process ran out of
+    memory (23 GB) before any check: the headers are read first, and its digest is checked
+    before the arrays are read."""
+    import shutil
+
+    import h5py
+
+    dataset = tmp_path / "push"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", dataset)
+    data = dataset / "data" / "main_data.hdf5"
+    with h5py.File(data, "r") as file:
+        assert file["episode_1/actions"].shape == (25, 3)
+        header = h5py.h5o.get_info(file["episode_1/actions"].id).addr
+    content = bytearray(data.read_bytes())
+    # Its dataspace message, the first in its object header: the dimensions as 8-byte ints.
+    dimensions = content.index((25).to_bytes(8, "little") + (3).to_bytes(8, "little"), header)
+    assert dimensions - header < 64
+    content[dimensions + 3] ^= 0x10
+    data.write_bytes(bytes(content))
+    _refused(dataset, push_env, f"{dataset}: the array /episode_1/actions of its "
+                                "main_data.hdf5 declares shape (268435481, 3) (chunks (25, 3)), "
+                                f"3,221,225,772 bytes, and the file holds {data.stat().st_size:,}"
+                                ": its header is damaged; record it again")
 
 
 def test_minari_seeds_past_uint64_are_refused_before_recording(tmp_path):

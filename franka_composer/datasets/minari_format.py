@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import importlib.metadata
+import math
 import os
 import pathlib
 import warnings
@@ -122,6 +123,47 @@ def add_digests(data: pathlib.Path) -> None:
     with h5py.File(data / HDF5_FILE, "r+") as file:
         for name in episode_groups(file):
             file[name].attrs[DIGEST_ATTRIBUTE] = _digest(file[name])
+
+
+#: The bytes one chunk of an HDF5 array may take in any file: h5py's largest automatic chunk
+#: (`h5py.filters.CHUNK_MAX`), which a small file's arrays may declare and never fill.
+CHUNK_BYTES_ALLOWED = 1024 * 1024
+
+
+def check_declared_sizes(path, data: pathlib.Path) -> None:
+    """A ValueError naming `path` and the first array whose header declares more bytes (its
+    shape, or one chunk of it) than its HDF5 file holds, read from the headers alone. An
+    array stored without filters (Minari's and `write`'s) keeps every byte of its shape on
+    disk: one that declares more has a damaged header, and reading it made h5py allocate
+    what it declared (one flipped bit in a dimension asked for 3 GB, and the process ran out
+    of memory before any other check)."""
+    if not (data / HDF5_FILE).is_file():
+        return
+    import h5py
+
+    size = (data / HDF5_FILE).stat().st_size
+    damaged = None
+    try:
+        with h5py.File(data / HDF5_FILE, "r") as file:
+            arrays: list = []
+            file.visititems(lambda name, item: arrays.append(item)
+                            if isinstance(item, h5py.Dataset) else None)
+            for array in arrays:
+                if array.id.get_create_plist().get_nfilters():
+                    continue  # Compressed: its bytes on disk bound nothing.
+                itemsize = array.dtype.itemsize
+                declared = math.prod(array.shape) * itemsize  # Python's ints: any size.
+                chunk = math.prod(array.chunks) * itemsize if array.chunks else 0
+                if declared > size or chunk > max(size, CHUNK_BYTES_ALLOWED):
+                    damaged = (array.name, array.shape, array.chunks, max(declared, chunk))
+                    break
+    except Exception as error:  # h5py raises what it meets in a damaged file.
+        raise unreadable(path, error, HDF5_FILE) from None
+    if damaged is not None:
+        name, shape, chunks, declared = damaged
+        raise ValueError(f"{path}: the array {name} of its {HDF5_FILE} declares shape {shape} "
+                         f"(chunks {chunks}), {declared:,} bytes, and the file holds "
+                         f"{size:,}: its header is damaged; record it again")
 
 
 def check_digests(path, data: pathlib.Path) -> None:

@@ -330,6 +330,9 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
         raise _not_registered(path, env_spec.id)
     recorded = _recorded_by_spec(env_spec)
     _check_recorded_as_trained(path, recorded, env, "minari")
+    # Before any array is read: a damaged header would have it allocate what it declares.
+    minari_format.check_declared_sizes(path, data)
+    minari_format.check_digests(path, data)
     try:
         episodes = [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
                      "action": np.asarray(episode.actions, dtype=np.float32),
@@ -342,7 +345,6 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
         stored = _stored_minari_episodes(data)
     except Exception as error:
         raise minari_format.unreadable(path, error) from None
-    minari_format.check_digests(path, data)
     steps = sum(len(episode["action"]) for episode in episodes)
     if (dataset.total_episodes, dataset.total_steps) != (stored, steps):
         # Minari reads as many episodes as metadata.json counts: the others were dropped.
