@@ -266,15 +266,22 @@ def test_bad_actions_and_options_raise_clear_errors():
         gym.make("FrankaPushSparse-v0", threshold=0.1)
 
 
-@pytest.mark.parametrize("typo", ["time_limt", "render_mod", "widht"])
+@pytest.mark.parametrize("typo", ["time_limt", "render_mod", "widht", "max_episode_step"])
 def test_a_misspelt_argument_of_the_env_is_listed_among_its_own(typo):
-    """`gym.make` takes the env's rendering arguments and `time_limit` beside the task
-    options (not `load`'s seed or renderable, which the adapter sets): a misspelling lists
-    them."""
+    """`gym.make` takes its own arguments, the env's rendering arguments and `time_limit`
+    beside the task options (not `load`'s seed or renderable, which the adapter sets): a
+    misspelling lists them, and the env made from its class lists its own."""
+    with pytest.raises(ValueError, match=rf"unknown task option\(s\) '{typo}'; valid task "
+                                         r"options: [^;]*; gym.make's own arguments: camera, "
+                                         r"disable_env_checker, height, id, max_episode_steps, "
+                                         r"render_mode, task, time_limit, width$"):
+        gym.make("FrankaPushSparse-v0", **{typo: 1})
+    from franka_composer.adapters.goal_env import FrankaGoalEnv
+
     with pytest.raises(ValueError, match=rf"unknown task option\(s\) '{typo}'; valid task "
                                          r"options: [^;]*; the env's own arguments: camera, "
                                          r"height, render_mode, task, time_limit, width$"):
-        gym.make("FrankaPushSparse-v0", **{typo: 1})
+        FrankaGoalEnv("push", **{typo: 1})
 
 
 def test_step_before_reset_raises_gymnasiums_error():

@@ -94,7 +94,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
                           **task_kwargs)
         _check_not_loads_own(task_kwargs)
         check_names("task option", set(task_kwargs) - {"time_limit"}, OPTION_NAMES,
-                    own=("the env", _OWN_ARGUMENTS))
+                    own=("the env", ENV_ARGUMENTS))
         # Every rendering argument is checked before anything is built or reaches MuJoCo.
         if render_mode is not None:
             check_choice("render_mode", render_mode, tuple(self.metadata["render_modes"]),
@@ -375,7 +375,7 @@ def _check_display() -> None:
 
 
 #: What the env takes beside the task options: its own parameters and `load`'s time limit.
-_OWN_ARGUMENTS = (*named_parameters(FrankaGoalEnv.__init__), "time_limit")
+ENV_ARGUMENTS = (*named_parameters(FrankaGoalEnv.__init__), "time_limit")
 
 
 def _check_not_loads_own(options: dict) -> None:

@@ -18,12 +18,13 @@ from typing import NamedTuple
 
 import gymnasium as gym
 
-from franka_composer.adapters.goal_env import FrankaGoalEnv
+from franka_composer.adapters.goal_env import ENV_ARGUMENTS, FrankaGoalEnv
 from franka_composer.adapters.pages import page
 from franka_composer.controllers import CONTROL_VERSIONS, CONTROLS
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
+from franka_composer.tasks.options import OPTION_NAMES
 from franka_composer.tasks.rewards import REWARD_TYPES
-from franka_composer.validation import check_choice
+from franka_composer.validation import check_choice, check_names, named_parameters
 
 
 def _camel(task: str) -> str:
@@ -114,6 +115,9 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
             + ("task, reward_type and control" if controlled else "task and reward_type")
             + " cannot be changed"
             + (f"; use {wanted!r}" if wanted else ""))
+    # gym.make's own arguments are listed too: a misspelt max_episode_steps lands here.
+    check_names("task option", set(options) - set(ENV_ARGUMENTS), OPTION_NAMES,
+                own=("gym.make", (*ENV_ARGUMENTS, *named_parameters(gym.make))))
     options.setdefault("time_limit", None)
     return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
