@@ -319,17 +319,36 @@ def test_a_kill_while_the_final_model_is_written_leaves_no_damaged_model_zip(tmp
     assert run.best_model() == run.checkpoint_model
 
 
+def _longest_length_past_memory(content: bytes) -> bytes:
+    """`content`, a pickle, with the highest bit of its first BYTEARRAY8's 8-byte length
+    set: a length past any memory (the unpickler asked for it before reading)."""
+    import pickletools
+
+    at = next(position for opcode, _, position in pickletools.genops(content)
+              if opcode.name == "BYTEARRAY8")
+    damaged = bytearray(content)
+    damaged[at + 8] |= 0x80
+    return bytes(damaged)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name, damage, message", [
     ("replay_buffer.pkl", lambda b: b[:len(b) // 2], "is damaged (truncated or not what a "
                                                      "checkpoint writes): UnpicklingError"),
+    ("replay_buffer.pkl", _longest_length_past_memory, "is damaged (truncated or not what a "
+                                                       "checkpoint writes): OverflowError"),
     ("generators.pkl", lambda b: b"", "is damaged (truncated or not what a checkpoint "
                                       "writes): EOFError"),
     ("model.zip", lambda b: b"garbage", "is damaged (not a readable zip archive"),
 ])
 def test_a_resume_names_the_damaged_checkpoint_file(finished, tmp_path, name, damage,
                                                     message):
+    """As read from a checkpoint written before its files' digests (none in state.json):
+    what the unpicklers and the zip reader raise is named by the file."""
     run = _copy_run(finished, tmp_path / "run")
+    state = json.loads(run.checkpoint_state.read_text())
+    del state["sha256"]
+    run.checkpoint_state.write_text(json.dumps(state))
     path = run.checkpoint / name
     path.write_bytes(damage(path.read_bytes()))
     with pytest.raises(ValueError, match=re.escape(str(path)) + " " + re.escape(message)):
@@ -361,6 +380,39 @@ def test_evaluate_finds_a_run_with_only_a_damaged_model_before_playing_any(tmp_p
             + re.escape("and the run has no whole model to play instead")):
         cli.main(["evaluate", str(kept), str(damaged), "--episodes", "2", "--device", "cpu"])
     assert made == [] and "success" not in capsys.readouterr().out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["replay_buffer.pkl", "generators.pkl", "model.zip"])
+def test_a_resume_refuses_a_checkpoint_file_changed_since_by_its_digest(finished, tmp_path,
+                                                                        name):
+    """One flipped bit in a pickle's data unpickled as another replay buffer or other
+    generators' states, and the run went on as an exact resume: each file's SHA-256, kept
+    in state.json, is checked before anything is unpickled."""
+    run = _copy_run(finished, tmp_path / "run")
+    assert set(run.read_state()["sha256"]) == {"generators.pkl", "model.zip",
+                                               "replay_buffer.pkl"}
+    path = run.checkpoint / name
+    content = bytearray(path.read_bytes())
+    content[len(content) // 2] ^= 0x01
+    path.write_bytes(bytes(content))
+    with pytest.raises(ValueError, match="^" + re.escape(
+            f"{path} is not the file its checkpoint wrote (its SHA-256 differs from the one "
+            "in state.json): damaged since") + "$"):
+        cli.main(["train", "--resume", "--out", str(run.root), "--total-steps", "300",
+                  "--no-progress", "--device", "cpu"])
+    assert run.read_state()["steps"] == 200 and run.final_model.is_file()  # As it was.
+
+
+def test_a_checkpoint_state_whose_digests_are_not_file_names_is_refused(finished, tmp_path):
+    run = _copy_run(finished, tmp_path / "run")
+    state = json.loads(run.checkpoint_state.read_text())
+    run.checkpoint_state.write_text(json.dumps({**state, "sha256": {"../config.json": "0"}}))
+    with pytest.raises(ValueError, match=re.escape(
+            f"{run.checkpoint_state} is not a checkpoint's state (edited or damaged?): its "
+            "sha256 must map the checkpoint's file names to digests, got {'../config.json': "
+            "'0'}")):
+        run.read_state()
 
 
 @pytest.mark.slow

@@ -174,7 +174,7 @@ def test_a_table_i_policy_file_is_the_actor_alone(tmp_path, algo, backend):
 def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
     import torch
 
-    from franka_composer.training.policy_file import load_trained
+    from franka_composer.training.policy_file import _digest, load_trained
 
     env = make_env("push")
     committed = _committed_copy(runs["sac"], tmp_path / "committed")
@@ -183,11 +183,29 @@ def test_policy_files_refuse_what_they_cannot_load(runs, tmp_path):
     with pytest.raises(ValueError, match="a policy file of format 99; this version of "
                                          "franka_composer reads format 1"):
         load_trained(RunDir(committed), env, device="cpu")
-    # A diverged actor: torch's distributions raised on its NaN, naming no file.
+    # One flipped bit in a weight's bytes: torch's zip reader checks no checksum, and the
+    # actor read was another (played without a word); so is one in the steps.
+    torch.save(state, committed / "policy.pt")
+    content = bytearray((committed / "policy.pt").read_bytes())
+    name = sorted(state["actor"])[0]
+    content[content.index(state["actor"][name].numpy().tobytes()[:64]) + 3] ^= 0x40
+    (committed / "policy.pt").write_bytes(bytes(content))
+    assert not torch.equal(torch.load(committed / "policy.pt", weights_only=True)["actor"][name],
+                           state["actor"][name])
+    for damaged in (committed / "policy.pt", {**state, "steps": state["steps"] + 1}):
+        if isinstance(damaged, dict):
+            torch.save(damaged, committed / "policy.pt")
+        with pytest.raises(ValueError, match=re.escape(
+                f"{committed / 'policy.pt'} is not the policy file its run wrote: its actor "
+                "and steps do not give the SHA-256 it holds (damaged or edited since)")):
+            load_trained(RunDir(committed), env, device="cpu")
+    # A diverged actor (its digest its own): torch's distributions raised on its NaN, naming
+    # no file.
     broken = {name: tensor.clone() for name, tensor in state["actor"].items()}
     name = sorted(broken)[-1]
     broken[name][0] = float("nan")
-    torch.save({**state, "actor": broken}, committed / "policy.pt")
+    torch.save({**state, "actor": broken, "sha256": _digest("sb3", state["steps"], broken)},
+               committed / "policy.pt")
     with pytest.raises(ValueError, match=re.escape(
             f"{committed / 'policy.pt'}'s actor has parameters that are not finite (NaN or "
             f"inf in {name}): saved from a run that diverged?")):
@@ -604,6 +622,8 @@ def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_pa
     stream's seed altered) is not resumed as if it were exact."""
     import pickle
 
+    from franka_composer.training.run_files import file_digests
+
     out = tmp_path / "run"
     with monkeypatch.context() as patch:
         _stop_asked_at(patch, 160)
@@ -612,7 +632,11 @@ def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_pa
     state = pickle.loads(generators.read_bytes())
     state["stream"]["seed"] = 99
     generators.write_bytes(pickle.dumps(state))
-    steps = RunDir(out).read_state()["steps"]
+    checkpoint = RunDir(out).read_state()  # Its digest, of the file as it now is.
+    digest = file_digests(RunDir(out).checkpoint)[generators.name]
+    RunDir(out).checkpoint_state.write_text(json.dumps(
+        {**checkpoint, "sha256": {**checkpoint["sha256"], generators.name: digest}}))
+    steps = checkpoint["steps"]
     with pytest.warns(RuntimeWarning, match="did not come back as its checkpoint saw it; the "
                                             "run goes on with a fresh episode stream"):
         assert _train(out, "sac", steps + 50, "--resume") == 0

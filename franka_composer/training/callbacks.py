@@ -22,6 +22,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback,
 from franka_composer.training import exact_resume
 from franka_composer.training.exact_resume import EpisodeStream
 from franka_composer.training.run_config import RunConfig
+from franka_composer.training.run_files import file_digests
 from franka_composer.training.runs import RunDir, append_eval_row, read_eval_rows
 
 
@@ -245,5 +246,5 @@ class LatestCheckpoint(CheckpointCallback):
              "cpu_time_s": self._clock.cpu(), "checkpoint_every": self.save_freq,
              "exact": exact, "threads": self._threads,
              "fresh_streams": self._fresh_streams, "machines": self._machines,
-             "config": self._config}) + "\n")
+             "config": self._config, "sha256": file_digests(self._writing)}) + "\n")
         run.publish_checkpoint(self._writing)

@@ -29,7 +29,8 @@ from franka_composer.training.models import build_model, load_model, make_env, q
 from franka_composer.training.policy_file import save_policy
 from franka_composer.training.precision import GradientStepPrecision, warn_if_emulated
 from franka_composer.training.run_config import RunConfig
-from franka_composer.training.run_files import checked_model, unpickling
+from franka_composer.training.run_files import (check_file_digests, checked_model,
+                                                unpickling)
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RunDir, run_finished,
                                           write_eval_rows)
 from franka_composer.training.target_bounds import clip_target_critic
@@ -56,6 +57,7 @@ def _resume(run: RunDir, config: RunConfig, state: dict, env, device: str, goes_
     the run left them where the checkpoint allows (`exact_resume`), else with a fresh
     episode stream, seeded by the run's seed and step, said with a warning where the run
     `goes_on` training from there; and whether it trains on a fresh stream."""
+    check_file_digests(run.checkpoint, state.get("sha256"))  # Before anything is unpickled.
     exact = bool(state.get("exact")) and run.checkpoint_generators.is_file()
     model = load_model(config.algo, checked_model(run.checkpoint_model), env=env,
                        device=device, backend=config.backend, force_reset=not exact)

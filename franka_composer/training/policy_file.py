@@ -49,12 +49,31 @@ def _actor_weights(model) -> tuple[str, dict]:
 
 
 def save_policy(model, path: pathlib.Path) -> None:
-    """Writes `model`'s actor and step count to `path` (an SB3 or sbx model)."""
+    """Writes `model`'s actor and step count to `path` (an SB3 or sbx model), with their
+    digest (`_digest`)."""
     import torch
 
     backend, weights = _actor_weights(model)
-    torch.save({"format": FORMAT, "backend": backend, "steps": int(model.num_timesteps),
-                "actor": weights}, path)
+    steps = int(model.num_timesteps)
+    torch.save({"format": FORMAT, "backend": backend, "steps": steps, "actor": weights,
+                "sha256": _digest(backend, steps, weights)}, path)
+
+
+def _digest(backend: str, steps: int, actor: dict) -> str:
+    """A SHA-256 of a policy file's backend, steps and each actor parameter's name, dtype,
+    shape and bytes, in name order. torch's zip reader checks no checksum: a changed byte
+    in a weight, or in the pickle that says where each weight lies, read as another actor
+    (a weight 1.6e37 off played without a word)."""
+    import hashlib
+
+    import torch
+
+    digest = hashlib.sha256(f"{backend} {steps}\n".encode())
+    for name in sorted(actor):
+        tensor = actor[name].detach().cpu().contiguous()
+        digest.update(f"{name} {tensor.dtype} {tuple(tensor.shape)}\n".encode())
+        digest.update(tensor.reshape(-1).view(torch.uint8).numpy().tobytes())
+    return digest.hexdigest()
 
 
 class ActorPolicy:
@@ -126,6 +145,10 @@ def read_policy_file(config: RunConfig, path: pathlib.Path, device: str = "cpu")
     if not isinstance(actor, dict) or not all(torch.is_tensor(t) for t in actor.values()):
         raise ValueError(f"{path} is not a policy file franka_composer wrote (its actor is "
                          "not a mapping of parameter names to tensors)")
+    if "sha256" in state and state["sha256"] != _digest(saved_by, state["steps"], actor):
+        # Files written before the digest have none, and pass.
+        raise ValueError(f"{path} is not the policy file its run wrote: its actor and steps "
+                         "do not give the SHA-256 it holds (damaged or edited since)")
     broken = [name for name, tensor in actor.items()
               if tensor.is_floating_point() and not torch.isfinite(tensor).all()]
     if broken:  # It would act NaN, or raise from inside torch's distributions.

@@ -5,6 +5,7 @@ that reads it."""
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import pathlib
 import pickle
@@ -87,15 +88,44 @@ def steps_of(state_path: pathlib.Path) -> int | None:
     return steps if isinstance(steps, int) else None
 
 
+def file_digests(folder: pathlib.Path) -> dict[str, str]:
+    """A SHA-256 of each file in `folder`, by name: what a checkpoint's state.json records
+    of the files beside it (`check_file_digests`)."""
+    digests = {}
+    for path in sorted(folder.iterdir()):
+        with path.open("rb") as file:
+            digests[path.name] = hashlib.file_digest(file, "sha256").hexdigest()
+    return digests
+
+
+def check_file_digests(folder: pathlib.Path, digests: dict[str, str] | None) -> None:
+    """A ValueError naming the first file in `folder` that is missing or whose SHA-256 is
+    not the one in `digests` (a checkpoint's state.json's; None: written before they were
+    recorded, and unchecked). Pickles keep no checksum: a changed byte unpickled as other
+    weights or buffer contents, without a word, or a length field asked for 64 GiB."""
+    for name, digest in sorted((digests or {}).items()):
+        path = folder / name
+        if not path.is_file():
+            raise ValueError(f"{path} is missing: a checkpoint cannot be resumed without it")
+        with path.open("rb") as file:
+            if hashlib.file_digest(file, "sha256").hexdigest() != digest:
+                raise ValueError(f"{path} is not the file its checkpoint wrote (its SHA-256 "
+                                 "differs from the one in state.json): damaged since")
+
+
 @contextlib.contextmanager
 def unpickling(path: pathlib.Path):
     """Reading the pickle at `path` (a replay buffer, the generators' states) inside the
     block: one that is missing, truncated, garbage or of something else is a ValueError
-    naming it (SB3 names a missing buffer as its path with another .pkl added)."""
+    naming it (SB3 names a missing buffer as its path with another .pkl added). A
+    checkpoint's digests (`check_file_digests`) find a damaged one first; these are what
+    a pickle without one raises (a length field past what memory holds: MemoryError or
+    OverflowError)."""
     if not path.is_file():
         raise ValueError(f"{path} is missing: a checkpoint cannot be resumed without it")
     try:
         yield
-    except (pickle.UnpicklingError, EOFError, AssertionError, KeyError, TypeError) as error:
+    except (pickle.UnpicklingError, EOFError, AssertionError, KeyError, TypeError, ValueError,
+            AttributeError, RuntimeError, OverflowError, MemoryError, SystemError) as error:
         raise ValueError(f"{path} is damaged (truncated or not what a checkpoint writes): "
                          f"{type(error).__name__}: {error}") from None

@@ -392,10 +392,10 @@ class RunDir:
 
     def read_state(self) -> dict:
         """The latest checkpoint's {"steps", "wall_time_s", "cpu_time_s", "checkpoint_every",
-        "exact", "threads", "fresh_streams", "machines", "config"} (no CPU time in
+        "exact", "threads", "fresh_streams", "machines", "config", "sha256"} (no CPU time in
         checkpoints written before it was recorded, no "exact" or "threads" in those written
-        before resumes could be exact, no "fresh_streams", "machines" or "config" in those
-        written before each was recorded); {} without a checkpoint."""
+        before resumes could be exact, no "fresh_streams", "machines", "config" or "sha256"
+        in those written before each was recorded); {} without a checkpoint."""
         if not self.checkpoint_state.is_file():
             return {}
         state = read_json(self.checkpoint_state, "a checkpoint's state")
@@ -504,6 +504,11 @@ def _state_problem(state: dict) -> str | None:
                 f"{machines!r}")
     if state.get("config") is not None and not isinstance(state["config"], dict):
         return f"its config must be an object, got {type(state['config']).__name__}"
+    digests = state.get("sha256")
+    if digests is not None and not (isinstance(digests, dict) and all(
+            isinstance(name, str) and pathlib.Path(name).name == name
+            and isinstance(digest, str) for name, digest in digests.items())):
+        return f"its sha256 must map the checkpoint's file names to digests, got {digests!r}"
     return None
 
 
