@@ -273,7 +273,7 @@ def test_a_misspelt_argument_of_the_env_is_listed_among_its_own(typo):
     misspelling lists them, and the env made from its class lists its own."""
     with pytest.raises(ValueError, match=rf"unknown task option\(s\) '{typo}'; valid task "
                                          r"options: [^;]*; gym.make's own arguments: camera, "
-                                         r"disable_env_checker, height, id, max_episode_steps, "
+                                         r"disable_env_checker, height, max_episode_steps, "
                                          r"render_mode, task, time_limit, width$"):
         gym.make("FrankaPushSparse-v0", **{typo: 1})
     from franka_composer.adapters.goal_env import FrankaGoalEnv

@@ -92,7 +92,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
                  **task_kwargs: Any) -> None:
         EzPickle.__init__(self, task, reward_type, render_mode, width, height, camera,
                           **task_kwargs)
-        _check_not_loads_own(task_kwargs)
+        check_not_loads_own(task_kwargs)
         check_names("task option", set(task_kwargs) - {"time_limit"}, OPTION_NAMES,
                     own=("the env", ENV_ARGUMENTS))
         # Every rendering argument is checked before anything is built or reaches MuJoCo.
@@ -378,7 +378,7 @@ def _check_display() -> None:
 ENV_ARGUMENTS = (*named_parameters(FrankaGoalEnv.__init__), "time_limit")
 
 
-def _check_not_loads_own(options: dict) -> None:
+def check_not_loads_own(options: dict) -> None:
     """A ValueError for a `suite.load` parameter the adapter sets itself, before Python
     says `load()` got it twice, or it is taken and has no effect (a seed)."""
     for name, instead in _SET_BY_THE_ADAPTER.items():

@@ -18,7 +18,8 @@ from typing import NamedTuple
 
 import gymnasium as gym
 
-from franka_composer.adapters.goal_env import ENV_ARGUMENTS, FrankaGoalEnv
+from franka_composer.adapters.goal_env import (ENV_ARGUMENTS, FrankaGoalEnv,
+                                              check_not_loads_own)
 from franka_composer.adapters.pages import page
 from franka_composer.controllers import CONTROL_VERSIONS, CONTROLS
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
@@ -115,9 +116,11 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
             + ("task, reward_type and control" if controlled else "task and reward_type")
             + " cannot be changed"
             + (f"; use {wanted!r}" if wanted else ""))
-    # gym.make's own arguments are listed too: a misspelt max_episode_steps lands here.
+    # gym.make's own arguments (after the id) are listed too: a misspelt max_episode_steps
+    # lands here. What `load` takes and the adapter sets is said as such first.
+    check_not_loads_own(options)
     check_names("task option", set(options) - set(ENV_ARGUMENTS), OPTION_NAMES,
-                own=("gym.make", (*ENV_ARGUMENTS, *named_parameters(gym.make))))
+                own=("gym.make", (*ENV_ARGUMENTS, *named_parameters(gym.make)[1:])))
     options.setdefault("time_limit", None)
     return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
