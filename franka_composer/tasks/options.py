@@ -381,4 +381,3 @@ OPTIONS: dict[str, Option] = {
 
 #: The names `TaskConfig.replace` takes: the options and `timing` (which sets three).
 OPTION_NAMES = (*OPTIONS, "timing")
-
