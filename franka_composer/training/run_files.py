@@ -91,11 +91,12 @@ def steps_of(state_path: pathlib.Path) -> int | None:
 def file_digests(folder: pathlib.Path) -> dict[str, str]:
     """A SHA-256 of each file in `folder`, by name: what a checkpoint's state.json records
     of the files beside it (`check_file_digests`)."""
-    digests = {}
-    for path in sorted(folder.iterdir()):
-        with path.open("rb") as file:
-            digests[path.name] = hashlib.file_digest(file, "sha256").hexdigest()
-    return digests
+    return {path.name: _sha256(path) for path in sorted(folder.iterdir())}
+
+
+def _sha256(path: pathlib.Path) -> str:
+    with path.open("rb") as file:
+        return hashlib.file_digest(file, "sha256").hexdigest()
 
 
 def check_file_digests(folder: pathlib.Path, digests: dict[str, str] | None) -> None:
@@ -107,10 +108,9 @@ def check_file_digests(folder: pathlib.Path, digests: dict[str, str] | None) -> 
         path = folder / name
         if not path.is_file():
             raise ValueError(f"{path} is missing: a checkpoint cannot be resumed without it")
-        with path.open("rb") as file:
-            if hashlib.file_digest(file, "sha256").hexdigest() != digest:
-                raise ValueError(f"{path} is not the file its checkpoint wrote (its SHA-256 "
-                                 "differs from the one in state.json): damaged since")
+        if _sha256(path) != digest:
+            raise ValueError(f"{path} is not the file its checkpoint wrote (its SHA-256 "
+                             "differs from the one in state.json): damaged since")
 
 
 @contextlib.contextmanager
