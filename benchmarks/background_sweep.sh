@@ -2,15 +2,15 @@
 # (benchmarks/table2.sh, benchmarks/reference_timing.sh): on a frozen tree if asked, at
 # low priority, stopped with its cells checkpointed.
 
+source benchmarks/tools.sh
+
 # sweep_settings DEFAULT_RUNS: what every such script reads from its environment, in the
-# repository's root: RUNS (where the cells train; default DEFAULT_RUNS), BIN (the venv's
-# bin), WORKERS (cells at a time, default 1), MENAGERIE_ROOT (default the shared checkout
-# beside the repository); one thread per process.
+# repository's root: RUNS (where the cells train; default DEFAULT_RUNS), WORKERS (cells at
+# a time, default 1), and BIN and MENAGERIE_ROOT (`use_tools`).
 sweep_settings() {
   RUNS=$(realpath -m "${RUNS:-$1}")
-  BIN=$(realpath -m "${BIN:-.venv/bin}")
   WORKERS=${WORKERS:-1}
-  export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
+  use_tools
 }
 
 # use_frozen_tree COMMIT RUNS: from here on, COMMIT's code (a worktree beside RUNS, made

@@ -19,8 +19,8 @@
 set -euo pipefail
 case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
-export OMP_NUM_THREADS=1
-BIN=${BIN:-.venv/bin}
+source benchmarks/tools.sh
+use_tools
 TIMEFORMAT='%R %U %S'
 for spec in "$@"; do
   read -r task algo schedule every steps backend precision <<<"$spec"

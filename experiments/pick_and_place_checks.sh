@@ -34,9 +34,8 @@ SEED=${SEED:-0}
 [[ $SEED =~ ^[0-9]+$ ]] || { echo "SEED must be a whole number, not $SEED" >&2; exit 2; }
 RUNS=$(realpath -m "${RUNS:-$HOME/franka_runs}")
 RESULTS=$(realpath -m "${RESULTS:-results}")
-BIN=$(realpath -m "${BIN:-.venv/bin}")
-export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 source benchmarks/background_sweep.sh
+use_tools
 cell=(--task pick_and_place --algo tqc --backend sbx --seed "$SEED" --total-steps 500000
       --stop-at-success 0.95 --stop-after 5 --checkpoint-every 10000 --threads 1 --device cpu
       --no-progress)

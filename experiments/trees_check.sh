@@ -9,9 +9,9 @@
 set -euo pipefail
 case "${1:-}" in -h|--help) sed -n '2,/^[^#]/s/^# \{0,1\}//p' "$0"; exit 0 ;; esac
 cd "$(dirname "$0")/.."
-BIN=$(cd "${BIN:-.venv/bin}" && pwd)
+source benchmarks/tools.sh
+use_tools
 : "${OLD:?OLD=\"TREE ...\", the older trees (git worktrees)}"
-export OMP_NUM_THREADS=1 MENAGERIE_ROOT=${MENAGERIE_ROOT:-$(cd .. && pwd)/shared/menagerie}
 args=("$@")
 [ ${#args[@]} -gt 0 ] || args=(--task push --algo sac --seed 7 --precision bf16
   --total-steps 1500 --eval-every 500 --eval-episodes 5)

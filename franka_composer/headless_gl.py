@@ -55,18 +55,12 @@ def check_can_render() -> None:
     if getattr(render, "BACKEND", None) != "glfw":
         return
     if has_display():
-        if _glfw_opens_the_display():
+        if glfw_opens_the_display():
             return
-        named = " and ".join(f"{name}={os.environ[name]}" for name in DISPLAY_VARIABLES
-                             if os.environ.get(name))
-        wayland_only = not os.environ.get("DISPLAY")
         raise HeadlessGLError(
             f"this process cannot render: dm_control renders through GLFW here, and GLFW "
-            f"cannot open the display {named} (none there, or not this user's"
-            + ("; pyglfw speaks Wayland only with PYGLFW_LIBRARY_VARIANT=wayland or "
-               "XDG_SESSION_TYPE=wayland" if wayland_only else "")
-            + "). Unset it, or set MUJOCO_GL=egl (or osmesa) before Python starts for "
-            "headless frames")
+            f"{display_not_opened()}. Unset it, or set MUJOCO_GL=egl (or osmesa) before "
+            "Python starts for headless frames")
     if os.environ.get("MUJOCO_GL") == "glfw":
         why = "MUJOCO_GL=glfw, which needs a display"
     else:
@@ -87,7 +81,17 @@ def has_display() -> bool:
     return any(os.environ.get(name) for name in DISPLAY_VARIABLES)
 
 
-def _glfw_opens_the_display() -> bool:
+def display_not_opened() -> str:
+    """What a GLFW that could not open the display set for this process says of it."""
+    named = " and ".join(f"{name}={os.environ[name]}" for name in DISPLAY_VARIABLES
+                         if os.environ.get(name))
+    wayland_only = not os.environ.get("DISPLAY")
+    return (f"cannot open the display {named} (none there, or not this user's"
+            + ("; pyglfw speaks Wayland only with PYGLFW_LIBRARY_VARIANT=wayland or "
+               "XDG_SESSION_TYPE=wayland" if wayland_only else "") + ")")
+
+
+def glfw_opens_the_display() -> bool:
     """Whether GLFW is initialised: dm_control initialises it on import, and where the
     display cannot be opened that failed with only a warning, and every GL call after it
     fails inside MuJoCo ("an OpenGL platform library has not been loaded")."""

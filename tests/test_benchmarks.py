@@ -189,3 +189,46 @@ def test_the_precision_benchmark_refuses_cuda_without_a_gpu_in_one_line(capsys):
     assert capsys.readouterr().err.endswith(
         "error: --device cuda, but torch sees no CUDA GPU (torch.cuda.is_available() is "
         "False); use --device cpu\n")
+
+
+def _use_tools(repo: pathlib.Path, path: str, **environment: str):
+    """What `use_tools` (benchmarks/tools.sh) sets in a checkout at `repo`, with `PATH`."""
+    script = ('source benchmarks/tools.sh && use_tools && '
+              'echo "$BIN|${MENAGERIE_ROOT-unset}|$OMP_NUM_THREADS"')
+    return subprocess.run(["/bin/bash", "-c", script], cwd=repo, capture_output=True,
+                          text=True, env={"PATH": path, **environment}, check=False)
+
+
+def _bin(folder: pathlib.Path) -> pathlib.Path:
+    folder.mkdir(parents=True)
+    for tool in ("python", "franka-composer"):
+        (folder / tool).write_text("#!/bin/sh\n")
+        (folder / tool).chmod(0o755)
+    return folder
+
+
+def test_the_scripts_find_a_pip_installs_tools_and_leave_menagerie_to_the_package(tmp_path):
+    """They ran `.venv/bin/franka-composer` (missing after a pip install: exit 127) and set
+    MENAGERIE_ROOT to `../shared/menagerie` whether or not it was there, so that the
+    package could neither take its cache nor download the Panda."""
+    repo = tmp_path / "checkout"
+    (repo / "benchmarks").mkdir(parents=True)
+    (repo / "benchmarks" / "tools.sh").write_text((BENCHMARKS / "tools.sh").read_text())
+    system = "/usr/bin:/bin"
+    installed = _bin(tmp_path / "env" / "bin")
+    done = _use_tools(repo, f"{installed}:{system}")
+    assert done.stdout == f"{installed}|unset|1\n", done.stderr
+    # The repository's venv first, and the copy of Menagerie beside the checkout where it
+    # holds the Panda; what the user set is kept.
+    venv = _bin(repo / ".venv" / "bin")
+    (tmp_path / "shared" / "menagerie" / "franka_emika_panda").mkdir(parents=True)
+    done = _use_tools(repo, f"{installed}:{system}")
+    assert done.stdout == f"{venv}|{tmp_path / 'shared' / 'menagerie'}|1\n", done.stderr
+    done = _use_tools(repo, system, BIN=str(installed), MENAGERIE_ROOT="/mine")
+    assert done.stdout == f"{installed}|/mine|1\n", done.stderr
+    # Nowhere: refused, saying what to do.
+    done = _use_tools(repo, system, BIN=str(tmp_path / "nothing"))
+    assert (done.returncode, done.stdout) == (1, "")
+    assert done.stderr == (f"no franka-composer and python in {tmp_path / 'nothing'}: run "
+                           "make setup, or set BIN to the bin folder of the virtualenv you "
+                           "installed franka_composer into\n")

@@ -184,9 +184,13 @@ def test_a_command_without_its_extra_names_the_extra_to_install(tmp_path, missin
          *(word.format(tmp=tmp_path) for word in argv)],
         cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
     assert result.returncode == 1 and "Traceback" not in result.stderr
+    torch_first = (", after torch from PyTorch's CPU index: pip install -c constraints.txt "
+                   "torch --index-url https://download.pytorch.org/whl/cpu"
+                   if missing == "torch" else "")
     assert result.stderr.splitlines()[-1].startswith(
         f"franka-composer: error: this command needs {missing}, which the '{extra}' extra "
-        f"installs: pip install 'franka_composer[{extra}]' ({why}")
+        f"installs: in the checkout, pip install -c constraints.txt -e '.[{extra}]'"
+        f"{torch_first} (docs/guide/installation.md; {why}")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -209,8 +213,17 @@ def test_only_a_missing_extras_import_error_is_taken_for_one(monkeypatch):
                                       name="franka_absent.sub"),
                   ImportError("franka_absent is not installed")):
         assert missing_extra(error) == (
-            f"this command needs franka_absent, which the 'data' extra installs: pip "
-            f"install 'franka_composer[data]' ({error})")
+            f"this command needs franka_absent, which the 'data' extra installs: in the "
+            f"checkout, pip install -c constraints.txt -e '.[data]' "
+            f"(docs/guide/installation.md; {error})")
+    # The train extra without torch: CPU torch first, as the install guide says.
+    monkeypatch.setitem(extras.EXTRA_OF, "franka_absent", "train")
+    monkeypatch.setattr(extras, "_installed", lambda name: False)
+    assert missing_extra(ModuleNotFoundError("No module named 'torch'", name="torch")) == (
+        "this command needs torch, which the 'train' extra installs: in the checkout, pip "
+        "install -c constraints.txt -e '.[train]', after torch from PyTorch's CPU index: pip "
+        "install -c constraints.txt torch --index-url https://download.pytorch.org/whl/cpu "
+        "(docs/guide/installation.md; No module named 'torch')")
 
 
 def test_each_extra_named_brings_its_package():

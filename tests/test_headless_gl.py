@@ -105,6 +105,30 @@ def test_a_display_glfw_cannot_open_is_refused_at_the_first_render_naming_it(muj
     assert _printed_errors(_RENDER_TWICE, env) == [message, message]
 
 
+_HUMAN_VIEWER = """
+import gymnasium as gym
+import franka_composer
+from franka_composer.headless_gl import HeadlessGLError
+try:
+    gym.make("FrankaPushSparse-v0", render_mode="human")
+except HeadlessGLError as error:
+    print(error)
+"""
+
+
+@pytest.mark.parametrize("mujoco_gl", ["egl", "osmesa"])
+def test_a_human_viewer_on_a_display_glfw_cannot_open_is_refused_at_make_naming_it(mujoco_gl):
+    """Gymnasium's viewer asked GLFW for the monitor's video mode and C's assertion aborted
+    the process (SIGABRT, no Python exception) at the first reset."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "PYOPENGL_PLATFORM")}
+    env.update(DISPLAY=":987", MUJOCO_GL=mujoco_gl)  # No X server's socket there.
+    assert _printed_errors(_HUMAN_VIEWER, env) == [
+        "render_mode='human' opens a window, and GLFW cannot open the display DISPLAY=:987 "
+        "(none there, or not this user's): use render_mode='rgb_array' for headless frames, "
+        "or set DISPLAY to a display you can open"]
+
+
 @pytest.mark.parametrize("off", ["disable", "off"])  # Two of dm_control's spellings.
 def test_rendering_with_rendering_turned_off_is_refused_saying_so(off, tmp_path):
     """dm_control's "No OpenGL rendering backend is available" came from deep inside, and

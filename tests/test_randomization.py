@@ -433,6 +433,25 @@ def test_a_colour_jitter_about_each_objects_colour_is_taken_within_its_range():
             distributions.Uniform(0.5, 1.1117))})
 
 
+@pytest.mark.parametrize("task, markers", [("stack", ("marker1", "marker2")),
+                                           ("flip", ("marker",))])
+def test_goal_markers_take_their_objects_drawn_colours(task, markers):
+    """Stack's markers said which block goes where only by colour: under `object_rgb` they
+    kept the nominal blue and green while the blocks took any colour (seed 1 drew block 1
+    green, block 2's marker's colour), and a pixel policy could not tell the blocks apart."""
+    env = franka_composer.load(task, seed=1, observation_mode="pixels",
+                               randomization={"object_rgb": distributions.Uniform(0.05, 0.95)})
+    physics = env.physics
+    for _ in range(2):
+        env.reset()
+        drawn = np.float32(env.task.randomization["object_rgb"])
+        sites = physics.named.model.site_rgba
+        for colour, marker in zip(drawn, markers):
+            np.testing.assert_array_equal(sites[f"goal/{marker}"], [*colour, np.float32(0.35)])
+        np.testing.assert_array_equal(
+            physics.bind([prop.geom for prop in env.task.props]).rgba[:, :3], drawn)
+
+
 def test_a_light_direction_offset_that_cancels_a_light_is_refused_by_name():
     env = _make(render_mode="rgb_array", randomization={"light_direction": (0.0, 0.0, 1.0)})
     with pytest.raises(ValueError, match=re.escape(

@@ -89,10 +89,14 @@ def test_a_bad_task_option_names_itself_and_what_it_accepts(option, value, messa
      "actuated_gripper=False holds the fingers closed: give actuated_gripper=True as well, "
      "or leave it out"),
     ("FrankaPushSparse-v0", dict(goal_max_height=0.2), "goal_max_height does nothing here: "
+     "goal_in_air_probability=0 lifts no goal: give goal_in_air_probability and "
+     "actuated_gripper=True as well, or leave goal_max_height out"),
+    ("FrankaPushSparse-v0", dict(goal_in_air_probability=0.5), "goal_in_air_probability "
+     "does nothing here: goal_max_height=0 lifts no goal: give goal_max_height and "
+     "actuated_gripper=True as well"),
+    ("FrankaPushSparse-v0", dict(goal_max_height=0.2, actuated_gripper=True),
      "goal_in_air_probability=0 lifts no goal: give goal_in_air_probability as well, or "
      "leave goal_max_height out"),
-    ("FrankaPushSparse-v0", dict(goal_in_air_probability=0.5), "goal_in_air_probability "
-     "does nothing here: goal_max_height=0 lifts no goal: give goal_max_height as well"),
     ("FrankaStackSparse-v1", dict(goal_max_height=0.2, goal_in_air_probability=0.5),
      "goal_max_height does nothing here: stack's goals (stacked) are never lifted: leave it "
      "out"),
@@ -147,7 +151,8 @@ def test_an_object_box_too_small_for_its_objects_is_refused_when_made(options):
      "block stacked on the other), and actuated_gripper=False"),
     ("push", dict(goal_max_height=0.2, goal_in_air_probability=0.5), "push's goals need "
      "its objects lifted (goals up to 0.2 m in the air 50% of the time), and "
-     "actuated_gripper=False"),
+     "actuated_gripper=False holds the fingers closed: nothing can lift them. Give "
+     "actuated_gripper=True"),  # Push's default is False: "leave it out" gave False again.
     ("reach", dict(neutral_arm_qpos=(0.0, 1.3, 0.0, -1.0, 0.0, 2.26, 0.79)),
      "neutral_arm_qpos puts the hand 0.0803 m into the floor (its lowest point at z = "
      "-0.0803 m): give a pose with the hand above it"),

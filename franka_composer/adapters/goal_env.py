@@ -23,7 +23,8 @@ from gymnasium.utils import EzPickle
 
 from franka_composer import render_owner, seeding, suite
 from franka_composer.environment import ended_by_divergence
-from franka_composer.headless_gl import has_display
+from franka_composer.headless_gl import (HeadlessGLError, display_not_opened,
+                                         glfw_opens_the_display, has_display)
 from franka_composer.randomization import (PARAMETERS, RandomizationSettings,
                                           randomization_settings)
 from franka_composer.randomization.settings import from_a_preset
@@ -52,7 +53,8 @@ class FrankaGoalEnv(gym.Env, EzPickle):
       task: a name from `franka_composer.ALL_TASKS`.
       reward_type: "sparse" or "dense".
       render_mode: None, "rgb_array" (headless frames) or "human" (a viewer window).
-      width, height: size (pixels) of `rgb_array` frames, at most 1024 (480 if not given).
+      width, height: size (pixels) of `rgb_array` frames and of the `human` viewer's
+        window, at most 1024 (480 if not given).
       camera: the arena camera to render from ("workspace", the default, or "top").
       An env without a render mode renders nothing: width, height or camera given to one is
       refused, not ignored (and goal_marker_visible, unless camera observations show it).
@@ -257,6 +259,7 @@ class FrankaGoalEnv(gym.Env, EzPickle):
 
                 physics = self._env.physics
                 self._renderer = MujocoRenderer(physics.model.ptr, physics.data.ptr,
+                                                width=self._width, height=self._height,
                                                 camera_name=self._camera)
             return self._renderer.render("human")
         return None
@@ -366,12 +369,19 @@ def _check_render_size(width: int, height: int) -> None:
 
 
 def _check_display() -> None:
-    """`human` rendering opens a GLFW window; without a display GLFW aborts the whole
-    process (an assertion in C, no Python exception), so refuse before it is touched."""
-    if sys.platform.startswith(("linux", "freebsd", "openbsd")) and not has_display():
+    """`human` rendering opens a GLFW window; without a display, or with one set that GLFW
+    cannot open (a DISPLAY left over from ssh or a container), GLFW aborts the whole process
+    (an assertion in C, no Python exception), so refuse before it is touched."""
+    if not sys.platform.startswith(("linux", "freebsd", "openbsd")):
+        return
+    if not has_display():
         raise RuntimeError("render_mode='human' needs a display, and none was found (neither "
                            "DISPLAY nor WAYLAND_DISPLAY is set): use render_mode='rgb_array' "
                            "for headless frames, or set DISPLAY")
+    if not glfw_opens_the_display():
+        raise HeadlessGLError(f"render_mode='human' opens a window, and GLFW "
+                              f"{display_not_opened()}: use render_mode='rgb_array' for "
+                              "headless frames, or set DISPLAY to a display you can open")
 
 
 #: What the env takes beside the task options: its own parameters and `load`'s time limit.

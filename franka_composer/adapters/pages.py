@@ -118,7 +118,8 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
         ("Episode end", [
             f"Truncated after {max_episode_steps} steps: Gymnasium's TimeLimit "
             "(gym.make(id, max_episode_steps=N) sets another length), the dm_env "
-            "environment's time limit under load (a LAST step with discount 1); truncated "
+            "environment's time limit under franka_composer.load (a LAST step with discount "
+            "1); truncated "
             "too if the physics diverges (with a warning and info[\"diverged\"]). Terminated "
             "on success when terminate_on_success is True (the paper's default; False gives "
             "Fetch semantics, for which HER relabelling is exact)."]),

@@ -20,7 +20,8 @@ def add_parser(subparsers) -> None:
                     "(and setup) and algorithm, in the layout of the paper's Table II.")
     add_run_dirs(parser)
     parser.add_argument("--episodes", type=positive_int, default=20,
-                        help="test episodes per model (paper: 20)")
+                        help="test episodes per model (default: 20, the paper's final "
+                             "test)")
     parser.add_argument("--seed", type=episode_seed, default=2024,
                         help="seed of the test episodes, the same for every run (default: "
                              "2024, the final tests' in RESULTS.md)")

@@ -13,6 +13,11 @@ EXTRA_OF = {"stable_baselines3": "train", "sb3_contrib": "train", "torch": "trai
             "ray": "sweep", "minari": "data", "h5py": "data", "envlogger": "data",
             "gymnasium_robotics": "peers"}
 
+#: What the 'train' extra needs first: a plain install of it pulls torch's multi-GB CUDA
+#: build from PyPI.
+TORCH_FIRST = (", after torch from PyTorch's CPU index: pip install -c constraints.txt torch "
+               "--index-url https://download.pytorch.org/whl/cpu")
+
 
 def missing_extra(error: ImportError) -> str | None:
     """What to install, for an ImportError of a package of `EXTRA_OF` that is not installed:
@@ -24,8 +29,10 @@ def missing_extra(error: ImportError) -> str | None:
     for name in names:
         if name in EXTRA_OF and not _installed(name):
             extra = EXTRA_OF[name]
-            return (f"this command needs {name}, which the '{extra}' extra installs: pip "
-                    f"install 'franka_composer[{extra}]' ({error})")
+            return (f"this command needs {name}, which the '{extra}' extra installs: in the "
+                    f"checkout, pip install -c constraints.txt -e '.[{extra}]'"
+                    + (TORCH_FIRST if extra == "train" and not _installed("torch") else "")
+                    + f" (docs/guide/installation.md; {error})")
     return None
 
 

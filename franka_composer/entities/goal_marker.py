@@ -44,6 +44,11 @@ class GoalMarker(composer.Entity):
     def mjcf_model(self) -> mjcf.RootElement:
         return self._mjcf_root
 
+    @property
+    def sites(self) -> list:
+        """The marker sites, in the order of `rgbas`."""
+        return list(self._sites)
+
     def hide(self) -> None:
         """Leaves the marker out of every image (cameras and `render`): its sites go to a
         group that is not drawn. Sites have no physics, so nothing else changes."""

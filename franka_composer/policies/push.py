@@ -46,8 +46,10 @@ class PushExpert(Expert):
             # Move along the line to the goal while steering back onto the line through the
             # block's centre: the line is recomputed each step, so a drifting block is followed.
             speed = np.clip(np.linalg.norm(to_goal) / 0.1 * PUSH_SPEED, MIN_PUSH_SPEED, PUSH_SPEED)
-            xy = direction * speed - sideways_axis * sideways / 0.05
-            return np.array([*xy, (PUSH_HEIGHT - tcp[2]) / 0.05])
+            # The action law inverted (`ControlSettings.tcp_action`) for the corrections.
+            step = self.config.control.max_tcp_step
+            xy = direction * speed - sideways_axis * sideways / step
+            return np.array([*xy, (PUSH_HEIGHT - tcp[2]) / step])
         start = np.array([*(block[:2] - direction * APPROACH_OFFSET), PUSH_HEIGHT])
         if np.linalg.norm(tcp[:2] - start[:2]) < 0.01:
             self._pushing = tcp[2] < PUSH_HEIGHT + 0.005

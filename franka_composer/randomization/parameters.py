@@ -161,8 +161,9 @@ PARAMETERS: dict[str, Parameter] = {
                                  "the controller's stiffness: mocap's weld, osc's impedance, "
                                  "the joint servos (each keeps its damping rule)"),
     # Visual: what the cameras see, nothing the simulation computes.
-    "object_rgb": Parameter("visual", "colour", "each object's colour", "RGB",
-                            per_object=True),
+    "object_rgb": Parameter("visual", "colour",
+                            "each object's colour, and its goal marker's where the marker "
+                            "wears it (stack's blocks, flip's cube)", "RGB", per_object=True),
     "floor_tint": Parameter("visual", "colour", "the floor's colour, multiplying its checker",
                             "RGB"),
     "robot_tint": Parameter("visual", "colour", "the Panda's colours, multiplied", "RGB"),

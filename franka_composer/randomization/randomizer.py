@@ -40,12 +40,15 @@ class Randomizer:
         with the noise parameter its readings get ("position_noise"...; None for images)
         and whether it reads a unit quaternion (turned by its noise, not added to).
       cameras: the camera elements the observation renders (for the pose jitter).
+      marker_sites: the goal marker's sites drawn in the objects' colours, one per object
+        in order (`Goal.marker_sites_by_prop`): `object_rgb` recolours them too.
       substeps: physics steps per control step (Composer counts delays in them).
     """
 
     def __init__(self, settings: RandomizationSettings, *, arena, panda, props, controller,
-                 sensed: list, cameras: list, substeps: int) -> None:
+                 sensed: list, cameras: list, substeps: int, marker_sites=()) -> None:
         self._ranges = dict(settings.ranges)
+        self._marker_sites = list(marker_sites)
         self._arena, self._panda, self._props = arena, panda, list(props)
         self._controller, self._cameras, self._substeps = controller, list(cameras), substeps
         self._streams = {group: np.random.RandomState(0) for group in GROUPS}
@@ -117,12 +120,14 @@ class Randomizer:
             raise ValueError("light_direction assumes every light hangs from a body aligned "
                              "with the world at qpos0 (light_dir0 == light_dir)")
         cameras = ids(self._cameras) if self._cameras else np.zeros(0, dtype=int)
+        marker_sites = (ids(self._marker_sites) if self._marker_sites
+                        else np.zeros(0, dtype=int))
         arm_dofs = np.asarray(physics.bind(self._panda.joints).dofadr, dtype=int)
         floor = int(physics.bind(self._arena.floor).element_id)
         self._nominal = dict(
             bodies=bodies, mass=model.body_mass[bodies].copy(),
             inertia=model.body_inertia[bodies].copy(),
-            object_geoms=object_geoms,
+            object_geoms=object_geoms, marker_sites=marker_sites,
             object_friction=model.geom_friction[object_geoms, 0].copy(),
             floor=floor, floor_friction=float(model.geom_friction[floor, 0]),
             floor_material=int(model.geom_matid[floor]),
@@ -249,7 +254,9 @@ class Randomizer:
     def _write_visual(self, ptr, values: dict) -> None:
         nominal = self._nominal
         if values.get("object_rgb"):
-            ptr.geom_rgba[nominal["object_geoms"], :3] = np.asarray(values["object_rgb"])
+            colours = np.asarray(values["object_rgb"])
+            ptr.geom_rgba[nominal["object_geoms"], :3] = colours
+            ptr.site_rgba[nominal["marker_sites"], :3] = colours[:len(nominal["marker_sites"])]
         if "floor_tint" in values:
             ptr.mat_rgba[nominal["floor_material"], :3] = (nominal["floor_rgba"][:3]
                                                            * values["floor_tint"])

@@ -31,7 +31,7 @@ PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
                      "a real gripper's grip force varies with its firmware and wear"),
     "joint_damping": (distributions.Uniform, (0.5, 1.5),
                       "Menagerie's 1 N m s is nominal; identified joint friction differs "
-                      "joint to joint by about this much"),
+                      "from it by about this much (one factor scales all seven joints)"),
     "controller_gain": (distributions.Uniform, (0.8, 1.2),
                         "the real controller tracks differently from the simulated one: "
                         "+-20 % stiffness is +-10 % bandwidth"),
@@ -41,7 +41,8 @@ PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
     "robot_tint": (distributions.Uniform, (0.7, 1.0),
                    "the arm's paint and lighting make it look different on every camera"),
     "light_direction": (distributions.Uniform, (-0.3, 0.3),
-                        "room lights come from anywhere within ~17 degrees of the nominal"),
+                        "room lights come from anywhere within ~30 degrees of the nominal "
+                        "(half the draws within 13)"),
     "light_intensity": (distributions.Uniform, (0.6, 1.4),
                         "brightness changes with the room and the time of day"),
     "camera_position": (distributions.Uniform, (-0.01, 0.01),

@@ -72,8 +72,7 @@ def _check_graspable(config) -> None:
     if not config.control.actuated_gripper:
         raise ValueError(f"{config.name}'s goals need its objects lifted "
                          f"({config.lifting_goals}), and actuated_gripper=False holds the "
-                         "fingers closed: nothing can lift them. Leave actuated_gripper out "
-                         "(True)")
+                         "fingers closed: nothing can lift them. Give actuated_gripper=True")
     for spec in config.objects:
         if spec.grasp_width >= MAX_FINGER_WIDTH:
             raise ValueError(

@@ -137,6 +137,7 @@ class GoalTask(composer.Task):
         return Randomizer(config.randomization, arena=self._arena, panda=self._panda,
                           props=self._props, controller=self._controller, sensed=sensed,
                           cameras=list(self._cameras.values()),
+                          marker_sites=self._goal_spec.marker_sites_by_prop(),
                           substeps=self.physics_steps_per_control_step)
 
     def _camera_observables(self, settings: ObservationSettings) -> dict:

@@ -56,6 +56,12 @@ class Goal(abc.ABC):
     def _make_marker(self) -> GoalMarker:
         return GoalMarker()
 
+    def marker_sites_by_prop(self) -> list:
+        """The marker sites drawn in their objects' colours, one per object in order (none
+        where the marker has a colour of its own): `object_rgb` recolours each with its
+        object, so that a pixel policy can still tell which object goes where."""
+        return []
+
     def show(self, physics, desired: np.ndarray) -> None:
         """Puts the marker on the desired goal."""
         self.marker.set_position(physics, desired)
@@ -131,6 +137,9 @@ class StackedGoal(Goal):
         return GoalMarker(shape="box", size=self._props[0].resting_height,
                           rgbas=[prop.rgba[:3] + (0.35,) for prop in self._props])
 
+    def marker_sites_by_prop(self) -> list:
+        return self.marker.sites
+
     def _elements(self) -> list:
         return [(prop.position, "sensordata") for prop in self._props]
 
@@ -189,6 +198,9 @@ class OrientationGoal(Goal):
         cube = self._props[0]
         return GoalMarker(shape="box", size=cube.resting_height,
                           rgbas=[cube.rgba[:3] + (0.35,)], face_colours=True)
+
+    def marker_sites_by_prop(self) -> list:
+        return self.marker.sites
 
     def _elements(self) -> list:
         return [(self._props[0].orientation, "sensordata")]

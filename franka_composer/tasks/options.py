@@ -90,7 +90,20 @@ def _lift_unread(config: TaskConfig, name: str, other: str) -> str:
     if config.goal not in LIFTED_GOALS:
         return f"{config.name}'s goals ({config.goal}) are never lifted: leave it out"
     value = getattr(config.workspace, other)
-    return f"{other}={value:g} lifts no goal: give {other} as well, or leave {name} out"
+    return (f"{other}={value:g} lifts no goal: give {other}{_grasping(config)} as well, or "
+            f"leave {name} out")
+
+
+def _grasping(config: TaskConfig) -> str:
+    """What else lifting `config`'s goals needs: an object lifted to its goal needs fingers
+    that grasp (`clearance.py`)."""
+    return (" and actuated_gripper=True" if config.goal == "object_position"
+            and not config.control.actuated_gripper else "")
+
+
+def _lift_with(config: TaskConfig, setting: str) -> str | None:
+    """The settings under which `config` reads an option that lifts goals, for its page."""
+    return f"{setting}{_grasping(config)}" if config.goal in LIFTED_GOALS else None
 
 
 def _orientation_goal(config: TaskConfig) -> str | None:
@@ -151,11 +164,11 @@ _READ_ONLY_WHERE: dict[str, ReadOnlyWhere] = {
     "goal_max_height": ReadOnlyWhere(
         lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_in_air_probability > 0,
         lambda c: _lift_unread(c, "goal_max_height", "goal_in_air_probability"),
-        lambda c: "goal_in_air_probability > 0" if c.goal in LIFTED_GOALS else None),
+        lambda c: _lift_with(c, "goal_in_air_probability > 0")),
     "goal_in_air_probability": ReadOnlyWhere(
         lambda c: c.goal in LIFTED_GOALS and c.workspace.goal_max_height > 0,
         lambda c: _lift_unread(c, "goal_in_air_probability", "goal_max_height"),
-        lambda c: "goal_max_height > 0" if c.goal in LIFTED_GOALS else None),
+        lambda c: _lift_with(c, "goal_max_height > 0")),
 }
 
 
@@ -217,7 +230,8 @@ def _replace_path(record, path: tuple[str, ...], value):
 
 
 #: Named timings (task option `timing`), as the options they set. "default": 0.05 s of
-#: physics per step (the paper's stated dt; Fetch and panda-gym step 0.04 s), velocities
+#: physics per step (the reference code's stated dt: the paper gives only the 2 ms physics
+#: step; Fetch and panda-gym step 0.04 s), velocities
 #: per step, a stiff weld that tracks within it. "reference": what the paper's code
 #: (`panda_mujoco_gym`) runs: ten `mj_step(nstep=25)` calls per step, 0.5 s in which the arm
 #: settles on its target and the fingers on theirs, with velocities multiplied by its stated
