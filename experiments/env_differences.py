@@ -73,16 +73,22 @@ def contact_geoms(model: mujoco.MjModel, bodies: tuple[str, ...]) -> list[int]:
 
 
 def undo_on_model(model: mujoco.MjModel, undone: set[str]) -> None:
-    """The differences of `undone` that live in the compiled model, undone on it."""
+    """The differences of `undone` that live in the compiled model, undone on it (the
+    block's contact with the floor is a contact pair, with parameters of its own:
+    `contacts.add_surface_pair`)."""
+    on_floor = model.pair("block_floor").id
     if "finger_contact" in undone:
         for geom in contact_geoms(model, FINGERS):
             model.geom_friction[geom] = 0.8
             model.geom_condim[geom] = 3
         model.geom_condim[model.geom("block/geom").id] = 6
+        model.pair_dim[on_floor] = 6
     if "soft_contacts" in undone:
         for geom in (model.geom("block/geom").id, model.geom("floor").id):
             model.geom_solref[geom] = DEFAULT_SOLREF
             model.geom_solimp[geom] = DEFAULT_SOLIMP
+        model.pair_solref[on_floor] = DEFAULT_SOLREF
+        model.pair_solimp[on_floor] = DEFAULT_SOLIMP
     if "solver" in undone:
         model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
         model.opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL

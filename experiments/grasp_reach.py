@@ -57,6 +57,11 @@ def reference_block(env) -> None:
         model.geom_solimp[geom] = DEFAULT_SOLIMP
         model.geom_solmix[geom] = 1.0
     model.geom_condim[block] = 6
+    # The block's contact with the floor is a contact pair, with parameters of its own
+    # (`contacts.add_surface_pair`).
+    on_floor = model.name2id("block_floor", "pair")
+    model.pair_solref[on_floor], model.pair_solimp[on_floor] = DEFAULT_SOLREF, DEFAULT_SOLIMP
+    model.pair_dim[on_floor] = 6
 
 
 def reference_pads(env) -> None:

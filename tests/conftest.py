@@ -226,6 +226,19 @@ def grasp_block(env):
     return timestep
 
 
+def contact_frictions(env, first, second) -> list[float]:
+    """The sliding friction of each contact between the MJCF geoms `first` and `second` of
+    the dm_env `env` now, as MuJoCo holds it in the contact (both sliding components)."""
+    physics = env.physics
+    pair = {int(physics.bind(first).element_id), int(physics.bind(second).element_id)}
+    frictions = []
+    for contact in physics.data.contact[:physics.data.ncon]:
+        if {int(contact.geom1), int(contact.geom2)} == pair:
+            assert contact.friction[0] == contact.friction[1]
+            frictions.append(float(contact.friction[0]))
+    return frictions
+
+
 def her_samples(env, steps: int, count: int = 512):
     """(next achieved goals, desired goals, rewards) of `count` transitions SB3's
     `HerReplayBuffer` relabels ("future", 4 goals per transition) after `steps` random steps

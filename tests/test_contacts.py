@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import collections
 import functools
+import re
 
 import mujoco
 import numpy as np
@@ -272,3 +273,48 @@ def test_a_hand_carrying_a_block_low_in_its_grip_goes_down_at_the_commanded_spee
             assert heights[-1] == pytest.approx(heights[-2], abs=0.001)  # Stopped there.
     assert moved[True] > first_two_steps
     assert moved[False] < 0.01
+
+
+#: What the solver reads of a contact, compared field by field.
+_CONTACT_FIELDS = ("geom", "dist", "pos", "frame", "dim", "includemargin", "friction",
+                   "solref", "solreffriction", "solimp")
+
+
+@pytest.mark.parametrize("task", ["push", "slide", "stack"])
+def test_nominal_surface_pairs_step_as_mujocos_own_contacts_bit_for_bit(task):
+    """The objects' contacts with the floor and each other are predefined pairs with the
+    parameters MuJoCo mixes for the geoms' own contact, the sliding friction aside
+    (`contacts.add_surface_pair`), which is MuJoCo's where the coefficients are equal, as
+    nominally: the model without its pairs makes the same contacts in the same order and
+    steps to the same bits, the object sliding and spinning (stack: block 2 dropped tilted
+    across block 1) for 0.5 s."""
+    env = franka_composer.load(task, seed=0, renderable=False)
+    env.reset()
+    physics, props = env.physics, env.task.props
+    props[0].set_velocity(physics, velocity=[0.4, 0.2, 0.0], angular_velocity=[0.0, 0.0, 3.0])
+    if len(props) == 2:
+        tilted = np.array([0.98, 0.1, 0.15, 0.0])
+        props[1].set_pose(physics, position=props[0].get_pose(physics)[0] + [0.01, 0.0, 0.045],
+                          quaternion=tilted / np.linalg.norm(tilted))
+    xml, assets = env.task.root_entity.mjcf_model.to_xml_string(), \
+        env.task.root_entity.mjcf_model.get_assets()
+    runs = []
+    for source in (xml, re.sub(r"<pair [^>]*/>", "", xml)):
+        model = mujoco.MjModel.from_xml_string(source, assets)
+        data = mujoco.MjData(model)
+        for field in ("qpos", "qvel", "act", "ctrl", "mocap_pos", "mocap_quat"):
+            getattr(data, field)[:] = getattr(physics.data, field)
+        runs.append((model, data))
+    (paired, with_pairs), (plain, without) = runs
+    assert (paired.npair, plain.npair) == (len(props) * (len(props) + 1) // 2, 0)
+    for _ in range(250):
+        mujoco.mj_step(paired, with_pairs)
+        mujoco.mj_step(plain, without)
+        assert with_pairs.ncon == without.ncon
+        for field in _CONTACT_FIELDS:
+            np.testing.assert_array_equal(getattr(with_pairs.contact, field),
+                                          getattr(without.contact, field), err_msg=field)
+    np.testing.assert_array_equal(with_pairs.qpos, without.qpos)
+    np.testing.assert_array_equal(with_pairs.qvel, without.qvel)
+    moved = with_pairs.qpos - physics.data.qpos
+    assert np.abs(moved).max() > 0.01  # Something slid (a check that the test tests).

@@ -684,7 +684,8 @@ def test_random_exploration_plays_the_same_actions_and_reads_the_block_from_the_
 
 def assert_same_reference_physics(model, undone) -> None:
     """`model` has what env_differences.py undoes on `undone`: contacts, damping, solver."""
-    for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp", "dof_damping"):
+    for field in ("geom_friction", "geom_condim", "geom_solref", "geom_solimp", "pair_dim",
+                  "pair_friction", "pair_solref", "pair_solimp", "dof_damping"):
         np.testing.assert_array_equal(getattr(model, field), getattr(undone, field))
     for field in ("integrator", "cone", "noslip_iterations"):
         assert getattr(model.opt, field) == getattr(undone.opt, field)
@@ -850,6 +851,12 @@ def test_env_differences_undo_what_they_name_and_nothing_else():
             np.testing.assert_array_equal(after.geom_solref[geom], [0.02, 1.0])
             np.testing.assert_array_equal(after.geom_solimp[geom], [0.9, 0.95, 0.001, 0.5, 2])
             np.testing.assert_array_equal(before.geom_solref[geom], [0.004, 1.0])
+        # The block's contact with the floor, a contact pair (`contacts.add_surface_pair`).
+        on_floor = after.pair("block_floor").id
+        assert (before.pair_dim[on_floor], after.pair_dim[on_floor]) == (4, 6)
+        np.testing.assert_array_equal(after.pair_solref[on_floor], [0.02, 1.0])
+        np.testing.assert_array_equal(after.pair_solimp[on_floor], [0.9, 0.95, 0.001, 0.5, 2])
+        np.testing.assert_array_equal(before.pair_solref[on_floor], [0.004, 1.0])
         assert (after.opt.integrator, after.opt.cone, after.opt.noslip_iterations) == (
             mujoco.mjtIntegrator.mjINT_EULER, mujoco.mjtCone.mjCONE_PYRAMIDAL, 3)
         assert (before.opt.integrator, before.opt.cone, before.opt.noslip_iterations) == (

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import franka_composer
-from conftest import grasp_block, hand_tilt_degrees, move_tcp_to
+from conftest import contact_frictions, grasp_block, hand_tilt_degrees, move_tcp_to
 from franka_composer.tasks.records import REFERENCE_OBJECT_DAMPING
 
 # Physics holds on the fast path and on Composer's stock stepping alike.
@@ -92,6 +92,41 @@ def test_struck_puck_slides_much_farther_on_the_slippery_floor():
     assert rough < 0.2
     assert slippery > 4 * rough
     assert slippery > 0.4  # Measured 0.53 m; the rough floor stops it within 0.13 m.
+
+
+@pytest.mark.parametrize("task, options, friction", [
+    ("push", {}, 1.0), ("push", dict(object_friction=0.3), 0.3),
+    ("push", dict(floor_friction=0.3), 0.3), ("push", dict(floor_friction=1.5), 1.0),
+    ("slide", {}, 0.04)])
+def test_the_slipperier_surface_sets_the_friction_an_object_rests_on(task, options,
+                                                                      friction):
+    """A slippery block or floor was hidden by the other surface's 1: MuJoCo's contact took
+    the larger geom friction (`contacts.surface_friction`)."""
+    env = franka_composer.load(task, seed=0, **options)
+    env.reset()
+    frictions = contact_frictions(env, env.task.prop.geom, env.task.root_entity.floor)
+    assert frictions and frictions == [friction] * len(frictions)
+
+
+def _sliding_distance(**options) -> float:
+    """How far (m) push's block, set sliding along +x at 0.5 m/s, the hand far above it,
+    goes in 0.5 s."""
+    env = franka_composer.load("push", seed=0, terminate_on_success=False, **options)
+    env.reset()
+    block, physics = env.task.prop, env.physics
+    start = block.get_pose(physics)[0].copy()
+    block.set_velocity(physics, velocity=[0.5, 0.0, 0.0])
+    for _ in range(10):
+        env.step(np.zeros(3, np.float32))
+    return float(block.get_pose(physics)[0][0] - start[0])
+
+
+def test_a_sliding_block_goes_farther_on_a_slippery_block_or_floor():
+    """About v^2 / (2 mu g), 12.7 mm at friction 1 and 42.5 mm at 0.3: measured 12.4 and
+    42.0 mm (before the slipperier surface set the contact, both went 12.4 mm)."""
+    assert _sliding_distance() == pytest.approx(0.0124, abs=0.001)
+    for options in (dict(object_friction=0.3), dict(floor_friction=0.3)):
+        assert _sliding_distance(**options) == pytest.approx(0.0420, abs=0.002)
 
 
 def test_push_gripper_cannot_open():

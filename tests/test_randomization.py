@@ -20,8 +20,8 @@ from franka_composer.controllers import CONTROLS
 from franka_composer.environment import GoalEnvironment
 from franka_composer.randomization import PARAMETERS, PRESETS
 from franka_composer.randomization.parameters import MAX_DELAY
-from conftest import (SPEC, UNBOUNDED_OBSERVATIONS, batches_substeps, env_checker_findings,
-                      her_samples)
+from conftest import (SPEC, UNBOUNDED_OBSERVATIONS, batches_substeps, contact_frictions,
+                      env_checker_findings, grasp_block, her_samples)
 
 DEFAULT = PRESETS["default"]
 VISUAL = {name: d for name, d in DEFAULT.items() if PARAMETERS[name].group == "visual"}
@@ -168,7 +168,6 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
     plain = franka_composer.load("push", seed=0, observation_mode="state+pixels")
     plain.reset()
     nominal = plain.physics.model.ptr
-    block = int(physics.bind(task.prop.geom).element_id)
     floor_material = int(model.geom_matid[physics.bind(task.root_entity.floor).element_id])
     panda = np.asarray(physics.bind(task.panda.mjcf_model.find_all("geom")).element_id)
     panda_materials = np.asarray(
@@ -183,8 +182,10 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
         body = physics.bind(task.prop.geom).bodyid
         assert model.body_mass[body] == pytest.approx(nominal_mass * drawn["object_mass"][0],
                                                       rel=1e-12)
-        floor = physics.bind(env.task.root_entity.floor)
-        assert floor.friction[0] == pytest.approx(1.0 * drawn["floor_friction"], rel=1e-12)
+        # The block-floor pair's sliding friction, scaled by both surfaces' factors.
+        block_on_floor = physics.named.model.pair_friction["block_floor"]
+        np.testing.assert_allclose(block_on_floor[:2], 1.0 * drawn["object_friction"][0]
+                                   * drawn["floor_friction"], rtol=1e-12)
         np.testing.assert_array_equal(physics.bind(task.prop.geom).rgba[:3],  # float32
                                       np.float32(drawn["object_rgb"][0]))
         damping = physics.bind(task.panda.joints).damping
@@ -193,8 +194,8 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
         assert weld[0] == pytest.approx(0.01 / np.sqrt(drawn["controller_gain"]), rel=1e-12)
         gripper = physics.bind(task.panda.gripper_actuator)
         assert -gripper.biasprm[1] == pytest.approx(1000.0 * drawn["gripper_gain"], rel=1e-12)
-        assert model.geom_friction[block, 0] == pytest.approx(
-            nominal.geom_friction[block, 0] * drawn["object_friction"][0], rel=1e-12)
+        # The geoms keep their nominal friction: the hand's contacts are MuJoCo's own.
+        np.testing.assert_array_equal(model.geom_friction, nominal.geom_friction)
         np.testing.assert_allclose(model.mat_rgba[floor_material, :3],
                                    nominal.mat_rgba[floor_material, :3] * drawn["floor_tint"],
                                    rtol=1e-6)
@@ -219,6 +220,54 @@ def test_parameters_are_written_into_the_compiled_model_without_recompiling():
             cosine = min(1.0, abs(model.cam_quat[camera] @ nominal.cam_quat[camera]))
             assert 2 * np.arccos(cosine) == pytest.approx(abs(drawn["camera_rotation"]),
                                                           abs=1e-7)
+
+
+@pytest.mark.parametrize("factors", [{"object_friction": 0.7}, {"floor_friction": 0.7},
+                                     {"object_friction": 0.7, "floor_friction": 0.8}])
+def test_a_friction_factor_below_one_reaches_the_block_floor_contact(factors):
+    """Each surface's factor scales the contacts it is in: nominal x object x floor. Written
+    into the geoms, a factor below 1 was hidden by the other geom's friction (MuJoCo's
+    contact took the larger): under the default preset the block-floor contact was below
+    nominal in 24 % of 1000 resets, where half the draws of each factor are."""
+    env = franka_composer.load("push", seed=0, randomization=factors)
+    env.reset()
+    frictions = contact_frictions(env, env.task.prop.geom, env.task.root_entity.floor)
+    expected = 1.0 * factors.get("object_friction", 1.0) * factors.get("floor_friction", 1.0)
+    assert frictions and frictions == [expected] * len(frictions)
+
+
+def test_each_blocks_friction_factor_scales_the_stacked_blocks_contact():
+    """Block 2 set on block 1: their contact's friction is nominal x factor 1 x factor 2,
+    each block's on the floor nominal x its own factor."""
+    env = franka_composer.load("stack", seed=0, randomization={
+        "object_friction": distributions.Uniform(0.5, 1.5)})
+    env.reset()
+    first, second = env.task.props
+    factors = env.task.randomization["object_friction"]
+    assert factors[0] != factors[1]
+    physics = env.physics
+    position = first.get_pose(physics)[0]
+    second.set_pose(physics, position=position + [0.0, 0.0, 0.0399])  # Resting on it.
+    physics.forward()
+    stacked = contact_frictions(env, first.geom, second.geom)
+    assert stacked and stacked == [1.0 * factors[0] * factors[1]] * len(stacked)
+    on_floor = contact_frictions(env, first.geom, env.task.root_entity.floor)
+    assert on_floor and on_floor == [1.0 * factors[0]] * len(on_floor)
+
+
+def test_the_finger_pads_keep_their_grip_friction_under_an_object_friction_factor():
+    """The hand's contacts are MuJoCo's own: the pads' friction 2 rules the grip whatever
+    the block's factor (written into the block's geom, a factor of 2.5 made it 2.5)."""
+    env = franka_composer.load("pick_and_place", seed=0, terminate_on_success=False,
+                               randomization={"object_friction": 2.5})
+    env.reset()
+    block = env.task.prop.geom
+    on_floor = contact_frictions(env, block, env.task.root_entity.floor)
+    assert on_floor and on_floor == [2.5] * len(on_floor)
+    grasp_block(env)
+    gripping = [friction for pad in env.task.panda.mjcf_model.find_all("geom")
+                for friction in contact_frictions(env, block, pad)]
+    assert len(gripping) >= 2 and gripping == [2.0] * len(gripping)
 
 
 def test_a_drawn_light_renders_the_same_with_or_without_mass_randomisation():

@@ -151,9 +151,13 @@ PARAMETERS: dict[str, Parameter] = {
     # Physics: model values written each episode, no recompilation.
     "object_mass": Parameter("physics", "factor", "each object's mass (its inertia with it)",
                              per_object=True),
-    "object_friction": Parameter("physics", "factor", "each object's sliding friction",
-                                 per_object=True),
-    "floor_friction": Parameter("physics", "factor", "the floor's sliding friction"),
+    "object_friction": Parameter("physics", "factor",
+                                 "each object's sliding friction: scales its contacts with the "
+                                 "floor and the other objects (the hand's keep theirs: the "
+                                 "finger pads' friction 2 rules the grip)", per_object=True),
+    "floor_friction": Parameter("physics", "factor",
+                                "the floor's sliding friction: scales its contacts with the "
+                                "objects"),
     "gripper_gain": Parameter("physics", "factor",
                               "the gripper servo's stiffness (damping kept at its ratio)"),
     "joint_damping": Parameter("physics", "factor", "the arm joints' damping"),

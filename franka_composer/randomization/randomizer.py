@@ -1,12 +1,12 @@
 """Draws one episode's randomised parameters and writes them into the compiled model.
 
 Nothing is recompiled: every parameter is a value of the compiled MjModel (masses, inertias,
-frictions, damping, gains, colours, lights, cameras), written at the start of an episode
-from the nominal values read once after compilation; `mj_setConst` then brings the model's
-derived constants (subtree masses, the inverse weights contacts are regularised with) in
-line with new masses. Sensing goes through Composer: noise is each observable's corruptor,
-the delay its `delay` (`update_interval` one control step, so the observation at step t is
-exactly the reading at the end of step t - k).
+the surface pairs' frictions, damping, gains, colours, lights, cameras), written at the
+start of an episode from the nominal values read once after compilation; `mj_setConst` then
+brings the model's derived constants (subtree masses, the inverse weights contacts are
+regularised with) in line with new masses. Sensing goes through Composer: noise is each
+observable's corruptor, the delay its `delay` (`update_interval` one control step, so the
+observation at step t is exactly the reading at the end of step t - k).
 
 Streams. The draws come from streams of their own, one per group (`GROUPS`), keyed each
 episode by a fingerprint of the episode's random state, which they do not advance: the
@@ -36,6 +36,8 @@ class Randomizer:
     Args:
       settings: what is randomised and how.
       arena, panda, props, controller: the task's parts whose values are written.
+      surface_pairs: the contact pairs of the floor and the objects (`contacts.py`), whose
+        sliding friction each surface's friction factor scales.
       sensed: the observables the policy reads (the state vector's and the cameras'), each
         with the noise parameter its readings get ("position_noise"...; None for images)
         and whether it reads a unit quaternion (turned by its noise, not added to).
@@ -45,11 +47,19 @@ class Randomizer:
       substeps: physics steps per control step (Composer counts delays in them).
     """
 
-    def __init__(self, settings: RandomizationSettings, *, arena, panda, props, controller,
-                 sensed: list, cameras: list, substeps: int, marker_sites=()) -> None:
+    def __init__(self, settings: RandomizationSettings, *, arena, panda, props, surface_pairs,
+                 controller, sensed: list, cameras: list, substeps: int,
+                 marker_sites=()) -> None:
         self._ranges = dict(settings.ranges)
         self._marker_sites = list(marker_sites)
         self._arena, self._panda, self._props = arena, panda, list(props)
+        self._surface_pairs = list(surface_pairs)
+        # Each pair's two surfaces, as indices into the episode's friction factors: the
+        # objects' in order, then the floor's (`_pair_friction_factors`).
+        surfaces = [prop.geom for prop in self._props] + [arena.floor]
+        self._pair_surfaces = np.array(
+            [sorted((surfaces.index(pair.geom1), surfaces.index(pair.geom2)))
+             for pair in self._surface_pairs], dtype=int).reshape(-1, 2)
         self._controller, self._cameras, self._substeps = controller, list(cameras), substeps
         self._streams = {group: np.random.RandomState(0) for group in GROUPS}
         self._values: dict = {}
@@ -113,6 +123,8 @@ class Randomizer:
         bodies = np.array([physics.bind(prop.geom).bodyid for prop in self._props], dtype=int)
         object_geoms = (ids([prop.geom for prop in self._props]) if self._props
                         else np.zeros(0, dtype=int))
+        pairs = np.array([model.name2id(pair.full_identifier, "pair")
+                          for pair in self._surface_pairs], dtype=int)
         panda_geoms = ids(self._panda.mjcf_model.find_all("geom"))
         panda_materials = ids(self._panda.mjcf_model.find_all("material"))
         lights = ids(self._arena.mjcf_model.find_all("light"))
@@ -128,8 +140,7 @@ class Randomizer:
             bodies=bodies, mass=model.body_mass[bodies].copy(),
             inertia=model.body_inertia[bodies].copy(),
             object_geoms=object_geoms, marker_sites=marker_sites,
-            object_friction=model.geom_friction[object_geoms, 0].copy(),
-            floor=floor, floor_friction=float(model.geom_friction[floor, 0]),
+            pairs=pairs, pair_friction=model.pair_friction[pairs, 0].copy(),
             floor_material=int(model.geom_matid[floor]),
             floor_rgba=model.mat_rgba[int(model.geom_matid[floor])].copy(),
             panda_geoms=panda_geoms, panda_geom_rgba=model.geom_rgba[panda_geoms].copy(),
@@ -227,12 +238,10 @@ class Randomizer:
                     "bound the factor away from 0")
             ptr.body_mass[nominal["bodies"]] = masses
             ptr.body_inertia[nominal["bodies"]] = nominal["inertia"] * factors[:, None]
-        if values.get("object_friction"):
-            ptr.geom_friction[nominal["object_geoms"], 0] = (
-                nominal["object_friction"] * np.asarray(values["object_friction"]))
-        if "floor_friction" in values:
-            ptr.geom_friction[nominal["floor"], 0] = (nominal["floor_friction"]
-                                                      * values["floor_friction"])
+        if values.get("object_friction") or "floor_friction" in values:
+            # Both sliding components; the hand's contacts (dynamic) keep their friction.
+            ptr.pair_friction[nominal["pairs"], :2] = (
+                nominal["pair_friction"] * self._pair_friction_factors(values))[:, None]
         if "joint_damping" in values:
             ptr.dof_damping[nominal["arm_dofs"]] = nominal["damping"] * values["joint_damping"]
         if "gripper_gain" in values:
@@ -250,6 +259,14 @@ class Randomizer:
                 # Read once per control step, k control steps late (0: Composer's default).
                 observable.update_interval = self._substeps if steps else 1
                 observable.delay = steps * self._substeps
+
+    def _pair_friction_factors(self, values: dict) -> np.ndarray:
+        """Each surface pair's friction factor: its two surfaces' factors (1 where one is not
+        randomised) multiplied, an object's first (`contacts.surface_friction`)."""
+        objects = values.get("object_friction") or [1.0] * len(self._props)
+        factors = np.array([*objects, values.get("floor_friction", 1.0)])
+        first, second = self._pair_surfaces.T
+        return factors[first] * factors[second]
 
     def _write_visual(self, ptr, values: dict) -> None:
         nominal = self._nominal

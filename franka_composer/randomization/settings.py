@@ -25,7 +25,8 @@ PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
                     "on push and slide, 0.1 kg on the others)"),
     "object_friction": (distributions.Uniform, (0.7, 1.3),
                         "friction coefficients are known to +-30 % at best (tables for common "
-                        "material pairs spread that much)"),
+                        "material pairs spread that much); an object on the table top slides "
+                        "at the product of both factors, the grip stays the finger pads'"),
     "floor_friction": (distributions.Uniform, (0.7, 1.3), "the same, for the table top"),
     "gripper_gain": (distributions.Uniform, (0.8, 1.2),
                      "a real gripper's grip force varies with its firmware and wear"),

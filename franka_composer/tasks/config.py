@@ -37,7 +37,9 @@ class TaskConfig:
       goal: what the task asks for, a kind of `goals.GOALS`.
       object_orientation: how the observation gives each object's orientation: "euler"
         (roll, pitch, yaw; the paper's) or "quaternion" (w, x, y, z).
-      floor_friction: sliding friction of the floor.
+      floor_friction: sliding friction of the floor; an object's contact with it takes the
+        smaller of the two (`contacts.surface_friction`), the hand's the larger (MuJoCo's
+        rule: the finger pads' 2 rules the grip).
       workspace: where the object starts and goals lie.
       control: which controller moves the arm, how far an action moves it, and whether
         the gripper is actuated.

@@ -6,6 +6,8 @@ A `GoalTask` is wired from ready-made entities (arena, Panda, the objects) and t
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from dm_control import composer
 from dm_control.composer import initializers
@@ -14,6 +16,7 @@ from dm_control.composer.variation import distributions
 from dm_control.mujoco import wrapper
 
 from franka_composer.arenas import FloorArena
+from franka_composer.contacts import add_surface_pair
 from franka_composer.controllers import Controller, make_controller
 from franka_composer.entities import Panda, Prop
 from franka_composer.entities.panda import COLLISION_GROUP, VISUAL_GROUP
@@ -57,6 +60,7 @@ class GoalTask(composer.Task):
                 arena.attach(prop).add("joint", type="free", damping=spec.joint_damping)
             else:
                 arena.add_free_entity(prop)
+        self._surface_pairs = self._add_surface_pairs()
         self._goal_spec: Goal = GOALS[config.goal](config, arena, panda, self._props)
         self._goal = np.zeros(self._goal_spec.size)
         if not config.observations.goal_marker_visible:
@@ -78,6 +82,17 @@ class GoalTask(composer.Task):
                                   **self._camera_observables(config.observations)}
         self._randomizer = (self._make_randomizer(config) if config.randomization.enabled
                             else None)
+
+    def _add_surface_pairs(self) -> list:
+        """The contact pairs of the surfaces the objects rest on (`contacts.py`): each object
+        with the floor, and each two objects with each other."""
+        root, floor = self._arena.mjcf_model, self._arena.floor
+        pairs = [add_surface_pair(root, floor, prop.geom, f"{prop.mjcf_model.model}_floor")
+                 for prop in self._props]
+        pairs += [add_surface_pair(root, first.geom, second.geom,
+                                   f"{first.mjcf_model.model}_{second.mjcf_model.model}")
+                  for first, second in itertools.combinations(self._props, 2)]
+        return pairs
 
     def _make_placers(self, workspace: Workspace) -> list:
         """How the objects are placed each episode: resting, upright, in the object box."""
@@ -135,7 +150,8 @@ class GoalTask(composer.Task):
         sensed += [(self._task_observables[f"{name}_pixels"], None, False)
                    for name in self._cameras]
         return Randomizer(config.randomization, arena=self._arena, panda=self._panda,
-                          props=self._props, controller=self._controller, sensed=sensed,
+                          props=self._props, surface_pairs=self._surface_pairs,
+                          controller=self._controller, sensed=sensed,
                           cameras=list(self._cameras.values()),
                           marker_sites=self._goal_spec.marker_sites_by_prop(),
                           substeps=self.physics_steps_per_control_step)

@@ -84,10 +84,11 @@ REFERENCE_CODE_OBJECT_DAMPING = {"push": REFERENCE_OBJECT_DAMPING, "slide": 0.0,
 
 @dataclasses.dataclass(frozen=True)
 class BlockSpec:
-    """A cube: `half_size` (m), `mass` (kg), sliding `friction`, colour; `coloured_faces`
-    tells its faces apart in images; `entity_name` names its observables ("block/position");
-    `joint_damping` damps its free joint's six degrees of freedom (N s/m, N m s/rad; none
-    by default, as a real block)."""
+    """A cube: `half_size` (m), `mass` (kg), sliding `friction` (its contacts with the floor
+    and other objects take the smaller coefficient, `contacts.surface_friction`), colour;
+    `coloured_faces` tells its faces apart in images; `entity_name` names its observables
+    ("block/position"); `joint_damping` damps its free joint's six degrees of freedom
+    (N s/m, N m s/rad; none by default, as a real block)."""
 
     half_size: float = 0.02
     mass: float = 1.0
@@ -122,7 +123,7 @@ class BlockSpec:
 
 @dataclasses.dataclass(frozen=True)
 class PuckSpec:
-    """A cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction`;
+    """A cylinder: `radius` and `half_height` (m), `mass` (kg), sliding `friction` and
     `joint_damping` as a block's."""
 
     radius: float = 0.03

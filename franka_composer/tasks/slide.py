@@ -3,7 +3,8 @@
 from franka_composer.tasks.config import TaskConfig
 from franka_composer.tasks.records import Box2D, PuckSpec, Workspace
 
-# Low friction on both the floor and the puck (MuJoCo takes the larger of the two): a struck
+# Low friction on both the floor and the puck (their contact takes the smaller of the two,
+# `contacts.surface_friction`; the hand's contacts take the larger, MuJoCo's rule): a struck
 # puck glides. Noslip would fight the intended sliding, so it stays off (the default).
 SLIDE = TaskConfig(
     name="slide",
