@@ -58,7 +58,7 @@ def test_every_task_controller_and_mode_keeps_the_goal_contract_under_the_defaul
     records = _rollout(env, seed=1, steps=SPEC[task_name]["steps"] + 5)
     applied = {name for name in DEFAULT if PARAMETERS[name].episode
                and (mode != "state" or not PARAMETERS[name].observed_cameras)
-               and (task_name != "reach" or not PARAMETERS[name].per_object)}
+               and (task_name != "reach" or not PARAMETERS[name].needs_objects)}
     for obs, reward, info in records:
         assert env.observation_space.contains(obs)
         assert set(info["randomization"]) == applied
@@ -710,6 +710,9 @@ def test_bad_randomisations_are_refused_before_anything_is_built(value, message,
      "randomization 'object_mass' does nothing here: reach has no object: leave it out"),
     ("reach", dict(randomization={"object_rgb": (1.0, 0.0, 0.0)}),
      "randomization 'object_rgb' does nothing here: reach has no object"),
+    # It scales the objects' contacts with the floor (the hand's keep theirs).
+    ("reach", dict(randomization={"floor_friction": 0.7}),
+     "randomization 'floor_friction' does nothing here: reach has no object: leave it out"),
     ("push", dict(randomization={"camera_position": (0.01, 0.0, 0.0)}),
      "randomization 'camera_position' does nothing here: no camera's images are observed "
      "(observation_mode 'state'): leave it out"),
@@ -733,6 +736,15 @@ def test_a_custom_randomisation_of_what_the_env_does_not_have_is_refused(task, o
     franka_composer.load(task, randomization={**PRESETS["default"], "observation_delay": 2})
     with pytest.raises(ValueError, match=re.escape(message)):
         franka_composer.load(task, randomization={**PRESETS["default"], **options["randomization"]})
+
+
+def test_reach_reports_no_draw_of_what_acts_on_objects_under_the_preset():
+    """The floor's friction scales its contacts with the objects alone: reach has none."""
+    env = franka_composer.load("reach", seed=0, randomization="default")
+    env.reset()
+    drawn = env.task.randomization
+    assert "joint_damping" in drawn and not {"floor_friction", "object_friction",
+                                             "object_mass", "object_rgb"} & set(drawn)
 
 
 @pytest.mark.parametrize("name", ["object_rgb", "floor_tint", "robot_tint",

@@ -53,6 +53,8 @@ class Parameter:
       meaning: what it changes, for the guide's table.
       unit: of a sample.
       per_object: drawn once per object (each object its own), else once per episode.
+      on_objects: drawn once per episode, and acts on the objects alone (their contacts):
+        nothing without one, as a per-object parameter.
       observed_cameras: it moves the cameras whose images are observed.
     """
 
@@ -61,7 +63,13 @@ class Parameter:
     meaning: str
     unit: str = "–"
     per_object: bool = False
+    on_objects: bool = False
     observed_cameras: bool = False
+
+    @property
+    def needs_objects(self) -> bool:
+        """Whether it does nothing on a task without objects (reach)."""
+        return self.per_object or self.on_objects
 
     @property
     def episode(self) -> bool:
@@ -157,7 +165,7 @@ PARAMETERS: dict[str, Parameter] = {
                                  "finger pads' friction 2 rules the grip)", per_object=True),
     "floor_friction": Parameter("physics", "factor",
                                 "the floor's sliding friction: scales its contacts with the "
-                                "objects"),
+                                "objects", on_objects=True),
     "gripper_gain": Parameter("physics", "factor",
                               "the gripper servo's stiffness (damping kept at its ratio)"),
     "joint_damping": Parameter("physics", "factor", "the arm joints' damping"),
@@ -214,7 +222,7 @@ def unread_parameter(name: str, task: str, objects: bool, cameras: bool,
     mapping naming it is refused (a preset, and a mapping's entries taken from one, give
     what applies where they are used)."""
     parameter = PARAMETERS[name]
-    if parameter.per_object and not objects:
+    if parameter.needs_objects and not objects:
         return f"{task} has no object"
     if parameter.observed_cameras and not cameras:
         return "no camera's images are observed (observation_mode 'state')"

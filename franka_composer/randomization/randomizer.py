@@ -183,10 +183,11 @@ class Randomizer:
         self._write(physics, values)
         # Reported where it applies: a preset's camera jitter is drawn (the visual stream's
         # draws stay those of a pixel env) and moves nothing where no camera is observed;
-        # a per-object parameter draws nothing where there is no object (reach).
+        # a per-object parameter draws nothing where there is no object (reach), and the
+        # floor's friction acts on nothing there (it scales the objects' contacts).
         self._values = {name: _plain(value) for name, value in values.items()
                         if (self._cameras or not PARAMETERS[name].observed_cameras)
-                        and (self._props or not PARAMETERS[name].per_object)}
+                        and (self._props or not PARAMETERS[name].needs_objects)}
 
     @property
     def tick(self) -> int:
