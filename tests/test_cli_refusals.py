@@ -762,6 +762,30 @@ def test_a_sweep_whose_ray_does_not_start_leaves_no_folder(tmp_path, monkeypatch
     assert not out.exists()
 
 
+def test_a_local_ray_that_cannot_start_is_one_line_naming_its_logs(tmp_path, monkeypatch,
+                                                                  capsys):
+    """Ray raises a bare Exception when its raylet cannot start (its object store did not
+    fit a memory limit: "mmap failed" in raylet.err), which ended the sweep in Ray's
+    traceback."""
+    import ray
+
+    def no_start(*args, **kwargs):
+        raise Exception("The current node timed out during startup. This could happen "
+                        "because some of the Ray processes failed to startup.\nmore")
+
+    monkeypatch.setattr(ray, "init", no_start)
+    out = tmp_path / "sweep"
+    assert cli.console(_sweep(out)) == 1
+    assert capsys.readouterr().err == (
+        "franka-composer: error: the sweep could not start a local Ray cluster: The current "
+        "node timed out during startup. This could happen because some of the Ray processes "
+        "failed to startup. Ray's logs say why (/tmp/ray/session_latest/logs/raylet.err): an "
+        "object store larger than the memory this process may map "
+        "(RAY_DEFAULT_OBJECT_STORE_MEMORY_PROPORTION=0.05 asks for 5 % of the machine's "
+        "memory), or a full /tmp or /dev/shm\n")
+    assert not out.exists()
+
+
 def test_a_presets_setting_that_the_options_cannot_take_names_the_preset(tmp_path):
     with pytest.raises(ValueError, match=re.escape(
             "precision bf16 (the fast preset's; --precision fp32 with it trains in fp32) runs "

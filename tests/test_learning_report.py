@@ -332,6 +332,23 @@ def test_the_table_has_a_row_per_cell_in_the_papers_order_and_the_total(tmp_path
     assert capsys.readouterr().out == out.read_text() == table
 
 
+def test_an_unfinished_runs_cpu_hours_are_counted_to_its_checkpoint(tmp_path):
+    """They read "unknown" though its checkpoint records them: every row of a campaign
+    under way did."""
+    _write_run(tmp_path, "push", "tqc", 1, [1.0] * 5, (True, 1800.0))
+    running = pathlib.Path(_write_run(tmp_path, "push", "tqc", 0, [0.0] * 6))
+    saved = running / "checkpoint-8000-0"
+    saved.mkdir()
+    (saved / "state.json").write_text(json.dumps({"steps": 8000, "wall_time_s": 40.0,
+                                                  "cpu_time_s": 720.0}))
+    (running / "checkpoint").symlink_to(saved.name)
+    runs = [read_run(root) for root in sorted(tmp_path.iterdir())]
+    assert [run.cpu_s for run in runs] == [720.0, 1800.0]
+    table = markdown_table(runs).splitlines()
+    assert table[2].endswith(" | 0.0 | ≥ 0.7 |")  # To the checkpoint: a lower bound.
+    assert "≥ 0.7 CPU hours" in table[-1]
+
+
 def test_the_papers_steps_to_each_threshold_stand_beside_ours(tmp_path, capsys):
     runs = tmp_path / "runs"
     _write_run(runs, "push", "tqc", 0, [0.0] * 4 + [1.0] * 6, (False, 3600.0))

@@ -29,11 +29,21 @@ def finite_number(text: str) -> float:
     return value
 
 
+#: The largest count a command takes: counts are read as numbers (so that 5e5 reads), and
+#: a float holds every whole number up to 2**53 exactly (1e99 steps was taken, and trained
+#: on for good).
+MAX_COUNT = 2**53
+
+
 def _whole_number(text: str, minimum: int, what: str) -> int:
-    """`text` as an integer >= `minimum`, also written in scientific notation (5e5)."""
+    """`text` as an integer from `minimum` to `MAX_COUNT`, also written in scientific
+    notation (5e5)."""
     value = number(text)
     if not (value >= minimum and value.is_integer()):
         raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
+    if value > MAX_COUNT:
+        raise argparse.ArgumentTypeError(f"must be at most 2**53 ({MAX_COUNT:.3g}), got "
+                                         f"{text!r}")
     return int(value)
 
 

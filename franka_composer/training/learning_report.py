@@ -54,7 +54,9 @@ class RunRecord:
     finished: bool
     stopped_early: bool
     wall_s: float
-    cpu_s: float | None  # None: not finished, or not recorded throughout
+    # To its end, or to its latest checkpoint where unfinished (a lower bound); None where
+    # not recorded throughout, or unfinished without a checkpoint.
+    cpu_s: float | None
     curve: dict[int, float]  # evaluated step -> success rate
     wall_times: dict[int, float]  # evaluated step -> the run's wall-clock seconds there
     stop_after: int = SMOOTHING  # the evaluations in a row the stopping rule asks for
@@ -73,7 +75,7 @@ def read_run(root: pathlib.Path) -> RunRecord:
         steps=int(outcome.get("steps", last["steps"])), finished=bool(outcome),
         stopped_early=bool(outcome.get("stopped_early", False)),
         wall_s=float(outcome.get("wall_time_s", last["wall_time_s"])),
-        cpu_s=outcome.get("cpu_time_s"), curve=success_curve(rows),
+        cpu_s=(outcome or run.read_state()).get("cpu_time_s"), curve=success_curve(rows),
         wall_times={row["steps"]: row["wall_time_s"] for row in rows},
         stop_after=config.hyperparameters.stop_after_evaluations,
         training=not outcome and run.trainer() is not None)
@@ -247,12 +249,15 @@ def minutes_text(minutes: float | None) -> str:
 
 
 def _cpu_hours(runs: list[RunRecord]) -> str:
-    """Their CPU hours; a lower bound where some runs' are unknown; "–" where all are."""
+    """Their CPU hours; a lower bound where some runs' are unknown or counted to their
+    checkpoints (unfinished); "–" where all are unknown."""
     known = [run.cpu_s for run in runs if run.cpu_s is not None]
     if not known:
         return "–"
     hours = f"{sum(known) / 3600:.1f}"
-    return hours if len(known) == len(runs) else f"≥ {hours} ({len(runs) - len(known)} unknown)"
+    if len(known) < len(runs):
+        return f"≥ {hours} ({len(runs) - len(known)} unknown)"
+    return f"≥ {hours}" if not all(run.finished for run in runs) else hours
 
 
 def _total(runs: list[RunRecord]) -> str:

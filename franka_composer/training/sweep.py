@@ -333,8 +333,13 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
                     # network.
                     local: dict[str, Any] = (
                         {} if address else dict(num_cpus=num_cpus, _node_ip_address="127.0.0.1"))
-                    ray.init(address=address, include_dashboard=False, log_to_driver=False,
-                             **local)
+                    try:
+                        ray.init(address=address, include_dashboard=False,
+                                 log_to_driver=False, **local)
+                    except (OSError, ValueError):
+                        raise  # Said in one line already ("no running Ray instance").
+                    except Exception as error:  # Ray's bare Exception: a traceback.
+                        raise RayStartError(address, error) from error
                 # Ray's start put its own SIGTERM handler in (it exits): the sweep's again.
                 with interrupt_on(signal.SIGTERM, signal.SIGINT):
                     root.mkdir(parents=True, exist_ok=True)  # Once Ray is there: none, no folder.
@@ -363,6 +368,22 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     statuses = [cell_status(cell, root, cell.name in failed) for cell in cells]
     show(status_table(statuses))
     return statuses
+
+
+class RayStartError(OSError):
+    """Ray could not start or join its cluster, for a reason only its logs hold (its own
+    `Exception`: a raylet that could not map its object store, ~30 % of the machine's memory
+    by default, under a memory limit; a full /tmp or /dev/shm)."""
+
+    def __init__(self, address: str | None, error: Exception) -> None:
+        what = (f"join the Ray cluster at {address}" if address
+                else "start a local Ray cluster")
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
+        super().__init__(
+            f"the sweep could not {what}: {reason} Ray's logs say why "
+            "(/tmp/ray/session_latest/logs/raylet.err): an object store larger than the "
+            "memory this process may map (RAY_DEFAULT_OBJECT_STORE_MEMORY_PROPORTION=0.05 "
+            "asks for 5 % of the machine's memory), or a full /tmp or /dev/shm")
 
 
 class SweepStopped(KeyboardInterrupt):
