@@ -21,7 +21,7 @@ import gymnasium as gym
 from franka_composer.adapters.goal_env import (ENV_ARGUMENTS, FrankaGoalEnv,
                                               check_not_loads_own)
 from franka_composer.adapters.pages import page
-from franka_composer.controllers import CONTROL_VERSIONS, CONTROLS
+from franka_composer.controllers import CONTROL_VERSIONS, CONTROLS, DEFAULT_CONTROL
 from franka_composer.tasks import ALL_TASKS, TASK_CONFIGS
 from franka_composer.tasks.options import OPTION_NAMES
 from franka_composer.tasks.rewards import REWARD_TYPES
@@ -32,7 +32,7 @@ def _camel(task: str) -> str:
     return "".join(part.capitalize() for part in task.split("_"))
 
 
-def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
+def env_id(task: str, reward_type: str, control: str = DEFAULT_CONTROL) -> str:
     """`pick_and_place`, `dense` -> `FrankaPickAndPlaceDense-v0`; with `osc` ->
     `FrankaPickAndPlaceOscDense-v0`, with `joints` -> `FrankaPickAndPlaceJointsDense-v1`.
     The suffix is the task's `TaskConfig.version` (flip's and stack's are 1: flip's goals
@@ -42,7 +42,7 @@ def env_id(task: str, reward_type: str, control: str = "mocap") -> str:
     check_choice("task", task, ALL_TASKS)
     check_choice("reward_type", reward_type, REWARD_TYPES)
     check_choice("control", control, CONTROLS)
-    controller = "" if control == "mocap" else control.capitalize()
+    controller = "" if control == DEFAULT_CONTROL else control.capitalize()
     version = TASK_CONFIGS[task].version + CONTROL_VERSIONS[control]
     return f"Franka{_camel(task)}{controller}{reward_type.capitalize()}-v{version}"
 
@@ -94,7 +94,8 @@ TASK_ENV_CLASSES: dict[str, type] = {task: _task_class(task) for task in ALL_TAS
 globals().update({cls.__name__: cls for cls in TASK_ENV_CLASSES.values()})
 
 
-def make_registered(registered_id: str, task: str, reward_type: str, control: str = "mocap",
+def make_registered(registered_id: str, task: str, reward_type: str,
+                    control: str = DEFAULT_CONTROL,
                     **options) -> FrankaGoalEnv:
     """What `gym.make(id, **options)` builds. The id fixes the task and the reward type
     (its spec's kwargs), and the controller where its name gives one (`...Osc...`,
@@ -107,10 +108,11 @@ def make_registered(registered_id: str, task: str, reward_type: str, control: st
     fixed = ENV_IDS[registered_id]
     asked = RegisteredEnv(task, reward_type, control)
     if (asked.task, asked.reward_type) != (fixed.task, fixed.reward_type) or (
-            fixed.control != "mocap" and asked.control != fixed.control):
+            fixed.control != DEFAULT_CONTROL and asked.control != fixed.control):
         wanted = (env_id(*asked) if asked.task in ALL_TASKS and asked.reward_type in
                   REWARD_TYPES and asked.control in CONTROLS else None)
-        controlled = "" if fixed.control == "mocap" else f", under {fixed.control} control"
+        controlled = ("" if fixed.control == DEFAULT_CONTROL
+                      else f", under {fixed.control} control")
         raise ValueError(
             f"{registered_id} is the {fixed.reward_type} {fixed.task} task{controlled}: its "
             + ("task, reward_type and control" if controlled else "task and reward_type")
@@ -156,7 +158,7 @@ def register_envs() -> None:
     for id_, registered in ENV_IDS.items():
         if id_ not in gym.registry:
             kwargs = {"task": registered.task, "reward_type": registered.reward_type}
-            if registered.control != "mocap":
+            if registered.control != DEFAULT_CONTROL:
                 kwargs["control"] = registered.control
             gym.register(id=id_, entry_point=f"{__name__}:{ID_MAKERS[id_].__name__}",
                          kwargs=kwargs,

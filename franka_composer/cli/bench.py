@@ -17,7 +17,7 @@ import gymnasium as gym
 
 from franka_composer.adapters.registration import env_id
 from franka_composer.cli.options import add_tasks_argument, positive_int
-from franka_composer.controllers import CONTROLS
+from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.cli.speed import WARMUP_STEPS, random_steps_per_second
 from franka_composer.tasks import ALL_TASKS
 
@@ -28,15 +28,15 @@ def add_parser(subparsers) -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_tasks_argument(parser, ALL_TASKS,
                        f"tasks to time (default: all of {','.join(ALL_TASKS)})")
-    parser.add_argument("--control", choices=CONTROLS, default="mocap",
-                        help="controller to time (default: mocap)")
+    parser.add_argument("--control", choices=CONTROLS, default=DEFAULT_CONTROL,
+                        help=f"controller to time (default: {DEFAULT_CONTROL})")
     parser.add_argument("--steps", type=positive_int, default=2000,
                         help=f"env steps timed per task, after {WARMUP_STEPS} warm-up "
                              "steps (default: 2000)")
     parser.set_defaults(func=run)
 
 
-def measure(task: str, steps: int, control: str = "mocap", **options) -> dict:
+def measure(task: str, steps: int, control: str = DEFAULT_CONTROL, **options) -> dict:
     """Steps/s under random actions (resets included) and the median reset (ms), through
     `gym.make` with the task `options`."""
     env = gym.make(env_id(task, "sparse", control), **options)

@@ -21,7 +21,7 @@ import franka_composer
 from franka_composer import headless_gl
 from franka_composer.adapters.registration import env_id
 from franka_composer.atomic_files import folders_made_for, replace_together
-from franka_composer.controllers.settings import TCP_CONTROLS
+from franka_composer.controllers.settings import DEFAULT_CONTROL, TCP_CONTROLS
 from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
                                          frame_size, given_timing, output_folder,
                                          positive_int, the_runs_control)
@@ -53,7 +53,8 @@ def add_parser(subparsers) -> None:
                         help="episodes per task (default: 10)")
     parser.add_argument("--control", choices=TCP_CONTROLS, default=None,
                         help="controller the experts act through (they act on dx, dy, dz, "
-                             "so not joints; default: mocap, or the --policy run's)")
+                             f"so not joints; default: {DEFAULT_CONTROL}, or the --policy "
+                             "run's)")
     add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "
                        "the timing the run trained at, and another is refused)")
     parser.add_argument("--policy", type=pathlib.Path, default=None, metavar="RUN_DIR",
@@ -144,7 +145,8 @@ def _run_task(task: str, args: argparse.Namespace, trained, on_episode_end) -> t
     timing = given_timing(args)
     policy: Callable[[Any], Any]
     if trained is None:
-        env = gym.make(env_id(task, "sparse", args.control or "mocap"), **render, **timing)
+        env = gym.make(env_id(task, "sparse", args.control or DEFAULT_CONTROL), **render,
+                       **timing)
         policy = make_expert(env)
     else:
         from franka_composer.datasets.sources import TrainedPolicy

@@ -18,7 +18,7 @@ import franka_composer
 from franka_composer.cli.options import (add_object_damping, add_timing, episode_seed,
                                          given_timing, normal_path, positive_int,
                                          standard_deviation, the_runs_control)
-from franka_composer.controllers import CONTROLS
+from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.tasks.rewards import REWARD_TYPES
 
 
@@ -40,8 +40,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--format", choices=FORMATS, default="npz",
                         help="npz (default), minari or rlds")
     parser.add_argument("--control", choices=CONTROLS, default=None,
-                        help="the controller (default: mocap, or the --policy run's; the "
-                             "experts take mocap and osc)")
+                        help=f"the controller (default: {DEFAULT_CONTROL}, or the --policy "
+                             "run's; the experts take mocap and osc)")
     add_timing(parser, "physics seconds per step (default: the task's, 0.05; with --policy, "
                        "the timing the run trained at, and another is refused)")
     add_object_damping(parser, "0, undamped; with --policy, as the run trained")
@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     if args.policy is None:
         if args.task is None:
             raise ValueError("rollout needs --task (or --policy RUN_DIR: its run's task)")
-        args.control = args.control or "mocap"
+        args.control = args.control or DEFAULT_CONTROL
     else:  # In the run's env unless told otherwise.
         from franka_composer.training.policy_file import check_trained
 

@@ -14,7 +14,7 @@ from franka_composer.atomic_files import missing_folders
 from franka_composer.cli.options import (add_guard_ignores_carried, add_object_damping,
                                          add_timing, non_negative_int, number, output_folder,
                                          positive_int, timing_options, training_seed)
-from franka_composer.controllers import CONTROLS
+from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.randomization import PRESETS
 from franka_composer.signals import interrupt_on, jax_imported
 from franka_composer.tasks import ALL_TASKS
@@ -28,7 +28,7 @@ from franka_composer.validation import check_writable
 
 #: The run's settings when their options are not given: filled in here, not by argparse, so
 #: that a --resume can tell an option given from one left out.
-RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, control="mocap", backend="sb3",
+RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, control=DEFAULT_CONTROL, backend="sb3",
                     precision="fp32", terminate_on_success=True, object_damping=0.0)
 #: What a --resume may change; every other option describes the run, which keeps its own.
 RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
@@ -105,7 +105,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--algo", choices=ALGOS, default=None,
                         help="learning algorithm (default: tqc)")
     parser.add_argument("--control", choices=CONTROLS, default=None,
-                        help="how actions move the arm (default: mocap, the paper's)")
+                        help=f"how actions move the arm (default: {DEFAULT_CONTROL}, the "
+                             "paper's)")
     add_timing(parser, "physics seconds per step, a whole number of 2 ms physics steps "
                        "(default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
                        "its stated 0.05 s: the arm at rest after each action); --timing "

@@ -16,7 +16,8 @@ from franka_composer.controllers.base import ActionLaw, Controller
 from franka_composer.controllers.joints import JointController, JointLaw
 from franka_composer.controllers.mocap import MocapController, MocapLaw
 from franka_composer.controllers.osc import OscController, OscLaw
-from franka_composer.controllers.settings import CONTROLS, ControlSettings
+from franka_composer.controllers.settings import (CONTROLS, DEFAULT_CONTROL, ControlSettings,
+                                                  has_weld)
 
 #: What each controller adds to its ids' version (`Franka{Task}Joints...-v<task's + this>`):
 #: bumped when its dynamics change, the change written in every task's version history
@@ -37,5 +38,5 @@ def make_controller(arena, panda, settings: ControlSettings) -> Controller:
 
 
 __all__ = ["ActionLaw", "CONTROLLERS", "CONTROLS", "CONTROL_VERSIONS", "ControlSettings", "Controller",
-           "JointController", "JointLaw", "MocapController", "MocapLaw", "OscController",
-           "OscLaw", "make_controller"]
+           "DEFAULT_CONTROL", "JointController", "JointLaw", "MocapController", "MocapLaw",
+           "OscController", "OscLaw", "has_weld", "make_controller"]

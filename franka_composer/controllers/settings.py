@@ -17,6 +17,9 @@ ARM_ACTIONS = {
 }
 #: The `control` option's values: the paper's mocap first (the default).
 CONTROLS = tuple(ARM_ACTIONS)
+#: The controller used where none is named: the paper's mocap. Ids, dataset ids and run
+#: labels leave its name out; they name every other.
+DEFAULT_CONTROL = "mocap"
 #: The controllers whose arm action moves the tool centre point (dx, dy, dz).
 TCP_CONTROLS = tuple(kind for kind in CONTROLS if ARM_ACTIONS[kind][2] == "tcp_delta")
 
@@ -32,6 +35,12 @@ WELD_TIME_CONSTANT = 0.01
 # to -0.05 (the reference code's -0.08) where 0.01 s drops it from -0.12 on
 # (experiments/grasp_margin.py, docs/experiments/grasp-margin.md).
 REFERENCE_WELD_TIME_CONSTANT = 0.02
+
+
+def has_weld(kind: str) -> bool:
+    """Whether controller `kind` drags the hand by a weld (mocap's), so that the weld's time
+    constant acts; the others have none and ignore it."""
+    return kind == "mocap"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -61,7 +70,7 @@ class ControlSettings:
         tasks keep v0's guard, as their ids do.
     """
 
-    kind: str = "mocap"
+    kind: str = DEFAULT_CONTROL
     max_tcp_step: float = 0.05
     max_joint_step: float = 0.05
     max_finger_step: float = 0.2
@@ -76,6 +85,11 @@ class ControlSettings:
     @property
     def action_size(self) -> int:
         return self.arm_action_size + int(self.actuated_gripper)
+
+    @property
+    def has_weld(self) -> bool:
+        """Whether this controller drags the hand by a weld (`has_weld`)."""
+        return has_weld(self.kind)
 
     @property
     def moves_the_tcp(self) -> bool:

@@ -17,6 +17,7 @@ import gymnasium as gym
 
 from franka_composer.adapters.registration import env_id
 from franka_composer.atomic_files import folders_made_for
+from franka_composer.controllers import DEFAULT_CONTROL
 from franka_composer.datasets.sources import make_policy, source_name
 from franka_composer.episodes import npz_file
 from franka_composer.policies import rollout
@@ -31,12 +32,12 @@ FORMATS = ("npz", "minari", "rlds")
 def default_dataset_id(task: str, control: str, source: str) -> str:
     """Minari's id for a dataset: "franka_composer/push/expert-v0",
     "franka_composer/push-osc/policy-noisy-v0"."""
-    name = task if control == "mocap" else f"{task}-{control}"
+    name = task if control == DEFAULT_CONTROL else f"{task}-{control}"
     return f"franka_composer/{name}/{source}-v0"
 
 
 def record(task: str, episodes: int, out, *, format: str = "npz", seed: int = 0,
-           control: str = "mocap", reward_type: str = "sparse", policy_dir=None,
+           control: str = DEFAULT_CONTROL, reward_type: str = "sparse", policy_dir=None,
            action_noise: float = 0.0, dataset_id: str | None = None, **options) -> dict:
     """Records `episodes` episodes of `task` (episode i reset with `seed` + i) by its scripted
     expert, or by the policy trained in `policy_dir`, with N(0, `action_noise`) added to each

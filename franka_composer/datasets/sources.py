@@ -106,7 +106,7 @@ def check_acts_in(run_dir, config, env_config) -> None:
         raise ValueError(f"{run_dir} observes velocities per "
                          f"{config.velocity_timestep or config.control_timestep} s, not "
                          f"per {env_config.velocity_period} s")
-    if (control == "mocap"  # The same hand (the other controllers have no weld).
+    if (env_config.control.has_weld  # The same hand (the other controllers have none).
             and config.weld_time_constant != env_config.control.weld_time_constant):
         raise ValueError(f"{run_dir} moved a hand welded with a time constant of "
                          f"{config.weld_time_constant} s, not "

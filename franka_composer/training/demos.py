@@ -18,7 +18,7 @@ import pathlib
 import numpy as np
 
 from franka_composer.adapters.registration import ENV_IDS, other_version, split_version
-from franka_composer.controllers import CONTROL_VERSIONS
+from franka_composer.controllers import CONTROL_VERSIONS, DEFAULT_CONTROL
 from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
 from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.options import OPTIONS, readable_options
@@ -130,7 +130,7 @@ def _check_id_agrees(path, recorded: dict) -> None:
             "reward_type": recorded["reward_type"]}
     contradicted = [f"{key}={value!r}" for key, value in said.items()
                     if value != getattr(fixed, key)
-                    and not (key == "control" and fixed.control == "mocap")]
+                    and not (key == "control" and fixed.control == DEFAULT_CONTROL)]
     if contradicted:
         raise ValueError(f"{path} names the id {recorded['id']!r}, which fixes task="
                          f"{fixed.task!r}, control={fixed.control!r} and reward_type="
@@ -240,7 +240,7 @@ def _dynamics(config) -> str:
     and the objects' damping where they are damped."""
     words = (f"{config.control_timestep:g} s per step, velocities per "
              f"{config.velocity_period:g} s")
-    if config.control.kind == "mocap":
+    if config.control.has_weld:
         words += f", weld {config.control.weld_time_constant:g} s"
     damped = sorted({spec.joint_damping for spec in config.objects} - {0.0})
     if damped:

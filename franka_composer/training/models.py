@@ -13,6 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 from franka_composer.adapters.registration import env_id
+from franka_composer.controllers import DEFAULT_CONTROL
 from franka_composer.signals import jax_imported
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, Hyperparameters
 from franka_composer.training.run_files import saved_policy_module
@@ -53,7 +54,7 @@ def algorithm_class(algo: str, backend: str = "sb3"):
 
 
 def make_env(task: str, *, terminate_on_success: bool = True,
-             control: str = "mocap", randomization: str | None = None,
+             control: str = DEFAULT_CONTROL, randomization: str | None = None,
              control_timestep: float | None = None, velocity_timestep: float | None = None,
              weld_time_constant: float | None = None, object_damping: float = 0.0,
              guard_ignores_carried: bool | None = None, environment: str | None = None,
@@ -95,8 +96,8 @@ def make_env(task: str, *, terminate_on_success: bool = True,
                     **options, **render_options)
 
 
-def env_task_config(task: str, *, terminate_on_success: bool = True, control: str = "mocap",
-                    **options):
+def env_task_config(task: str, *, terminate_on_success: bool = True,
+                    control: str = DEFAULT_CONTROL, **options):
     """The task configuration (`TaskConfig`) of the env `make_env` makes of this suite with
     these options (`make_env`'s, rendering and other suites' envs aside), without building
     it: what a policy is checked against first."""

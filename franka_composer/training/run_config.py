@@ -7,7 +7,7 @@ from __future__ import annotations
 import dataclasses
 import pathlib
 
-from franka_composer.controllers import CONTROLS
+from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL, has_weld
 from franka_composer.controllers.settings import WELD_TIME_CONSTANT
 from franka_composer.randomization import PRESETS
 from franka_composer.tasks import TASK_CONFIGS
@@ -76,7 +76,7 @@ class RunConfig:
     hyperparameters: Hyperparameters
     terminate_on_success: bool = True
     backend: str = "sb3"
-    control: str = "mocap"
+    control: str = DEFAULT_CONTROL
     precision: str = "fp32"
     randomization: str | None = None
     demos: str | None = None
@@ -209,7 +209,7 @@ class RunConfig:
                   if name not in NOT_LEARNING and value != base[name]]
         parts += [label for differs, label in (
             (self.environment is not None, f"{self.environment}'s env"),
-            (self.control != "mocap", f"{self.control} control"),
+            (self.control != DEFAULT_CONTROL, f"{self.control} control"),
             (self.timing_label != "", self.timing_label),
             (self.object_damping != 0.0, f"object damping {self.object_damping:g}"),
             (self.guard_ignores_carried != self._own_guard,
@@ -244,7 +244,7 @@ class RunConfig:
     def _timing_that_acts(self) -> dict:
         """`timing_options` less the weld where the controller has none (osc, joints)."""
         options = self.timing_options
-        if self.control != "mocap":
+        if not has_weld(self.control):
             del options["weld_time_constant"]
         return options
 
@@ -333,7 +333,8 @@ class RunConfig:
         check_names("key", data, (field.name for field in dataclasses.fields(cls)))
         return cls(task=data["task"], algo=data["algo"], seed=data["seed"],
                    terminate_on_success=data["terminate_on_success"],
-                   backend=data.get("backend", "sb3"), control=data.get("control", "mocap"),
+                   backend=data.get("backend", "sb3"),
+                   control=data.get("control", DEFAULT_CONTROL),
                    precision=data.get("precision", "fp32"),
                    randomization=data.get("randomization"), demos=data.get("demos"),
                    demo_episodes=data.get("demo_episodes"),
