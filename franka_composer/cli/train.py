@@ -21,15 +21,19 @@ from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
+from franka_composer.training.run_config import FIELD_DEFAULTS
 from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, check_not_inside_a_run,
                                           run_finished)
 from franka_composer.validation import check_writable
 
 
 #: The run's settings when their options are not given: filled in here, not by argparse, so
-#: that a --resume can tell an option given from one left out.
-RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, control=DEFAULT_CONTROL, backend="sb3",
-                    precision="fp32", terminate_on_success=True, object_damping=0.0)
+#: that a --resume can tell an option given from one left out. Beside the task, algorithm
+#: and seed, which `RunConfig` must be given, they are its fields' defaults; a setting not
+#: listed defaults to None, as its field does.
+RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, **{
+    name: FIELD_DEFAULTS[name] for name in ("control", "backend", "precision",
+                                            "terminate_on_success", "object_damping")})
 #: What a --resume may change; every other option describes the run, which keeps its own.
 RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
 #: Options named otherwise than the setting they give (`run_config`).

@@ -189,8 +189,9 @@ class RunConfig:
     def _baseline(self) -> dict:
         """What its setup is measured against: the paper's (Table I for its task and
         algorithm, SB3 in fp32, terminating on success, nothing added), or its preset's."""
-        baseline = dict(hyperparameters=hyperparameters(self.task, self.algo), backend="sb3",
-                        precision="fp32", terminate_on_success=True, expert_demos=None)
+        baseline = dict(hyperparameters=hyperparameters(self.task, self.algo),
+                        **{name: FIELD_DEFAULTS[name] for name in (
+                            "backend", "precision", "terminate_on_success", "expert_demos")})
         if self.preset is None:
             return baseline
         preset = TRAINING_PRESETS[self.preset]
@@ -321,28 +322,33 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, data: dict) -> "RunConfig":
-        # Runs written before the JAX backend, the controllers, bf16 or randomisation existed
-        # have no "backend", "control", "precision" or "randomization": they are SB3's,
-        # mocap, fp32, not randomised; those before the control timestep option, the task's;
-        # those before the velocity timestep, velocities per control period; those before the
-        # weld's time constant, the default weld (the reference timing's runs included);
-        # those before other suites' envs, this package's; those before object damping,
-        # undamped objects; those before the guard could leave carried blocks out, v0's
-        # guard, which counted them as surfaces. A name no run has recorded (a misspelt
-        # "contrl" would else read as the default controller) is refused.
-        check_names("key", data, (field.name for field in dataclasses.fields(cls)))
-        return cls(task=data["task"], algo=data["algo"], seed=data["seed"],
-                   terminate_on_success=data["terminate_on_success"],
-                   backend=data.get("backend", "sb3"),
-                   control=data.get("control", DEFAULT_CONTROL),
-                   precision=data.get("precision", "fp32"),
-                   randomization=data.get("randomization"), demos=data.get("demos"),
-                   demo_episodes=data.get("demo_episodes"),
-                   expert_demos=data.get("expert_demos"), preset=data.get("preset"),
-                   control_timestep=data.get("control_timestep"),
-                   velocity_timestep=data.get("velocity_timestep"),
-                   weld_time_constant=data.get("weld_time_constant"),
-                   object_damping=data.get("object_damping", 0.0),
-                   environment=data.get("environment"),
-                   guard_ignores_carried=data.get("guard_ignores_carried", False),
+        # A key a run has not recorded reads as its field's default (`FIELD_DEFAULTS`), save
+        # one (`_BEFORE_THE_FIELD`). Runs written before the JAX backend, the controllers,
+        # bf16 or randomisation existed have no "backend", "control", "precision" or
+        # "randomization": they are SB3's, the default controller's, fp32, not randomised;
+        # those before the control timestep option, the task's; those before the velocity
+        # timestep, velocities per control period; those before the weld's time constant, the
+        # default weld (the reference timing's runs included); those before other suites'
+        # envs, this package's; those before object damping, undamped objects; those before
+        # the guard could leave carried blocks out, v0's guard, which counted them as
+        # surfaces. A name no run has recorded (a misspelt "contrl" would else read as the
+        # default controller) is refused.
+        names = [field.name for field in dataclasses.fields(cls)]
+        check_names("key", data, names)
+        settings = {name: data[name] if name in _ALWAYS_RECORDED
+                    else data.get(name, _BEFORE_THE_FIELD.get(name, FIELD_DEFAULTS[name]))
+                    for name in names if name != "hyperparameters"}
+        return cls(**settings,
                    hyperparameters=Hyperparameters.from_dict(data["hyperparameters"]))
+
+
+#: Each `RunConfig` field's default, by name (the fields without one left out): what a
+#: setting not given is, and what a config.json from before the field reads as.
+FIELD_DEFAULTS = {field.name: field.default for field in dataclasses.fields(RunConfig)
+                  if field.default is not dataclasses.MISSING}
+#: The fields every config.json has held (`RunConfig.from_dict` reads them without a default).
+_ALWAYS_RECORDED = ("task", "algo", "seed", "terminate_on_success")
+#: What a config.json from before a field read as, where that is not the field's default
+#: (`RunConfig.from_dict`): the guard counted carried blocks as surfaces (v0's) before it
+#: could leave them out.
+_BEFORE_THE_FIELD = {"guard_ignores_carried": False}
