@@ -22,8 +22,8 @@ from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UP
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
 from franka_composer.training.run_config import FIELD_DEFAULTS
-from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, check_not_inside_a_run,
-                                          run_finished)
+from franka_composer.training.runs import (DEFAULT_CHECKPOINT_EVERY, RESUME_OPTIONS,
+                                          check_not_inside_a_run, run_finished)
 from franka_composer.validation import check_writable
 
 
@@ -34,8 +34,6 @@ from franka_composer.validation import check_writable
 RUN_DEFAULTS = dict(task="push", algo="tqc", seed=0, **{
     name: FIELD_DEFAULTS[name] for name in ("control", "backend", "precision",
                                             "terminate_on_success", "object_damping")})
-#: What a --resume may change; every other option describes the run, which keeps its own.
-RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
 #: Options named otherwise than the setting they give (`run_config`).
 _OPTION_OF_SETTING = {"stop_success_rate": "stop_at_success",
                       "stop_after_evaluations": "stop_after",

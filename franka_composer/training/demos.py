@@ -17,6 +17,7 @@ import pathlib
 
 import numpy as np
 
+from franka_composer.adapters.goal_env import ENV_ARGUMENTS
 from franka_composer.adapters.registration import ENV_IDS, other_version, split_version
 from franka_composer.controllers import CONTROL_VERSIONS, DEFAULT_CONTROL
 from franka_composer.episodes import OBSERVATION_KEYS, Trajectories, check_episodes
@@ -386,11 +387,11 @@ def _recorded_by_spec(env_spec) -> dict:
             "max_episode_steps": limit}
 
 
-#: The arguments of an env beside its task options: `FrankaGoalEnv`'s own, `load`'s
-#: `time_limit`, and the `registered_id` that 0.4.0's ids passed. A Minari env spec holds
-#: them beside the options, and 0.3.0's datasets kept those given to `gym.make` among them.
-_ENV_ARGUMENTS = ("task", "reward_type", "render_mode", "width", "height", "camera",
-                  "time_limit", "registered_id")
+#: The arguments of an env beside its task options: `FrankaGoalEnv`'s own and `load`'s
+#: `time_limit` (`ENV_ARGUMENTS`), and the `registered_id` that 0.4.0's ids passed. A Minari
+#: env spec holds them beside the options, and 0.3.0's datasets kept those given to
+#: `gym.make` among them.
+_ENV_ARGUMENTS = (*ENV_ARGUMENTS, "registered_id")
 
 
 def _not_registered(path, recorded_id: str) -> ValueError:

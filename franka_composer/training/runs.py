@@ -42,6 +42,9 @@ from franka_composer.training.run_files import (checked_model, model_damage, rea
 #: Steps between checkpoints of a new run (model and replay buffer: hundreds of MB each);
 #: state.json records a run's own, which a resume keeps.
 DEFAULT_CHECKPOINT_EVERY = 50_000
+#: The `train` options (argparse dests) a --resume may change; every other option describes
+#: the run, which keeps its own (its config.json).
+RESUME_OPTIONS = ("total_steps", "device", "checkpoint_every", "threads", "progress")
 
 
 class EvalRow(TypedDict):

@@ -28,7 +28,8 @@ from typing import Any
 from franka_composer.signals import interrupt_on
 from franka_composer.training.report import with_variant
 from franka_composer.training.keep import check_kept_apart, files_to_keep, keep_run
-from franka_composer.training.runs import RunDir, read_eval_rows, run_finished
+from franka_composer.training.runs import (RESUME_OPTIONS, RunDir, read_eval_rows,
+                                          run_finished)
 from franka_composer.validation import repeated
 
 
@@ -128,8 +129,11 @@ def cell_environment() -> dict[str, str]:
     return environment
 
 
-#: `train` options that still apply to a resumed run (the rest is in its config.json).
-_RESUMABLE = {"--threads": 1, "--device": 1, "--checkpoint-every": 1}
+#: The `train` options a cell's resume passes on from the sweep's (`RESUME_OPTIONS`: the rest
+#: is in the run's config.json), by flag, each with the one value it takes: all but the
+#: budget and --no-progress, which the sweep gives every cell itself (`train_arguments`).
+_RESUMABLE = {"--" + name.replace("_", "-"): 1 for name in RESUME_OPTIONS
+              if name not in ("total_steps", "progress")}
 
 
 def _resume_args(train_args: tuple[str, ...]) -> list[str]:
