@@ -1,9 +1,11 @@
 """A file written whole or not at all: beside its place, then moved there in one step; what
-is written flushed to the disk; and the folders made for it removed again if it is not."""
+is written flushed to the disk; and the folders made for it removed again if it is not.
+`sha256` is how a reader checks later that a file is still the one written."""
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import itertools
 import os
 import pathlib
@@ -107,6 +109,13 @@ def irregular_file(path) -> str | None:
         return None
     return ("it is not a regular file (a device, FIFO or socket), which a file written in "
             "its place would replace; give a file's path")
+
+
+def sha256(path: pathlib.Path) -> str:
+    """The SHA-256 of the file at `path`, in hex: what a checkpoint's state.json and an RLDS
+    dataset's digests file record of the files beside them."""
+    with open(path, "rb") as file:
+        return hashlib.file_digest(file, "sha256").hexdigest()
 
 
 def sync_to_disk(path: pathlib.Path) -> None:

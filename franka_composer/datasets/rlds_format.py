@@ -16,7 +16,6 @@ extra takes 1.2, whose wheels run here with protobuf 7; 1.2 still names `np.unic
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import os
@@ -25,7 +24,7 @@ import pathlib
 import numpy as np
 
 from franka_composer import seeding
-from franka_composer.atomic_files import replace_atomically
+from franka_composer.atomic_files import replace_atomically, sha256
 from franka_composer.datasets.folders import removed_if_it_fails
 from franka_composer.environment import ended_by_divergence
 from franka_composer.episodes import check_not_diverged
@@ -104,7 +103,7 @@ DIGESTS_FILE = "franka_composer_sha256.json"
 def add_digests(root: pathlib.Path) -> None:
     """Writes `DIGESTS_FILE` in `root`: every file of the dataset by its path there, with
     its SHA-256."""
-    digests = {str(path.relative_to(root)): _file_digest(path)
+    digests = {str(path.relative_to(root)): sha256(path)
                for path in sorted(root.rglob("*.riegeli"))}
     replace_atomically(root / DIGESTS_FILE,
                        lambda partial: partial.write_text(json.dumps(digests, indent=1)))
@@ -134,7 +133,7 @@ def check_digests(root: pathlib.Path) -> None:
         if not path.is_file():
             raise ValueError(f"{path} is missing: {DIGESTS_FILE} lists it as part of the "
                              "dataset (damaged, or not copied whole?)")
-        if _file_digest(path) != digest:
+        if sha256(path) != digest:
             raise ValueError(f"{path} is not what was recorded: its SHA-256 differs from "
                              f"the one {DIGESTS_FILE} keeps (damaged or edited since?): "
                              "record the dataset again")
@@ -143,14 +142,6 @@ def check_digests(root: pathlib.Path) -> None:
             raise ValueError(f"{path} was not part of the recording ({DIGESTS_FILE} does "
                              "not list it): envlogger would read its episodes as the "
                              "dataset's")
-
-
-def _file_digest(path: pathlib.Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def read(root: pathlib.Path) -> dict:

@@ -5,12 +5,13 @@ that reads it."""
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import pathlib
 import pickle
 import zipfile
 import zlib
+
+from franka_composer.atomic_files import sha256
 
 
 def model_damage(path: pathlib.Path) -> str | None:
@@ -91,12 +92,7 @@ def steps_of(state_path: pathlib.Path) -> int | None:
 def file_digests(folder: pathlib.Path) -> dict[str, str]:
     """A SHA-256 of each file in `folder`, by name: what a checkpoint's state.json records
     of the files beside it (`check_file_digests`)."""
-    return {path.name: _sha256(path) for path in sorted(folder.iterdir())}
-
-
-def _sha256(path: pathlib.Path) -> str:
-    with path.open("rb") as file:
-        return hashlib.file_digest(file, "sha256").hexdigest()
+    return {path.name: sha256(path) for path in sorted(folder.iterdir())}
 
 
 def check_file_digests(folder: pathlib.Path, digests: dict[str, str] | None) -> None:
@@ -108,7 +104,7 @@ def check_file_digests(folder: pathlib.Path, digests: dict[str, str] | None) -> 
         path = folder / name
         if not path.is_file():
             raise ValueError(f"{path} is missing: a checkpoint cannot be resumed without it")
-        if _sha256(path) != digest:
+        if sha256(path) != digest:
             raise ValueError(f"{path} is not the file its checkpoint wrote (its SHA-256 "
                              "differs from the one in state.json): damaged since")
 
