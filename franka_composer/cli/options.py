@@ -29,27 +29,33 @@ def finite_number(text: str) -> float:
     return value
 
 
-#: The largest count a command takes: counts are read as numbers (so that 5e5 reads), and
-#: a float holds every whole number up to 2**53 exactly (1e99 steps was taken, and trained
-#: on for good).
-MAX_COUNT = 2**53
+#: The largest count a command takes: numpy's and SB3's step counters are int64 (1e99
+#: steps was taken, and trained on for good).
+MAX_COUNT = 2**63 - 1
 
 
-def _whole_number(text: str, minimum: int, what: str) -> int:
-    """`text` as an integer from `minimum` to `MAX_COUNT`, also written in scientific
-    notation (5e5)."""
-    value = number(text)
-    if not (value >= minimum and value.is_integer()):
+def _whole_number(text: str, minimum: int, what: str, maximum: float = math.inf) -> int:
+    """`text` as an integer from `minimum` to `maximum`, also written in scientific notation
+    (5e5); written in digits, it is read exactly however long (a seed of 20 digits)."""
+    value: int | None
+    try:
+        value = int(text)
+    except ValueError:
+        as_float = number(text)
+        value = int(as_float) if as_float.is_integer() else None
+    if value is None or not minimum <= value <= maximum:
         raise argparse.ArgumentTypeError(f"must be {what}, got {text!r}")
-    if value > MAX_COUNT:
-        raise argparse.ArgumentTypeError(f"must be at most 2**53 ({MAX_COUNT:.3g}), got "
-                                         f"{text!r}")
-    return int(value)
+    return value
 
 
 def positive_int(text: str) -> int:
-    """An integer >= 1; a whole number in scientific notation (5e5) is accepted too."""
-    return _whole_number(text, 1, "a positive integer")
+    """A count: an integer from 1 to `MAX_COUNT`; a whole number in scientific notation
+    (5e5) is accepted too."""
+    value = _whole_number(text, 1, "a positive integer")
+    if value > MAX_COUNT:
+        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 ({MAX_COUNT:.3g}), got "
+                                         f"{text!r}")
+    return value
 
 
 def non_negative_int(text: str) -> int:
@@ -61,11 +67,8 @@ def frame_size(text: str) -> int:
     """A frame's width or height in pixels: 1 to MuJoCo's offscreen buffer's side."""
     from franka_composer.arenas.floor import MAX_RENDER_SIZE
 
-    value = number(text)
-    if not (1 <= value <= MAX_RENDER_SIZE and value.is_integer()):
-        raise argparse.ArgumentTypeError(
-            f"must be a whole number of pixels from 1 to {MAX_RENDER_SIZE}, got {text!r}")
-    return int(value)
+    return _whole_number(text, 1, f"a whole number of pixels from 1 to {MAX_RENDER_SIZE}",
+                         MAX_RENDER_SIZE)
 
 
 def output_file(text: str) -> pathlib.Path:
@@ -136,23 +139,23 @@ def figure_file(text: str) -> pathlib.Path:
 
 
 def training_seed(text: str) -> int:
-    """A training run's seed: an integer in [0, MAX_TRAINING_SEED]."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if not 0 <= value <= MAX_TRAINING_SEED:
-        raise argparse.ArgumentTypeError(
-            f"must be an integer from 0 to {MAX_TRAINING_SEED}, got {text!r}")
+    """A training run's seed: an integer in [0, MAX_TRAINING_SEED]; a whole number in
+    scientific notation (1e4) is accepted too."""
+    return _whole_number(text, 0, f"an integer from 0 to {MAX_TRAINING_SEED}",
+                         MAX_TRAINING_SEED)
+
+
+def _positive(text: str, what: str) -> float:
+    """`text` as a finite number > 0; refused as "must be `what` > 0"."""
+    value = number(text)
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be {what} > 0, got {text!r}")
     return value
 
 
 def positive_number(text: str) -> float:
     """A finite number > 0."""
-    value = number(text)
-    if not 0.0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}")
-    return value
+    return _positive(text, "a number")
 
 
 def success_percent(text: str) -> float:
@@ -168,21 +171,13 @@ def success_percent(text: str) -> float:
 
 def positive_seconds(text: str) -> float:
     """A finite number of seconds > 0."""
-    value = number(text)
-    if not 0.0 < value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text!r}")
-    return value
+    return _positive(text, "a number of seconds")
 
 
 def episode_seed(text: str) -> int:
-    """The first episode's seed: any integer >= 0 (Gymnasium's seeds)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}")
-    return value
+    """The first episode's seed: any integer >= 0 (Gymnasium's seeds); a whole number in
+    scientific notation (1e4) is accepted too."""
+    return non_negative_int(text)
 
 
 def standard_deviation(text: str) -> float:
