@@ -35,7 +35,7 @@ def time_gradient_steps(task: str, algo: str, steps: int, rounds: int,
 
     hp = hyperparameters(task, algo).replace(learning_starts=FILL_STEPS)
     env = make_env(task)
-    model = build_model(task, algo, hp, env, seed=0, device=device)
+    model = build_model(algo, hp, env, seed=0, device=device)
     synchronize = torch.cuda.synchronize if device == "cuda" else lambda: None
     model.set_logger(quiet_logger())
     model.learn(total_timesteps=FILL_STEPS)  # Fills the buffer.

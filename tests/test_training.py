@@ -78,18 +78,18 @@ def test_bad_names_are_value_errors_listing_choices(capsys):
 
 def test_built_model_has_table_i_settings():
     env = make_env("push")
-    tqc = build_model("push", "tqc", hyperparameters("push", "tqc"), env, seed=0, device="cpu")
+    tqc = build_model("tqc", hyperparameters("push", "tqc"), env, seed=0, device="cpu")
     assert tqc.batch_size == 512 and tqc.tau == 0.05 and tqc.gamma == 0.95
     assert tqc.top_quantiles_to_drop_per_net == 2 and tqc.critic.n_quantiles == 25
     assert len(tqc.critic.q_networks) == 2 and tqc.critic.n_critics == 2
     assert [m.out_features for m in tqc.actor.latent_pi if hasattr(m, "out_features")] == [256] * 3
     assert tqc.replay_buffer.n_sampled_goal == 4 and tqc.action_noise is None
-    sac = build_model("push", "sac", hyperparameters("push", "sac").replace(
+    sac = build_model("sac", hyperparameters("push", "sac").replace(
         update_schedule="episode", buffer_size=1000), env, seed=0, device="cpu")
     assert sac.action_noise._sigma.tolist() == [0.2] * 3
     assert (sac.train_freq.frequency, sac.train_freq.unit.value, sac.gradient_steps) == (
         1, "episode", -1)
-    ddpg = build_model("push", "ddpg", hyperparameters("push", "ddpg").replace(
+    ddpg = build_model("ddpg", hyperparameters("push", "ddpg").replace(
         train_every=4, buffer_size=1000), env, seed=0, device="cpu")
     assert (ddpg.train_freq.frequency, ddpg.train_freq.unit.value, ddpg.gradient_steps) == (
         4, "step", 1)
@@ -155,7 +155,7 @@ def test_a_table_i_policy_file_is_the_actor_alone(tmp_path, algo, backend):
     from franka_composer.training.policy_file import save_policy
 
     env = make_env("push")
-    model = build_model("push", algo, hyperparameters("push", algo).replace(
+    model = build_model(algo, hyperparameters("push", algo).replace(
         buffer_size=1000), env, seed=0, device="cpu", backend=backend)
     save_policy(model, tmp_path / "policy.pt")
     model.save(tmp_path / "model.zip")
@@ -1410,7 +1410,7 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
 def test_sbx_model_has_table_i_settings():
     import sbx  # In the test extra: a missing sbx is a failure here, not a skip.
     env = make_env("push")
-    tqc = build_model("push", "tqc", hyperparameters("push", "tqc").replace(buffer_size=1000),
+    tqc = build_model("tqc", hyperparameters("push", "tqc").replace(buffer_size=1000),
                       env, seed=0, device="cpu", backend="sbx")
     assert isinstance(tqc, sbx.TQC)
     assert (tqc.batch_size, tqc.tau, tqc.gamma, tqc.learning_rate) == (512, 0.05, 0.95, 1e-3)
@@ -1419,13 +1419,13 @@ def test_sbx_model_has_table_i_settings():
     assert tqc.policy.net_arch_pi == tqc.policy.net_arch_qf == [256] * 3
     assert (tqc.policy.dropout_rate, tqc.policy.layer_norm) == (0.0, False)
     assert tqc.replay_buffer.n_sampled_goal == 4 and tqc.target_entropy == -3.0
-    sac = build_model("push", "sac", hyperparameters("push", "sac").replace(
+    sac = build_model("sac", hyperparameters("push", "sac").replace(
         update_schedule="episode", buffer_size=1000), env, seed=0, device="cpu", backend="sbx")
     assert sac.action_noise._sigma.tolist() == [0.2] * 3 and sac.ent_coef_init == "auto"
     assert (sac.train_freq.frequency, sac.train_freq.unit.value, sac.gradient_steps) == (
         1, "episode", -1)
     assert sac.policy.n_critics == 2 and sac.qf_learning_rate == 1e-3
-    ddpg = build_model("push", "ddpg", hyperparameters("push", "ddpg").replace(
+    ddpg = build_model("ddpg", hyperparameters("push", "ddpg").replace(
         buffer_size=1000), env, seed=0, device="cpu", backend="sbx")
     assert ddpg.policy.n_critics == 1 and ddpg.qf_learning_rate == 1e-3  # sbx's default: 1e-3.
     assert (ddpg.policy_delay, ddpg.target_noise_clip) == (1, 0.0)  # No TD3 tricks.
@@ -1798,7 +1798,7 @@ def test_clipped_q_targets_bound_the_target_critic_and_nothing_else(algo):
     from franka_composer.training.target_bounds import clip_target_critic
 
     env = make_env("push")
-    model = build_model("push", algo, hyperparameters("push", algo).replace(
+    model = build_model(algo, hyperparameters("push", algo).replace(
         net_arch=(16, 16), buffer_size=1000), env, seed=0, device="cpu")
     obs = model.policy.obs_to_tensor(env.observation_space.sample())[0]
     actions = torch.zeros((1,) + env.action_space.shape)

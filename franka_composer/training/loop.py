@@ -173,12 +173,12 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
         if run_finished(run, hp.total_steps):
             # It has ended, by the stopping rule or at this budget: nothing to train, and
             # its files stay as they are.
-            return _trained_model(run, config, env, eval_env, device, run.best_model())
+            return _trained_model(config, env, eval_env, device, run.best_model())
         if StoppingRule.over(rows, hp.eval_every, hp.stop_success_rate,
                              hp.stop_after_evaluations).met:
             # It met the stopping rule and was stopped before it wrote its outcome: it ends
             # there, as it would have.
-            model = _trained_model(run, config, env, eval_env, device, run.checkpoint_model)
+            model = _trained_model(config, env, eval_env, device, run.checkpoint_model)
             _finish(run, model, True, state["wall_time_s"], state.get("cpu_time_s"),
                     state.get("fresh_streams"), state.get("machines"))
             return model
@@ -208,7 +208,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
                                  hp.eval_episodes)
     else:
         clock = WallClock()  # Before the expert's demonstrations: they are the run's time.
-        model = build_model(config.task, config.algo, hp, env, seed=config.seed,
+        model = build_model(config.algo, hp, env, seed=config.seed,
                             device=device, tensorboard_log=tensorboard,
                             backend=config.backend)
         if config.demos is not None:
@@ -309,7 +309,7 @@ def _machines_on_resume(run: RunDir, state: dict) -> list[dict]:
     return [*machines, {"from_steps": state["steps"], **now}]
 
 
-def _trained_model(run: RunDir, config: RunConfig, env, eval_env, device: str, path):
+def _trained_model(config: RunConfig, env, eval_env, device: str, path):
     """The model at `path` of a run that trains no further, its envs closed."""
     try:
         return load_model(config.algo, checked_model(path), env=env, device=device,

@@ -185,7 +185,7 @@ def quiet_logger():
     return Logger(folder=None, output_formats=[])
 
 
-def build_model(task: str, algo: str, hp: Hyperparameters, env: gym.Env, *, seed: int,
+def build_model(algo: str, hp: Hyperparameters, env: gym.Env, *, seed: int,
                 device: str = "auto", tensorboard_log: str | None = None,
                 backend: str = "sb3"):
     """A fresh HER model with `hp` (Table I unless overridden) on `env`."""

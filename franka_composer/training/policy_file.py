@@ -166,7 +166,7 @@ def _sbx_policy(config: RunConfig, weights: dict, env: gym.Env, path: pathlib.Pa
     from flax.traverse_util import flatten_dict, unflatten_dict
 
     hp = config.hyperparameters.replace(buffer_size=1_000)  # Acting never reads the buffer.
-    policy = build_model(config.task, config.algo, hp, env, seed=config.seed, device="cpu",
+    policy = build_model(config.algo, hp, env, seed=config.seed, device="cpu",
                          backend="sbx").policy
     fresh = flatten_dict(dict(policy.actor_state.params), sep="/")
     if {name: tuple(leaf.shape) for name, leaf in fresh.items()} != {
