@@ -63,7 +63,8 @@ class FloorArena(composer.Arena):
                            directional=True, castshadow=False, diffuse=(0.3, 0.3, 0.3))
         self._workspace_camera = root.worldbody.add(
             "camera", name="workspace", **WORKSPACE_CAMERA)
-        self._top_camera = root.worldbody.add("camera", name="top", fovy=45, **TOP_CAMERA)
+        # Rendered by its name alone (the env's camera="top"), so no property holds it.
+        root.worldbody.add("camera", name="top", fovy=45, **TOP_CAMERA)
 
     @property
     def floor(self):
@@ -78,7 +79,3 @@ class FloorArena(composer.Arena):
     @property
     def workspace_camera(self):
         return self._workspace_camera
-
-    @property
-    def top_camera(self):
-        return self._top_camera
