@@ -35,11 +35,10 @@ class Prop(primitive.Primitive):
 
 
 class Block(Prop):
-    """A cube."""
+    """A cube, built by `tasks.records.BlockSpec.make`: the spec holds its defaults."""
 
-    def _build(self, half_size: float = 0.02, mass: float = 1.0, friction: float = 1.0,
-               name: str = "block", rgba=(0.1, 0.45, 0.9, 1.0),
-               coloured_faces: bool = False) -> None:
+    def _build(self, *, half_size: float, mass: float, friction: float, name: str, rgba,
+               coloured_faces: bool) -> None:
         """`coloured_faces`: six distinctly coloured faces (`faces.py`), so the cube's
         orientation shows in images."""
         # condim 4 adds torsional friction, so a pushed block turns about z like a real one
@@ -54,12 +53,12 @@ class Block(Prop):
 
 
 class Puck(Prop):
-    """A cylinder (6 cm across and as tall, by default) that slides on a low-friction
-    surface."""
+    """A cylinder that slides on a low-friction surface, built by
+    `tasks.records.PuckSpec.make`: the spec holds its defaults, bar the colour, the puck's
+    own."""
 
-    def _build(self, radius: float = 0.03, half_height: float = 0.03, mass: float = 1.0,
-               friction: float = 0.04, name: str = "puck",
-               rgba=(0.9, 0.45, 0.1, 1.0)) -> None:
+    def _build(self, *, radius: float, half_height: float, mass: float, friction: float,
+               name: str, rgba=(0.9, 0.45, 0.1, 1.0)) -> None:
         # condim 3 (no torsional or rolling friction): the puck glides and spins freely,
         # like an air-hockey puck; its sliding friction alone sets how far it goes.
         super()._build(geom_type="cylinder", size=(radius, half_height), name=name, mass=mass,
