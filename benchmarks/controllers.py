@@ -9,23 +9,14 @@ a burst of load on the shared machine spoils one round, not the ratio.
 
 from __future__ import annotations
 
-import argparse
-
-from franka_composer.cli.bench import best_of_rounds
-from franka_composer.cli.options import add_tasks_argument, positive_int
+from franka_composer.cli.bench import best_of_rounds, rounds_parser
 from franka_composer.controllers import CONTROLS
 from franka_composer.tasks import ALL_TASKS
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_tasks_argument(parser, ALL_TASKS, "tasks to time (default: all)")
-    parser.add_argument("--steps", type=positive_int, default=2000,
-                        help="env steps per round, task and controller (default: 2000)")
-    parser.add_argument("--rounds", type=positive_int, default=3,
-                        help="rounds, the best of which is reported (default: 3)")
-    args = parser.parse_args(argv)
+    args = rounds_parser(__doc__, ALL_TASKS, "tasks to time (default: all)", steps=2000,
+                         rounds=3, steps_per="round, task and controller").parse_args(argv)
     best = best_of_rounds(args.tasks, {c: {"control": c} for c in CONTROLS}, args.steps,
                           args.rounds)
     print("| task | " + " | ".join(f"{c} steps/s" for c in CONTROLS)

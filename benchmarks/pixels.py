@@ -11,11 +11,9 @@ from the workspace camera with the Panda's visual meshes instead of its hulls.
 
 from __future__ import annotations
 
-import argparse
 import os
 
-from franka_composer.cli.bench import best_of_rounds
-from franka_composer.cli.options import add_tasks_argument, positive_int
+from franka_composer.cli.bench import best_of_rounds, rounds_parser
 
 SETTINGS = {
     "state": {},
@@ -27,15 +25,9 @@ SETTINGS = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_tasks_argument(parser, ("push", "pick_and_place"),
-                       "tasks to time (default: push, pick_and_place)")
-    parser.add_argument("--steps", type=positive_int, default=1000,
-                        help="env steps per round and setting (default: 1000)")
-    parser.add_argument("--rounds", type=positive_int, default=2,
-                        help="rounds, the best of which is reported (default: 2)")
-    args = parser.parse_args(argv)
+    args = rounds_parser(__doc__, ("push", "pick_and_place"),
+                         "tasks to time (default: push, pick_and_place)", steps=1000,
+                         rounds=2).parse_args(argv)
     best = best_of_rounds(args.tasks, SETTINGS, args.steps, args.rounds)
     print(f"MUJOCO_GL={os.environ.get('MUJOCO_GL')}; 84 x 84 images")
     print("| task | " + " | ".join(f"{name} steps/s" for name in SETTINGS) + " |")

@@ -12,10 +12,7 @@ camera without and with the preset.
 
 from __future__ import annotations
 
-import argparse
-
-from franka_composer.cli.bench import best_of_rounds
-from franka_composer.cli.options import add_tasks_argument, positive_int
+from franka_composer.cli.bench import best_of_rounds, rounds_parser
 from franka_composer.randomization import PARAMETERS, PRESETS
 
 DEFAULT = PRESETS["default"]
@@ -42,15 +39,9 @@ SETTINGS = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    add_tasks_argument(parser, ("push", "pick_and_place"),
-                       "tasks to time (default: push, pick_and_place)")
-    parser.add_argument("--steps", type=positive_int, default=1000,
-                        help="env steps per round and setting (default: 1000)")
-    parser.add_argument("--rounds", type=positive_int, default=3,
-                        help="rounds, the best of which is reported (default: 3)")
-    args = parser.parse_args(argv)
+    args = rounds_parser(__doc__, ("push", "pick_and_place"),
+                         "tasks to time (default: push, pick_and_place)", steps=1000,
+                         rounds=3).parse_args(argv)
     best = best_of_rounds(args.tasks, SETTINGS, args.steps, args.rounds)
     print("| task | setting | env steps/s | / none | reset ms | / none |")
     print("|---|---|---|---|---|---|")

@@ -65,6 +65,21 @@ def best_of_rounds(tasks, settings: dict[str, dict], steps: int, rounds: int) ->
     return best
 
 
+def rounds_parser(description: str, tasks: tuple[str, ...], tasks_help: str, *,
+                  steps: int, rounds: int,
+                  steps_per: str = "round and setting") -> argparse.ArgumentParser:
+    """The parser of a benchmark script that times settings in rounds (`best_of_rounds`):
+    --tasks, --steps (env steps per `steps_per`) and --rounds, with these defaults."""
+    parser = argparse.ArgumentParser(
+        description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_tasks_argument(parser, tasks, tasks_help)
+    parser.add_argument("--steps", type=positive_int, default=steps,
+                        help=f"env steps per {steps_per} (default: {steps})")
+    parser.add_argument("--rounds", type=positive_int, default=rounds,
+                        help=f"rounds, the best of which is reported (default: {rounds})")
+    return parser
+
+
 def run(args: argparse.Namespace) -> int:
     print(f"{args.control} control")
     print("| task | env steps/s (random actions, resets included) | reset ms |")
