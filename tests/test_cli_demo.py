@@ -97,12 +97,12 @@ def test_count_options_take_whole_positive_numbers_and_name_a_bad_one(capsys):
     with pytest.raises(SystemExit):
         main(["evaluate", "runs/x", "--episodes", "0"])
     assert "--episodes: must be a positive integer, got '0'" in capsys.readouterr().err
-    # Past what a float holds exactly (1e99 steps was taken, and trained on for good):
-    # refused as parsed.
-    assert positive_int(str(2**53)) == 2**53
+    # Past int64, what steps are counted in (1e99 steps was taken, and trained on for
+    # good): refused as parsed.
+    assert positive_int(str(2**63 - 1)) == 2**63 - 1
     with pytest.raises(SystemExit):
         main(["train", "--task", "push", "--total-steps", "1e99", "--out", "never"])
-    assert "--total-steps: must be at most 2**53 (9.01e+15), got '1e99'" in (
+    assert "--total-steps: must be at most 2**63 - 1 (9.22e+18), got '1e99'" in (
         capsys.readouterr().err)
 
 

@@ -17,8 +17,8 @@ from dm_control.composer.variation import noises
 
 from franka_composer.arenas.floor import MAX_RENDER_SIZE
 from franka_composer.controllers import CONTROLS
-from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT,
-                                                  WELD_TIME_CONSTANT)
+from franka_composer.controllers.settings import (REFERENCE_WELD_TIME_CONSTANT, TCP_CONTROLS,
+                                                  WELD_TIME_CONSTANT, has_weld)
 from franka_composer.entities.props import MIN_MASS
 from franka_composer.randomization import RandomizationSettings, randomization_settings
 from franka_composer.randomization.parameters import unread_parameter
@@ -132,7 +132,7 @@ _READ_ONLY_WHERE: dict[str, ReadOnlyWhere] = {
         lambda c: c.control.moves_the_tcp,
         lambda c: f"control={c.control.kind!r} moves joint targets (max_joint_step): leave "
                   "it out",
-        lambda c: "control='mocap' or 'osc'"),
+        lambda c: "control=" + " or ".join(repr(kind) for kind in TCP_CONTROLS)),
     "max_joint_step": ReadOnlyWhere(
         lambda c: not c.control.moves_the_tcp,
         lambda c: f"control={c.control.kind!r} moves the hand's target (max_tcp_step): "
@@ -250,7 +250,7 @@ def timing_name(control: str, timing: dict) -> str | None:
     other controllers having none."""
     for name, named in TIMINGS.items():
         if all(timing[key] == value for key, value in named.items()
-               if key != "weld_time_constant" or control == "mocap"):
+               if key != "weld_time_constant" or has_weld(control)):
             return name
     return None
 
