@@ -561,7 +561,7 @@ def test_a_sweeps_own_ray_cluster_listens_on_loopback_only(tmp_path, monkeypatch
     monkeypatch.setattr(ray, "is_initialized", lambda: False)
     sweep = ["sweep", "--out", str(tmp_path / "s"), "--tasks", "push", "--algos", "sac",
              "--seeds", "0", "--steps", "200", "--num-cpus", "1"]
-    with pytest.raises(RuntimeError, match="not started"):
+    with pytest.raises(OSError, match="could not start a local Ray cluster: not started"):
         cli.main([*sweep, "--", *TINY])
     assert asked[0]["_node_ip_address"] == "127.0.0.1" and asked[0]["num_cpus"] == 1
     assert asked[0]["address"] is None

@@ -256,7 +256,8 @@ def _physical_memory_bytes() -> int:
 #: or a ValueError for more elements than its index type counts (--buffer-size 1e19), torch
 #: a RuntimeError from its CPU allocator (or CUDA's, a subclass). (JAX allocates as it
 #: dispatches, after this: sbx's networks fail at their first use.)
-_OUT_OF_MEMORY = ("can't allocate memory", "out of memory", "maximum allowed dimension exceeded")
+_OUT_OF_MEMORY = ("can't allocate memory", "out of memory", "maximum allowed dimension exceeded",
+                  "array is too big")
 
 
 def check_saved_by(path, algo: str, backend: str) -> None:
