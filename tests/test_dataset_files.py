@@ -1053,6 +1053,54 @@ def test_a_minari_array_whose_header_declares_more_than_its_file_is_refused_unre
                                 ": its header is damaged; record it again")
 
 
+def _compressed(data):
+    """`data`, an HDF5 file, with every array stored gzip-compressed in the same chunks and
+    attributes (as `h5repack -f GZIP=4` stores it)."""
+    import h5py
+
+    repacked = data.with_suffix(".repacked")
+    with h5py.File(data, "r") as source, h5py.File(repacked, "w") as target:
+        def copy(name, item):
+            if isinstance(item, h5py.Group):
+                copied = target.require_group(name)
+            else:
+                copied = target.create_dataset(name, data=item[()], chunks=item.chunks,
+                                               maxshape=item.maxshape, compression="gzip")
+            copied.attrs.update(item.attrs)
+
+        target.attrs.update(source.attrs)
+        source.visititems(copy)
+    repacked.replace(data)
+
+
+def test_a_compressed_minari_array_whose_header_spans_more_chunks_than_stored_is_refused(
+        recorded, push_env, tmp_path):
+    """Compressed, its bytes bound nothing, and the same flipped bit was read: the chunks
+    its shape spans are counted against those its file stores."""
+    import shutil
+
+    import h5py
+
+    dataset = tmp_path / "push"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", dataset)
+    data = dataset / "data" / "main_data.hdf5"
+    _compressed(data)
+    assert len(demos.load_episodes(dataset, push_env)) == 2  # Whole, it loads.
+    with h5py.File(data, "r") as file:
+        actions = file["episode_1/actions"]
+        assert (actions.shape, actions.chunks, actions.compression) == ((25, 3), (25, 3),
+                                                                       "gzip")
+        header = h5py.h5o.get_info(actions.id).addr
+    content = bytearray(data.read_bytes())
+    dimensions = content.index((25).to_bytes(8, "little") + (3).to_bytes(8, "little"), header)
+    content[dimensions + 3] ^= 0x10
+    data.write_bytes(bytes(content))
+    _refused(dataset, push_env, f"{dataset}: the array /episode_1/actions of its "
+                                "main_data.hdf5 declares shape (268435481, 3) (chunks (25, 3)), "
+                                "10,737,420 compressed chunks, and the file stores 1: its "
+                                "header is damaged; record it again")
+
+
 def test_minari_seeds_past_uint64_are_refused_before_recording(tmp_path):
     """Minari keeps each episode's seed as a uint64: --seed 2**64 ended in h5py's TypeError
     (Object dtype dtype('O') has no native HDF5 equivalent), and 2**64 - 1 after its first

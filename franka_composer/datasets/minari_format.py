@@ -131,12 +131,16 @@ CHUNK_BYTES_ALLOWED = 1024 * 1024
 
 
 def check_declared_sizes(path, data: pathlib.Path) -> None:
-    """A ValueError naming `path` and the first array whose header declares more bytes (its
-    shape, or one chunk of it) than its HDF5 file holds, read from the headers alone. An
-    array stored without filters (Minari's and `write`'s) keeps every byte of its shape on
-    disk: one that declares more has a damaged header, and reading it made h5py allocate
-    what it declared (one flipped bit in a dimension asked for 3 GB, and the process ran out
-    of memory before any other check)."""
+    """A ValueError naming `path` and the first array whose header declares more than its
+    HDF5 file holds, read from the headers alone: reading it made h5py allocate what it
+    declared (one flipped bit in a dimension asked for 3 GB, and the process ran out of
+    memory before any other check).
+
+    An array stored without filters (Minari's and `write`'s) keeps every byte of its shape
+    on disk, so its shape, or one chunk of it, may not declare more bytes than the file
+    holds. A compressed one (`h5repack -f GZIP=6`) stores every chunk its shape spans, each
+    of fewer bytes than it declares, so it may not span more chunks than its file stores,
+    nor declare a chunk larger than both its shape and h5py's largest automatic chunk."""
     if not (data / HDF5_FILE).is_file():
         return
     import h5py
@@ -149,21 +153,38 @@ def check_declared_sizes(path, data: pathlib.Path) -> None:
             file.visititems(lambda name, item: arrays.append(item)
                             if isinstance(item, h5py.Dataset) else None)
             for array in arrays:
-                if array.id.get_create_plist().get_nfilters():
-                    continue  # Compressed: its bytes on disk bound nothing.
-                itemsize = array.dtype.itemsize
-                declared = math.prod(array.shape) * itemsize  # Python's ints: any size.
-                chunk = math.prod(array.chunks) * itemsize if array.chunks else 0
-                if declared > size or chunk > max(size, CHUNK_BYTES_ALLOWED):
-                    damaged = (array.name, array.shape, array.chunks, max(declared, chunk))
+                damaged = _more_than_stored(array, size)
+                if damaged is not None:
                     break
     except Exception as error:  # h5py raises what it meets in a damaged file.
         raise unreadable(path, error, HDF5_FILE) from None
     if damaged is not None:
-        name, shape, chunks, declared = damaged
-        raise ValueError(f"{path}: the array {name} of its {HDF5_FILE} declares shape {shape} "
-                         f"(chunks {chunks}), {declared:,} bytes, and the file holds "
-                         f"{size:,}: its header is damaged; record it again")
+        raise ValueError(f"{path}: the array {damaged[0]} of its {HDF5_FILE} declares shape "
+                         f"{damaged[1]} (chunks {damaged[2]}), {damaged[3]}: its header is "
+                         "damaged; record it again")
+
+
+def _more_than_stored(array, size: int) -> tuple | None:
+    """(name, shape, chunks, what it declares beyond what is stored) for an HDF5 array of a
+    file of `size` bytes whose header declares more than the file stores (as
+    `check_declared_sizes` says); None where it does not."""
+    itemsize = array.dtype.itemsize
+    declared = math.prod(array.shape) * itemsize  # Python's ints: any size.
+    chunk = math.prod(array.chunks) * itemsize if array.chunks else 0
+    if not array.id.get_create_plist().get_nfilters():
+        if declared > size or chunk > max(size, CHUNK_BYTES_ALLOWED):
+            return (array.name, array.shape, array.chunks,
+                    f"{max(declared, chunk):,} bytes, and the file holds {size:,}")
+        return None
+    spanned = math.prod(-(-length // side) for length, side in zip(array.shape, array.chunks))
+    stored = array.id.get_num_chunks()
+    if chunk > max(declared, CHUNK_BYTES_ALLOWED):
+        return (array.name, array.shape, array.chunks,
+                f"chunks of {chunk:,} bytes, more than the {declared:,} of its shape")
+    if spanned > stored:
+        return (array.name, array.shape, array.chunks,
+                f"{spanned:,} compressed chunks, and the file stores {stored:,}")
+    return None
 
 
 def check_digests(path, data: pathlib.Path) -> None:
