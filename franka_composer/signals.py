@@ -1,6 +1,7 @@
 """Signals that stop a command the way Ctrl-C does, so that what is running cleans up or
 checkpoints: at once (`interrupt_on`), or where it is ready to (`stop_requests`, a training
-run at its episode's end); and held over code they would break (`held`).
+run at its episode's end); held over code they would break (`held`); and the exit status
+of a command they stopped (`exit_status`).
 
 `kill PID` (SIGTERM) is how schedulers, `timeout` and Ray stop a process, and a job started
 in the background ignores SIGINT (the shell sets it to SIG_IGN), so neither would otherwise
@@ -10,6 +11,7 @@ reach the KeyboardInterrupt path that saves a checkpoint.
 from __future__ import annotations
 
 import contextlib
+import re
 import signal
 import sys
 import threading
@@ -30,11 +32,15 @@ class _Handled:
     then, and given back with its timer as the block ends) until a repeat finds it on its
     way out or being handled, or the block ends (a block that handles it faster and runs
     on gets it again); one Python dropped (its message left out) and not yet raised again
-    is raised as the block ends."""
+    is raised as the block ends. C code that catches it and raises a bare KeyboardInterrupt
+    of its own instead (Ray's wait for its tasks) loses the signal it names: an interrupt
+    that names none, leaving a block whose `handler` raised one, is given its arguments, so
+    that the command exits with that signal's status (`exit_status`)."""
 
     def __init__(self, handler, signums) -> None:
         self._handler, self._signums = handler, signums
         self._repeat: tuple | None = None  # The arguments of the interrupt to raise again.
+        self._raised: tuple | None = None  # Those of the latest `handler` raised.
         # Those of one Python dropped and no repeat has raised yet.
         self._dropped: tuple | None = None
         # SIGALRM's handler, its timer and the hook the repeat took.
@@ -49,7 +55,7 @@ class _Handled:
         try:
             self._handler(signum, frame)
         except KeyboardInterrupt as interrupt:
-            self._repeat = interrupt.args
+            self._repeat = self._raised = interrupt.args
             if self._alarm is None and not self._ending:
                 self._alarm = (signal.signal(signal.SIGALRM, self._again),
                                signal.setitimer(signal.ITIMER_REAL, _AGAIN_S, _AGAIN_S),
@@ -74,6 +80,10 @@ class _Handled:
             self._alarm[2](unraisable)
 
     def __exit__(self, *exc) -> None:
+        leaving = exc[1]
+        if (isinstance(leaving, KeyboardInterrupt) and self._raised is not None
+                and _signal_named(leaving) is None):
+            leaving.args = self._raised
         self._repeat, self._ending = None, True
         dropped = self._dropped  # Python dropped it, and the block ended before a repeat.
         restores = list(self._previous.items())
@@ -155,21 +165,47 @@ def jax_imported() -> None:
 def interrupt_on(*signums: int):
     """Inside the block each of `signums` raises KeyboardInterrupt; restored after."""
     def handler(signum, frame):
-        raise KeyboardInterrupt(f"signal {signum}")
+        raise KeyboardInterrupt(interrupt_message(signum))
 
     return _Handled(handler, signums)
 
 
 def stop_requests(request, *signums: int):
-    """Inside the block the first of `signums` calls `request()`, so that what runs can stop
-    where it is ready to (a training run: at its episode's end, where its checkpoint
-    resumes exactly); a second raises KeyboardInterrupt at once. Restored after."""
+    """Inside the block the first of `signums` calls `request(signum)`, so that what runs can
+    stop where it is ready to (a training run: at its episode's end, where its checkpoint
+    resumes exactly), with that signal's exit status; a second raises KeyboardInterrupt at
+    once. Restored after."""
     received: list[int] = []
 
     def handler(signum, frame):
         if received:
-            raise KeyboardInterrupt(f"signal {signum}, again")
+            raise KeyboardInterrupt(interrupt_message(signum, again=True))
         received.append(signum)
-        request()
+        request(signum)
 
     return _Handled(handler, signums)
+
+
+def interrupt_message(signum: int, *, again: bool = False) -> str:
+    """What the KeyboardInterrupt a stop signal raises says, its one argument ("signal 15",
+    "signal 15, again" where it stops at once what a first one asked to stop): it names
+    the signal for `exit_status`, and it is what the interrupt is raised again from
+    (`_Handled`) and what the stops that end a command pass on (a training run's
+    `StoppedAtCheckpoint`, a sweep's `SweepStopped`)."""
+    return f"signal {signum}" + (", again" if again else "")
+
+
+def exit_status(interrupt: KeyboardInterrupt) -> int:
+    """The exit status of a command that `interrupt` stopped: 128 + the number of the signal
+    that stopped it (named by `interrupt_message`), as a shell gives a command that signal
+    ends and as schedulers, `timeout --preserve-status` and CI read it: 130 for Ctrl-C
+    (SIGINT), 143 for SIGTERM. An interrupt no handler here raised (Python's own Ctrl-C
+    handler's) is Ctrl-C's."""
+    signum = _signal_named(interrupt)
+    return 128 + (signal.SIGINT if signum is None else signum)
+
+
+def _signal_named(interrupt: KeyboardInterrupt) -> int | None:
+    """The number of the signal `interrupt` names (`interrupt_message`); None: none."""
+    named = re.fullmatch(r"signal (\d+)(, again)?", str(interrupt))
+    return int(named[1]) if named else None

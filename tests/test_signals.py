@@ -10,18 +10,52 @@ import time
 
 import pytest
 
-from franka_composer.signals import interrupt_on, stop_requests, stop_signals
+from franka_composer.signals import exit_status, interrupt_on, stop_requests, stop_signals
 
 
 def test_a_first_stop_signal_asks_and_a_second_interrupts():
     asked = []
     before = signal.getsignal(signal.SIGTERM)
     with pytest.raises(KeyboardInterrupt, match="signal 15, again"):
-        with stop_requests(lambda: asked.append(True), signal.SIGTERM):
+        with stop_requests(asked.append, signal.SIGTERM):
             signal.raise_signal(signal.SIGTERM)
-            assert asked == [True]  # Asked; nothing raised.
+            assert asked == [signal.SIGTERM]  # Asked, naming the signal; nothing raised.
             signal.raise_signal(signal.SIGTERM)
-    assert asked == [True] and signal.getsignal(signal.SIGTERM) is before
+    assert asked == [signal.SIGTERM] and signal.getsignal(signal.SIGTERM) is before
+
+
+@pytest.mark.parametrize("signum, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
+                         ids=["SIGTERM", "SIGINT"])
+def test_a_stopped_command_exits_with_128_plus_the_signals_number(signum, status):
+    """As a shell reports a command a signal ended, which schedulers, `timeout
+    --preserve-status` and CI read: SIGTERM's stop exited 130, as if Ctrl-C had."""
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        with interrupt_on(signum):
+            signal.raise_signal(signum)
+    assert exit_status(stopped.value) == status
+    with pytest.raises(KeyboardInterrupt) as stopped_again:  # A second, stopping at once.
+        with stop_requests(lambda signum: None, signum):
+            signal.raise_signal(signum)
+            signal.raise_signal(signum)
+    assert exit_status(stopped_again.value) == status
+
+
+def test_an_interrupt_no_stop_signal_raised_exits_as_ctrl_c_does():
+    """Python's own Ctrl-C handler raises a bare KeyboardInterrupt."""
+    assert exit_status(KeyboardInterrupt()) == 130
+    assert exit_status(KeyboardInterrupt("signal lost")) == 130
+
+
+def test_an_interrupt_that_c_code_raised_bare_in_its_place_keeps_the_signals_status():
+    """Ray's wait for its tasks catches the handler's interrupt and raises a bare
+    KeyboardInterrupt of its own: a sweep stopped by SIGTERM exited 130, Ctrl-C's."""
+    with pytest.raises(KeyboardInterrupt) as stopped:
+        with interrupt_on(signal.SIGTERM):
+            try:
+                signal.raise_signal(signal.SIGTERM)
+            except KeyboardInterrupt:
+                raise KeyboardInterrupt() from None  # As Ray's C code does.
+    assert exit_status(stopped.value) == 143
 
 
 def _collect_dropping(signum):

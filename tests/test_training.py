@@ -6,6 +6,7 @@ import json
 import os
 import pathlib
 import re
+import signal
 import warnings
 import shutil
 import tempfile
@@ -352,7 +353,8 @@ def _stop_asked_at(monkeypatch, steps: int) -> None:
     on_step = LatestCheckpoint._on_step
 
     def asked(self):
-        self.stop_requested |= self.num_timesteps >= steps
+        if self.num_timesteps >= steps:
+            self.stop_requested_by = signal.SIGTERM
         return on_step(self)
 
     monkeypatch.setattr(LatestCheckpoint, "_on_step", asked)
@@ -417,7 +419,7 @@ def test_a_stopped_run_resumes_as_the_uninterrupted_run_to_the_bit(
     assert _train(tmp_path / "whole", algo, 400, *options) == 0
     with monkeypatch.context() as patch:
         _stop_asked_at(patch, stop_at)  # Asked inside an episode; it ends by stop_at + 40.
-        assert _train(tmp_path / "stopped", algo, 400, *options) == 130
+        assert _train(tmp_path / "stopped", algo, 400, *options) == 143  # 128 + SIGTERM.
     state = RunDir(tmp_path / "stopped").read_state()
     assert state["exact"] and stop_at < state["steps"] <= stop_at + 40
     assert RunDir(tmp_path / "stopped").checkpoint_generators.is_file()
@@ -440,7 +442,7 @@ def test_a_campaign_cell_stopped_and_resumed_is_the_uninterrupted_run_to_the_bit
     with monkeypatch.context() as patch:
         _stop_asked_at(patch, 160)
         assert _train(tmp_path / "stopped", "sac", 400, *options,
-                      task="pick_and_place") == 130
+                      task="pick_and_place") == 143
     assert RunDir(tmp_path / "stopped").read_state()["exact"]
     assert cli.main(["train", "--out", str(tmp_path / "stopped"), "--resume",
                      "--learning-starts", "100", "--no-progress"]) == 0
@@ -467,7 +469,7 @@ def test_a_stopped_run_closes_its_progress_bar(tmp_path, monkeypatch):
     gc.disable()  # Nothing closes a bar that was left open before the test looks.
     try:
         assert cli.main(["train", "--task", "push", "--algo", "sac", "--seed", "1", "--out",
-                         str(tmp_path / "run"), "--total-steps", "400", *options]) == 130
+                         str(tmp_path / "run"), "--total-steps", "400", *options]) == 143
         assert RunDir(tmp_path / "run").read_state()["steps"] >= 160
         shown = [bar for bar, was_shown in made if was_shown]
         assert shown  # The run had a bar to close.
@@ -495,11 +497,11 @@ def _stopped_at_once_in(monkeypatch, callback, steps: int) -> None:
 
 
 def _stop_at_once(out, steps: int, monkeypatch) -> None:
-    """A SAC run of 400 steps into `out`, stopped at once (a second signal) at `steps`: its
+    """A SAC run of 400 steps into `out`, stopped at once (a second SIGTERM) at `steps`: its
     checkpoint there is not at an episode's end."""
     with monkeypatch.context() as patch:
         _stopped_at_once_in(patch, LatestCheckpoint, steps)
-        assert _train(out, "sac", 400) == steps
+        assert _train(out, "sac", 400) == 143
 
 
 def test_a_run_stopped_at_once_resumes_with_a_fresh_episode_stream(tmp_path, monkeypatch):
@@ -582,7 +584,7 @@ def test_an_evaluation_cut_short_by_a_stop_at_once_is_made_on_resume(tmp_path, m
     out = tmp_path / "run"
     with monkeypatch.context() as patch:
         _evaluation_cut_short_at(patch, 200)
-        assert _train(out, "sac", 300) == 130
+        assert _train(out, "sac", 300) == 143
     assert RunDir(out).read_state()["steps"] == 200
     assert [r["steps"] for r in read_eval_rows(RunDir(out).eval_csv)] == [0, 100]
     with pytest.warns(RuntimeWarning, match="fresh episode stream"):
@@ -602,7 +604,7 @@ def test_an_interrupt_in_the_evaluation_at_a_resumes_end_leaves_its_exact_checkp
     out = tmp_path / "run"
     with monkeypatch.context() as patch:
         _stop_asked_at(patch, 110)  # Off the evaluations' grid: its end is evaluated.
-        assert _train(out, "sac", 400) == 130
+        assert _train(out, "sac", 400) == 143
     steps = RunDir(out).read_state()["steps"]
     assert RunDir(out).read_state()["exact"] and steps % 100
 
@@ -611,7 +613,7 @@ def test_an_interrupt_in_the_evaluation_at_a_resumes_end_leaves_its_exact_checkp
 
     with monkeypatch.context() as patch:
         patch.setattr(Evaluation, "_evaluate_now", interrupted)
-        assert _train(out, "sac", steps, "--resume") == 130
+        assert _train(out, "sac", steps, "--resume") == 130  # A second Ctrl-C's.
     assert RunDir(out).read_state()["exact"] and RunDir(out).read_state()["steps"] == steps
     assert RunDir(out).checkpoint_generators.is_file()
 
@@ -627,7 +629,7 @@ def test_a_checkpoint_whose_env_does_not_come_back_resumes_with_a_warning(tmp_pa
     out = tmp_path / "run"
     with monkeypatch.context() as patch:
         _stop_asked_at(patch, 160)
-        assert _train(out, "sac", 400) == 130
+        assert _train(out, "sac", 400) == 143
     generators = RunDir(out).checkpoint_generators
     state = pickle.loads(generators.read_bytes())
     state["stream"]["seed"] = 99
@@ -844,27 +846,28 @@ def test_a_new_run_that_fails_before_its_first_checkpoint_leaves_nothing(tmp_pat
     assert list(given.iterdir()) == []
 
 
+@pytest.mark.parametrize("signum, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)],
+                         ids=["SIGTERM", "SIGINT"])
 def test_a_new_run_stopped_before_its_first_checkpoint_leaves_nothing_and_says_so(
-        tmp_path, monkeypatch, capsys):
+        tmp_path, monkeypatch, capsys, ctrl_c_reaches_the_process, signum, status):
     """SIGTERM while the run records its expert's demonstrations (before training) killed
     it and left config.json and the lock: a folder that could be neither started again
-    nor resumed. Ctrl-C there said a checkpoint was saved."""
-    import signal
-
+    nor resumed. Ctrl-C there said a checkpoint was saved. Each exits with its signal's
+    status, 128 + its number (both were 130)."""
     from franka_composer.training import demos
 
     def stopped(*args, **kwargs):
-        os.kill(os.getpid(), signal.SIGTERM)
-        raise AssertionError("SIGTERM did not stop the run")
+        os.kill(os.getpid(), signum)
+        raise AssertionError(f"{signal.Signals(signum).name} did not stop the run")
 
-    def unhandled(signum, frame):
+    def unhandled(received, frame):
         raise AssertionError("the run left SIGTERM to the default, which kills the process")
 
     monkeypatch.setattr(demos, "record_expert", stopped)
     out = tmp_path / "run"
     previous = signal.signal(signal.SIGTERM, unhandled)
     try:
-        assert _train(out, "sac", 200, "--expert-demos", "2") == 130
+        assert _train(out, "sac", 200, "--expert-demos", "2") == status
         assert signal.getsignal(signal.SIGTERM) is unhandled  # Restored after the run.
     finally:
         signal.signal(signal.SIGTERM, previous)
@@ -881,7 +884,6 @@ def test_a_new_run_stopped_in_its_checks_or_while_its_threads_are_limited_leaves
     """SIGTERM while the checks load --demos printed a KeyboardInterrupt traceback; while
     the threads were limited (sbx starts JAX there) it left config.json behind."""
     import contextlib
-    import signal
 
     from franka_composer.cli import train
 
@@ -899,7 +901,7 @@ def test_a_new_run_stopped_in_its_checks_or_while_its_threads_are_limited_leaves
         said = ("interrupted before its first checkpoint: nothing of the run is kept; the "
                 "same command starts it again\n")
     out = tmp_path / "run"
-    assert _train(out, "sac", 200) == 130
+    assert _train(out, "sac", 200) == 143
     assert not out.exists()
     assert capsys.readouterr().out == said
 
@@ -1322,7 +1324,6 @@ def _wait_for_evaluation(out, steps, process, timeout_s=120):
 def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path, signum):
     """And Ctrl-C, as a terminal sends it: the command line's own handler for it had
     training stop at once, at an inexact checkpoint."""
-    import signal
     import subprocess
     import sys
 
@@ -1335,7 +1336,8 @@ def test_sigterm_writes_a_checkpoint_that_resumes(tmp_path, signum):
     _wait_for_evaluation(out, 200, process, timeout_s=60)
     process.send_signal(getattr(signal, signum))
     stdout, stderr = process.communicate(timeout=60)
-    assert process.returncode == 130 and "--resume" in stdout
+    # 128 + the signal, as a shell reports it: 143 for SIGTERM, 130 for Ctrl-C.
+    assert process.returncode == 128 + getattr(signal, signum) and "--resume" in stdout
     # Said at once (after the evaluation under way, if one was: it says so then).
     assert re.fullmatch(r"stopping at the episode's end, where its checkpoint resumes exactly"
                         r"( \(first the evaluation under way: 2 episodes at step [\d,]+\))?; "
@@ -1352,7 +1354,6 @@ def test_a_stop_asked_during_an_evaluation_says_at_once_that_it_waits_for_it(
     """A stop waits for the evaluation under way (its row is the exact course's), which with
     many episodes or long steps takes minutes: nothing showed that the stop was heard, and
     a run under `timeout` looked hung."""
-    import signal
 
     from franka_composer.training.callbacks import Evaluation
 
@@ -1366,7 +1367,7 @@ def test_a_stop_asked_during_an_evaluation_says_at_once_that_it_waits_for_it(
 
     monkeypatch.setattr(Evaluation, "_log_success_callback", signal_once)
     capfd.readouterr()
-    assert _train(tmp_path / "run", "sac", 400) == 130
+    assert _train(tmp_path / "run", "sac", 400) == 143
     assert sent == [200] and capfd.readouterr().err == (
         "stopping at the episode's end, where its checkpoint resumes exactly (first the "
         "evaluation under way: 2 episodes at step 200); Ctrl-C or SIGTERM again stops at "
@@ -1385,7 +1386,6 @@ def test_a_killed_run_resumes_from_its_last_checkpoint_as_the_uninterrupted_run(
     everything the run went on from after writing it. Each run in a process of its own,
     as a user's are: JAX sizes its threads once per process (`--threads`), and this one's
     may have been sized by another test."""
-    import signal
     import subprocess
     import sys
 
@@ -1596,7 +1596,7 @@ def test_an_evaluation_made_on_resume_that_meets_the_rule_ends_the_run_there(tmp
     with monkeypatch.context() as patch:
         _evaluation_cut_short_at(patch, 200)
         _scripted_evaluations(patch, [1.0] * 3)
-        assert _train(out, "sac", 600, *rule) == 130
+        assert _train(out, "sac", 600, *rule) == 143
     _scripted_evaluations(monkeypatch, [1.0, 0.0])
     with pytest.warns(RuntimeWarning, match="fresh episode stream"):
         assert _train(out, "sac", 600, "--resume") == 0
@@ -1622,7 +1622,7 @@ def test_an_evaluation_off_the_grid_neither_stops_a_run_nor_survives_a_raised_bu
     outcome = run.read_outcome()
     assert (outcome["steps"], outcome["stopped_early"]) == (550, False)
     _stop_asked_at(monkeypatch, 700)
-    assert _train(out, "sac", 1000, "--resume") == 130
+    assert _train(out, "sac", 1000, "--resume") == 143
     assert not run.final_model.exists() and not run.policy_file.exists()
     assert not run.outcome_path.exists() and run.read_state()["steps"] >= 700
     steps = [r["steps"] for r in read_eval_rows(run.eval_csv)]

@@ -18,7 +18,7 @@ from franka_composer import __version__
 from franka_composer.assets import MenagerieUnavailableError
 from franka_composer.cli.extras import missing_extra
 from franka_composer.headless_gl import HeadlessGLError
-from franka_composer.signals import interrupt_on, stop_signals
+from franka_composer.signals import exit_status, interrupt_on, stop_signals
 
 #: Subcommand modules, in the order `--help` lists them.
 SUBCOMMANDS = ("demo", "rollout", "bench", "train", "sweep", "keep", "evaluate", "plot",
@@ -58,8 +58,9 @@ def console(argv: list[str] | None = None) -> int:
     and a file that cannot be written or read after all (OSError: a full disk, a folder
     removed meanwhile; status 1); a reader that has gone
     (`franka-composer evaluate ... | head`) ends the command quietly, with the status a
-    shell gives a command SIGPIPE ends; so does Ctrl-C where the command has nothing of its
-    own to say (train and sweep say what they kept), saying so in one line."""
+    shell gives a command SIGPIPE ends; Ctrl-C and SIGTERM end it in one line where the
+    command has nothing of its own to say (train and sweep say what they kept), with the
+    status a shell gives a command that signal ends (`exit_status`: 130, 143)."""
     warnings.formatwarning = _format_warning
     try:
         try:
@@ -87,9 +88,9 @@ def console(argv: list[str] | None = None) -> int:
     except OSError as error:  # After BrokenPipeError, one of its kind.
         print(f"franka-composer: error: {error}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupt:
         print("franka-composer: interrupted", file=sys.stderr)
-        return 128 + signal.SIGINT
+        return exit_status(interrupt)
 
 
 _PACKAGE = pathlib.Path(__file__).resolve().parents[1]

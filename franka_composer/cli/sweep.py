@@ -10,6 +10,7 @@ import pathlib
 
 from franka_composer.cli.options import (add_tasks_argument, folder_path, output_folder,
                                          positive_int, positive_seconds, training_seed)
+from franka_composer.signals import exit_status
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS
 from franka_composer.validation import check_writable
@@ -292,7 +293,7 @@ def run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as stop:  # Ctrl-C, SIGINT or SIGTERM.
         print(f"interrupted: {_what_the_stop_kept(stop)}; the same command resumes the "
               "sweep", flush=True)
-        return 130
+        return exit_status(stop)
     failed = [s.name for s in statuses if s.state == "failed"]
     if failed:
         print(f"failed: {', '.join(failed)} (see {args.out}/<cell>.log)")

@@ -16,7 +16,7 @@ from franka_composer.cli.options import (add_guard_ignores_carried, add_object_d
                                          positive_int, timing_options, training_seed)
 from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.randomization import PRESETS
-from franka_composer.signals import interrupt_on, jax_imported
+from franka_composer.signals import exit_status, interrupt_on, jax_imported
 from franka_composer.tasks import ALL_TASKS
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
@@ -481,10 +481,10 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         else:
             loop.check_can_start(out)  # Before --demos are loaded, seconds.
             config = check_new_run(args)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupt:
         print("interrupted before training: " + ("the run is as its checkpoint left it"
                                                  if args.resume else "nothing was written"))
-        return 130
+        return exit_status(interrupt)
     if not args.resume:
         run_dir = loop.start(out, config)
     # Ended (by the stopping rule, or at the budget the resume gives it): it trains nothing.
@@ -502,7 +502,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
             loop.train(run_dir, resume=args.resume, total_steps=args.total_steps,
                        device=args.device, checkpoint_every=args.checkpoint_every,
                        threads=threads, progress=args.progress)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as interrupt:
         steps = run_dir.read_state().get("steps") if run_dir.config_path.exists() else None
         if ended:
             print(f"interrupted: {_has_ended(run_dir)}")
@@ -523,7 +523,7 @@ def _run(args: argparse.Namespace, out: pathlib.Path) -> int:
         else:  # Not expected: the removal above takes a new run's files with it.
             print(f"interrupted before its first checkpoint: {run_dir.root} holds none; "
                   "delete it to start again")
-        return 130
+        return exit_status(interrupt)
     if ended:
         print(_has_ended(run_dir))
         return 0

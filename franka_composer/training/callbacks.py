@@ -19,6 +19,7 @@ from typing import cast
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
+from franka_composer.signals import interrupt_message
 from franka_composer.training import exact_resume
 from franka_composer.training.exact_resume import EpisodeStream
 from franka_composer.training.run_config import RunConfig
@@ -169,7 +170,7 @@ class StoppedByTheRuleAtStart(Exception):
 
 class StoppedAtCheckpoint(KeyboardInterrupt):
     """A stop that was asked for (SIGTERM, Ctrl-C) and waited for an episode's end, where
-    the checkpoint it wrote resumes exactly."""
+    the checkpoint it wrote resumes exactly; it names the signal (`interrupt_message`)."""
 
 
 class LatestCheckpoint(CheckpointCallback):
@@ -179,8 +180,9 @@ class LatestCheckpoint(CheckpointCallback):
     so the checkpoint there is always whole.
 
     It is written at the first episode end at or after each multiple of `every` steps (the
-    run's grid, after a resume too), and at the first episode end after `stop_requested` is
-    set, which then stops the run (`StoppedAtCheckpoint`): there, with the step's transition
+    run's grid, after a resume too), and at the first episode end after `stop_requested_by`
+    is set (the signal that asked for it), which then stops the run (`StoppedAtCheckpoint`,
+    saying which signal, for the command's exit status): there, with the step's transition
     stored and its gradient steps done, a resume goes on exactly (`exact_resume`). The
     episode stream (`exact_resume.EpisodeStream`) is the training env's, set by the loop;
     `threads`, the CPU threads the networks are computed with, recorded for a resume;
@@ -200,7 +202,7 @@ class LatestCheckpoint(CheckpointCallback):
         self._run, self._clock, self.stream, self._threads = run, clock, stream, threads
         self._fresh_streams, self._machines = fresh_streams, machines
         self._config = config.to_dict()
-        self.stop_requested = False
+        self.stop_requested_by: int | None = None
         self.episode_ended = False  # Whether the latest step ended an episode.
 
     def _checkpoint_path(self, checkpoint_type: str = "", extension: str = "") -> str:
@@ -222,11 +224,11 @@ class LatestCheckpoint(CheckpointCallback):
     def _on_rollout_start(self) -> None:
         if not self.episode_ended:
             return
-        if self.num_timesteps >= self._due or self.stop_requested:
+        if self.num_timesteps >= self._due or self.stop_requested_by is not None:
             self.save(exact=True)
             self._set_next_due()
-        if self.stop_requested:
-            raise StoppedAtCheckpoint
+        if self.stop_requested_by is not None:
+            raise StoppedAtCheckpoint(interrupt_message(self.stop_requested_by))
 
     def save(self, *, exact: bool) -> None:
         """Writes the checkpoint now, into a new folder: SB3 saves the model and the replay

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import importlib.util
 import os
 import pathlib
@@ -246,7 +247,7 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     callbacks = CallbackList([precision, evaluation, checkpoint, *([bar] if bar else [])])
     remaining = hp.total_steps - model.num_timesteps
     try:
-        with stop_requests(lambda: _stop_at_episode_end(checkpoint, evaluation),
+        with stop_requests(functools.partial(_stop_at_episode_end, checkpoint, evaluation),
                            *stop_signals()), \
                 contextlib.suppress(StoppedByTheRuleAtStart):  # It ends where it starts.
             # Also where nothing is left to train (a resume at its checkpoint's step): the
@@ -277,12 +278,14 @@ def _train(run: RunDir, *, resume: bool, total_steps: int | None, device: str,
     return model
 
 
-def _stop_at_episode_end(checkpoint: LatestCheckpoint, evaluation: Evaluation) -> None:
-    """A stop asked for (the first Ctrl-C or SIGTERM): the run checkpoints at its episode's
-    end and stops there, and says so at once, with what it waits for: an evaluation under
-    way finishes first (its row belongs to the exact course), which with many episodes or
-    long steps takes a while, and nothing else showed that the stop had been heard."""
-    checkpoint.stop_requested = True
+def _stop_at_episode_end(checkpoint: LatestCheckpoint, evaluation: Evaluation,
+                         signum: int) -> None:
+    """A stop asked for (the first Ctrl-C or SIGTERM, `signum`): the run checkpoints at its
+    episode's end and stops there, and says so at once, with what it waits for: an
+    evaluation under way finishes first (its row belongs to the exact course), which with
+    many episodes or long steps takes a while, and nothing else showed that the stop had
+    been heard."""
+    checkpoint.stop_requested_by = signum
     first = (f" (first the evaluation under way: {evaluation.n_eval_episodes} episodes at "
              f"step {evaluation.num_timesteps:,})" if evaluation.evaluating else "")
     # os.write: a signal handler may run inside another write to stderr.

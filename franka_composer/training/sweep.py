@@ -324,8 +324,10 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
     if todo:
         started = not ray.is_initialized()
         pending: dict = {}
-        # At a stop, each running cell's checkpoint then (`_checkpoint_link`).
-        stopped: dict[str, str | None] | None = None
+        # At a stop: what stopped it, and each running cell's checkpoint then
+        # (`_checkpoint_link`).
+        stop: KeyboardInterrupt | None = None
+        stopped: dict[str, str | None] = {}
         submitted = time.time()
         try:
             # Signals stop it from here, Ray's start included: a stop while Ray starts
@@ -355,6 +357,7 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
             running = [cell for cell in pending.values()
                        if _started_since(cell, root, submitted)]
             if isinstance(error, KeyboardInterrupt):
+                stop = error
                 stopped = {cell.name: _checkpoint_link(root / cell.name) for cell in running}
             for ref in pending:
                 ray.cancel(ref)  # KeyboardInterrupt in the task: its run checkpoints.
@@ -362,13 +365,14 @@ def run_sweep(cells: list[Cell], root: pathlib.Path, train_args: tuple[str, ...]
                 show("stopping: each running cell saves a checkpoint at its episode's end "
                      "(a second Ctrl-C or SIGTERM stops them at once, without one)")
             _wait_for_stopped_cells(list(pending))
-            if stopped is None:
+            if stop is None:
                 raise
         finally:
             if started:
                 ray.shutdown()
-        if stopped is not None:
-            raise SweepStopped(list(stopped), _stopped_without_a_checkpoint(stopped, root))
+        if stop is not None:
+            raise SweepStopped(stop, list(stopped),
+                               _stopped_without_a_checkpoint(stopped, root))
     statuses = [cell_status(cell, root, cell.name in failed) for cell in cells]
     show(status_table(statuses))
     return statuses
@@ -391,12 +395,14 @@ class RayStartError(OSError):
 
 
 class SweepStopped(KeyboardInterrupt):
-    """A sweep stopped by Ctrl-C or a signal: `running`, the cells that were training;
-    `unsaved`, those of them that wrote no checkpoint at the stop (a second signal stops
-    them at once; a run that failed meanwhile), each with where it resumes from."""
+    """A sweep stopped by Ctrl-C or a signal (`stop`, whose signal it names: the sweep's
+    exit status, `exit_status`): `running`, the cells that were training; `unsaved`, those
+    of them that wrote no checkpoint at the stop (a second signal stops them at once; a run
+    that failed meanwhile), each with where it resumes from."""
 
-    def __init__(self, running: list[str], unsaved: dict[str, str]) -> None:
-        super().__init__()
+    def __init__(self, stop: KeyboardInterrupt, running: list[str],
+                 unsaved: dict[str, str]) -> None:
+        super().__init__(*stop.args)
         self.running, self.unsaved = running, unsaved
 
 
