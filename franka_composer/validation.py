@@ -3,6 +3,8 @@ says what it accepts, raised before anything is built or reaches MuJoCo."""
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import inspect
 import math
 import numbers
@@ -13,6 +15,27 @@ from collections.abc import Set as AbstractSet
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
+
+
+_SPELLINGS: contextvars.ContextVar[Mapping[str, str]] = contextvars.ContextVar(
+    "spellings", default={})
+
+
+@contextlib.contextmanager
+def spelled(spellings: Mapping[str, str]):
+    """Within it, a refusal names a setting as `spellings` give it (a field's name by its
+    command-line flag: "--train-every", not "train_every", for the user of a command), else
+    by its own name (`spelling`)."""
+    token = _SPELLINGS.set(spellings)
+    try:
+        yield
+    finally:
+        _SPELLINGS.reset(token)
+
+
+def spelling(name: str) -> str:
+    """How a refusal names the setting `name` where it is made (`spelled`)."""
+    return _SPELLINGS.get().get(name, name)
 
 
 def check_choice(kind: str, value, choices: Sequence[str], *, also: str | None = None):
@@ -60,7 +83,7 @@ def check_bool(name: str, value) -> bool:
     a number)."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    raise ValueError(f"{name} must be True or False, got {value!r}")
+    raise ValueError(f"{spelling(name)} must be True or False, got {value!r}")
 
 
 def check_number(name: str, value, *, minimum: float | None = None,
@@ -74,12 +97,12 @@ def check_number(name: str, value, *, minimum: float | None = None,
     if not real or not (integer or _finite(value)):  # An int of any size is finite.
         kind = "a whole number" if integer else "a finite number"
         too_large = real and isinstance(value, numbers.Integral)  # An int past a float.
-        raise ValueError(f"{name} must be {kind}{_bounds(minimum, maximum, above)}"
+        raise ValueError(f"{spelling(name)} must be {kind}{_bounds(minimum, maximum, above)}"
                          f"{' that a 64-bit float holds' if too_large else ''}, "
                          f"got {_shown(value)}")
     if ((minimum is not None and value < minimum) or (maximum is not None and value > maximum)
             or (above is not None and value <= above)):
-        raise ValueError(f"{name} must be{_bounds(minimum, maximum, above)}, "
+        raise ValueError(f"{spelling(name)} must be{_bounds(minimum, maximum, above)}, "
                          f"got {_shown(value)}")
     return int(value) if integer else float(value)
 

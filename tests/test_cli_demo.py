@@ -49,7 +49,7 @@ def test_demo_runs_the_experts_at_the_timing_it_is_given(capsys):
         main(["demo", "--tasks", "slide", "--no-video", "--timing", "reference",
               "--control-timestep", "0.5"])
     capsys.readouterr()
-    with pytest.raises(ValueError, match="^control_timestep must be > 0, got 0.0$"):
+    with pytest.raises(ValueError, match="^--control-timestep must be > 0, got 0.0$"):
         main(["demo", "--tasks", "push", "slide", "--no-video", "--control-timestep", "0"])
     assert capsys.readouterr().err == ""  # Refused before the progress bar starts.
 

@@ -672,15 +672,23 @@ def test_demo_refuses_videos_inside_a_run(tmp_path):
     assert sorted(path.name for path in run.root.iterdir()) == ["config.json", "eval.csv"]
 
 
-def test_a_control_step_longer_than_mujoco_steps_in_one_call_is_refused():
-    """1e9 s reached MuJoCo as 5e11 steps and failed there with a traceback."""
+def test_a_control_step_that_would_run_for_hours_is_refused(tmp_path):
+    """1e9 s reached MuJoCo as 5e11 steps and failed there with a traceback; 2000001 s (a
+    mistyped 0.002) was 1e9 steps, which MuJoCo takes in one call: each step ran for hours,
+    and `timeout`'s SIGTERM waited for it (the run's directory made). At most 100 s."""
     import franka_composer
 
-    with pytest.raises(ValueError, match=re.escape(
-            "control_timestep must be at most 2,147,483,647 physics steps of 0.002 s, got "
-            "1000000000.0")):
-        franka_composer.load("push", control_timestep=1e9)
-    assert franka_composer.load("push", control_timestep=2.0).control_timestep() == 2.0
+    for seconds in (1e9, 2000001.0, 100.002):
+        with pytest.raises(ValueError, match=re.escape(
+                "control_timestep must be at most 50,000 physics steps of 0.002 s (100 s), "
+                f"got {seconds!r}")):
+            franka_composer.load("push", control_timestep=seconds)
+    assert franka_composer.load("push", control_timestep=100.0).control_timestep() == 100.0
+    out = tmp_path / "run"
+    with pytest.raises(ValueError, match="at most 50,000 physics steps"):
+        cli.main(["train", "--task", "push", "--control-timestep", "2000001", "--out",
+                  str(out)])
+    assert not out.exists()
 
 
 def test_report_and_evaluate_refuse_to_write_over_a_runs_own_files(tmp_path):
@@ -788,8 +796,8 @@ def test_a_local_ray_that_cannot_start_is_one_line_naming_its_logs(tmp_path, mon
 
 def test_a_presets_setting_that_the_options_cannot_take_names_the_preset(tmp_path):
     with pytest.raises(ValueError, match=re.escape(
-            "precision bf16 (the fast preset's; --precision fp32 with it trains in fp32) runs "
-            "the networks under torch.autocast: it needs backend sb3, not sbx")):
+            "--precision bf16 (the fast preset's; --precision fp32 with it trains in fp32) "
+            "runs the networks under torch.autocast: it needs --backend sb3, not sbx")):
         cli.main(["train", "--task", "push", "--preset", "fast", "--backend", "sbx", "--out",
                   str(tmp_path / "run")])
     assert not (tmp_path / "run").exists()

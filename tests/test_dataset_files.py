@@ -1122,7 +1122,7 @@ def test_a_dataset_of_the_tasks_own_options_says_so_in_every_format(recorded):
 
 
 @pytest.mark.parametrize("counted, message", [
-    (dict(total_episodes=1), "counts 1 episodes of 36 steps in all, and its data holds 2 "
+    (dict(total_episodes=1), "counts 1 episode of 36 steps in all, and its data holds 2 "
                              "(the first 1: 11 steps)"),  # Loaded one of two, silently.
     (dict(total_steps=7), "counts 2 episodes of 7 steps in all, and its data holds 2 "
                           "(the first 2: 36 steps)")])

@@ -117,7 +117,7 @@ def test_plot_over_wall_clock_writes_the_figure(tmp_path, capsys):
             for seed in (0, 1)]
     out = tmp_path / "curves.png"
     assert cli.main(["plot", *map(str, runs), "--wall-clock", "--out", str(out)]) == 0
-    assert capsys.readouterr().out == f"1 curve(s) -> {out}\n" and out.stat().st_size > 0
+    assert capsys.readouterr().out == f"1 curve -> {out}\n" and out.stat().st_size > 0
 
 
 def _plotted(runs, out, monkeypatch):
@@ -507,7 +507,7 @@ def test_a_sweep_under_way_is_read_without_its_runs_not_evaluated_yet(tmp_path, 
         assert printed.out.splitlines()[2].startswith(
             "| push | SAC | 0 | 18,000 (unfinished) | 0 of 1 | 14,000 | 16,000 |")
     else:
-        assert printed.out == f"1 curve(s) -> {tmp_path / 'curves.png'}\n"
+        assert printed.out == f"1 curve -> {tmp_path / 'curves.png'}\n"
     assert cli.console([command, str(runs / "push-sac-seed1"), str(runs / "push-sac-seed2"),
                         *out]) == 2
     assert (f"no evaluations yet in {runs / 'push-sac-seed1'}, {runs / 'push-sac-seed2'}"

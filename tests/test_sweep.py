@@ -296,8 +296,30 @@ def test_evaluate_and_plot_read_a_sweep_directory(tmp_path):
     assert run_directories([tmp_path / "sweep", single]) == [
         tmp_path / "sweep" / "push-sac-seed0", tmp_path / "sweep" / "push-sac-seed1", single]
     (tmp_path / "sweep" / "nothing").mkdir()
-    with pytest.raises(ValueError, match="is neither a training run nor a sweep of runs"):
+    with pytest.raises(ValueError, match=re.escape(
+            f"{tmp_path / 'sweep' / 'nothing'} is neither a training run nor a sweep of runs "
+            "(no config.json in it or in its subdirectories)")):
         run_directories([tmp_path / "sweep" / "nothing"])
+
+
+def test_a_folder_of_sweeps_names_them_and_a_sweep_beside_runs_is_not_passed_over(tmp_path):
+    """A folder of sweeps was said to hold no config.json in its subdirectories, and the
+    sweeps beside a folder's runs (`results/`) were left out of a report without a word."""
+    for sweep in ("a", "b", "c", "d"):
+        _write_run(tmp_path / "all" / sweep, "push-sac-seed0", [(0, 1, 0.0)])
+    with pytest.raises(ValueError, match=re.escape(
+            f"{tmp_path / 'all'} is neither a training run nor a sweep of runs: it holds 4 "
+            f"sweeps ({tmp_path / 'all' / 'a'}, {tmp_path / 'all' / 'b'}, "
+            f"{tmp_path / 'all' / 'c'} and 1 more): give a sweep itself")):
+        run_directories([tmp_path / "all"])
+    _write_run(tmp_path / "one" / "a", "push-sac-seed0", [(0, 1, 0.0)])
+    with pytest.raises(ValueError, match=re.escape(
+            f"it holds 1 sweep ({tmp_path / 'one' / 'a'}): give a sweep itself")):
+        run_directories([tmp_path / "one"])
+    beside = _write_run(tmp_path / "all", "push-sac-seed1", [(0, 1, 0.0)], seed=1).root
+    with pytest.warns(UserWarning, match=re.escape(
+            f"{tmp_path / 'all'}: its runs alone are read, not those of the 4 sweeps in it")):
+        assert run_directories([tmp_path / "all"]) == [beside]
 
 
 def test_a_seed_given_twice_is_refused_before_it_counts_twice(tmp_path):

@@ -14,6 +14,7 @@ import tempfile
 import numpy as np
 import pytest
 
+import franka_composer
 from franka_composer import cli
 from franka_composer.training import ALGOS, TABLE_I, hyperparameters, machine
 from franka_composer.training.callbacks import LatestCheckpoint
@@ -1294,7 +1295,7 @@ def test_plot_draws_one_line_per_algorithm(runs, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(plt, "close", lambda fig=None: figures.append(fig) or close(fig))
     out = tmp_path / "curves.png"
     assert cli.main(["plot", *map(str, runs.values()), "--out", str(out)]) == 0
-    assert capsys.readouterr().out == f"3 curve(s) -> {out}\n"
+    assert capsys.readouterr().out == f"3 curves -> {out}\n"
     (axes,) = figures[0].axes
     lines = axes.get_lines()
     assert [line.get_label() for line in lines] == [f"{algo.upper()} (1 seed)" for algo in runs]
@@ -1772,8 +1773,8 @@ def test_precision_sets_the_gradient_steps_and_nothing_else(tmp_path, monkeypatc
 
 
 def test_bf16_needs_the_torch_backend(tmp_path, capsys):
-    with pytest.raises(ValueError, match="precision bf16 runs the networks under "
-                                         "torch.autocast: it needs backend sb3, not sbx"):
+    with pytest.raises(ValueError, match="--precision bf16 runs the networks under "
+                                         "torch.autocast: it needs --backend sb3, not sbx"):
         _train(tmp_path / "run", "sac", 100, "--backend", "sbx", "--precision", "bf16")
     assert not (tmp_path / "run").exists()  # Refused before the run directory was made.
     with pytest.raises(SystemExit):
@@ -1846,8 +1847,8 @@ def test_clip_q_targets_is_recorded_clips_again_on_resume_and_needs_sb3(tmp_path
     assert _train(tmp_path / "plain", "sac", 100) == 0
     assert len(clipped) == 2 and not RunDir(tmp_path / "plain").read_config(
         ).hyperparameters.clip_q_targets
-    with pytest.raises(ValueError, match="clip_q_targets clamps a PyTorch target critic: "
-                                         "it needs backend sb3, not sbx"):
+    with pytest.raises(ValueError, match="--clip-q-targets clamps a PyTorch target critic: "
+                                         "it needs --backend sb3, not sbx"):
         _train(tmp_path / "sbx", "sac", 100, "--backend", "sbx", "--clip-q-targets")
     assert not (tmp_path / "sbx").exists()
 
@@ -1881,12 +1882,16 @@ def test_a_run_trains_and_is_evaluated_at_its_own_control_timestep(tmp_path, cap
                                          ".* has control_timestep 0.5, not "
                                          "--control-timestep's 0.05"):
         _train(out, "sac", 200, "--resume", "--control-timestep", "0.05")
-    for bad, message in (("0.051", "control_timestep must be a whole multiple of the "
-                                   "physics timestep \\(0.002 s\\), got 0.051"),
-                         ("0", "control_timestep must be > 0, got 0")):
+    # Named by the flag the user typed (the task and Python's API name the field).
+    for bad, message in (("0.051", "^--control-timestep must be a whole multiple of the "
+                                   "physics timestep \\(0.002 s\\), got 0.051$"),
+                         ("0", "^--control-timestep must be > 0, got 0.0$")):
         with pytest.raises(ValueError, match=message):
             _train(tmp_path / "bad", "sac", 100, "--control-timestep", bad)
         assert not (tmp_path / "bad").exists()
+        with pytest.raises(ValueError, match=message.replace("--control-timestep",
+                                                             "control_timestep")):
+            franka_composer.load("push", control_timestep=float(bad))
 
 
 def test_a_run_at_the_reference_timing_is_recorded_and_played_at_it(tmp_path, capsys):
@@ -2011,8 +2016,8 @@ def test_a_run_on_damped_objects_is_recorded_and_played_on_them(tmp_path):
                   "--expert-demos", "1"]
     assert older.differing(run_config(cli.build_parser().parse_args(given_none))) == {}
     for task, bad, message in (
-            ("push", "-1", "object_damping must be >= 0, got -1.0"),
-            ("reach", "0.01", "object_damping does not apply to reach: it has no object")):
+            ("push", "-1", "--object-damping must be >= 0, got -1.0"),
+            ("reach", "0.01", "--object-damping does not apply to reach: it has no object")):
         with pytest.raises(ValueError, match=re.escape(message)):
             cli.main(["train", "--task", task, "--algo", "sac", "--out",
                       str(tmp_path / "refused"), "--object-damping", bad, *TINY])
@@ -2240,8 +2245,8 @@ def test_expert_demonstrations_are_refused_beside_a_dataset_or_past_the_buffer(t
 
     record("push", 1, tmp_path / "push.npz", seed=0)
     with pytest.raises(ValueError, match=re.escape(
-            "a run's demonstrations come from a dataset (demos) or are recorded by its expert "
-            "(expert_demos), not both")):
+            "a run's demonstrations come from a dataset (--demos) or are recorded by its "
+            "expert (--expert-demos), not both")):
         _train(tmp_path / "run", "sac", 100, "--expert-demos", "2", "--demos",
                str(tmp_path / "push.npz"))
     # 2000 buffer transitions (TINY): 3 episodes of up to 50 steps and 1900 steps do not fit.

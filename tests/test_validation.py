@@ -299,8 +299,11 @@ def test_good_options_are_normalised_to_floats_and_tuples():
     (dict(task="lift"), "its task and reward_type cannot be changed$"),
     (dict(camera="nope", render_mode="rgb_array"),
      "unknown camera 'nope'; valid cameras: workspace, top"),
-    (dict(width=True, render_mode="rgb_array"), r"width must be an int in \[1, 1024\], got True"),
-    (dict(height=0, render_mode="rgb_array"), r"height must be an int in \[1, 1024\], got 0"),
+    (dict(width=True, render_mode="rgb_array"),
+     "width must be a whole number >= 1 and <= 1024, got True"),
+    (dict(height=0, render_mode="rgb_array"), "height must be >= 1 and <= 1024, got 0"),
+    (dict(width=64.0, render_mode="rgb_array"),
+     "width must be a whole number >= 1 and <= 1024, got 64.0"),
     # Without a render mode nothing is rendered: they would do nothing.
     (dict(width=64), "width sets the rendered frames, and render_mode=None renders none: "
                      "give render_mode='rgb_array' or 'human', or leave it out"),
@@ -622,7 +625,8 @@ def test_train_refuses_a_learning_start_inside_the_first_episode_and_leaves_noth
     out = tmp_path / "run"
     assert cli.console(["train", "--task", "push", "--algo", "sac", "--learning-starts", "7",
                         "--out", str(out)]) == 2
-    assert "learning_starts must be >= 49 for push" in capsys.readouterr().err
+    assert ("--learning-starts must be >= 49 for push with an update every step, got 7: "
+            in capsys.readouterr().err)
     assert not out.exists()
 
 
@@ -639,3 +643,14 @@ def test_a_number_too_large_for_a_float_is_refused_by_name_and_an_int_of_any_siz
     with pytest.raises(ValueError, match="time_scale must be a finite number > 0 that a 64-bit "
                                          "float holds, got an integer of over 4,300 digits"):
         check_number("time_scale", 10**5000, above=0)
+
+
+def test_counts_are_written_singular_for_one():
+    """The commands printed "1 episodes", "1 curve(s)", "counts 1 episodes"."""
+    from franka_composer.wording import counted
+
+    assert [counted(n, "episode") for n in (0, 1, 2)] == ["0 episodes", "1 episode",
+                                                          "2 episodes"]
+    assert counted(500_000, "step", grouped=True) == "500,000 steps"
+    assert counted(1, "analysis", "analyses") == "1 analysis"
+    assert counted(3, "analysis", "analyses") == "3 analyses"

@@ -32,7 +32,8 @@ from franka_composer.arenas.floor import CAMERAS, MAX_RENDER_SIZE, RENDER_SIZE
 from franka_composer.tasks.layout import OBSERVATION_DTYPE
 from franka_composer.tasks.records import ObservationSettings
 from franka_composer.tasks.options import OPTION_NAMES
-from franka_composer.validation import check_bool, check_choice, check_names, named_parameters
+from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
+                                        named_parameters)
 
 #: `suite.load`'s parameters that the adapter sets itself, and how a Gymnasium user sets
 #: what they stand for.
@@ -109,7 +110,10 @@ class FrankaGoalEnv(gym.Env, EzPickle):
         width = RENDER_SIZE if width is None else width
         height = RENDER_SIZE if height is None else height
         camera = CAMERAS[0] if camera is None else camera
-        _check_render_size(width, height)
+        # Checked as the pixel observations' sizes are (`pixel_width`, `pixel_height`).
+        width, height = (int(check_number(name, value, minimum=1, maximum=MAX_RENDER_SIZE,
+                                          integer=True))
+                         for name, value in (("width", width), ("height", height)))
         check_choice("camera", camera, CAMERAS)
         # An env that never renders leaves the Panda's visual meshes out (~50 MB per env),
         # unless its images draw them (camera_meshes="visual").
@@ -359,13 +363,6 @@ def _check_visuals_seen(render_mode: str | None, task_kwargs: dict) -> None:
                          "images show, and render_mode=None with observation_mode='state' "
                          "has none: give render_mode='rgb_array' or 'human', or "
                          "observation_mode='pixels' or 'state+pixels', or leave it out")
-
-
-def _check_render_size(width: int, height: int) -> None:
-    for name, value in (("width", width), ("height", height)):
-        if (isinstance(value, bool) or not isinstance(value, (int, np.integer))
-                or not 0 < value <= MAX_RENDER_SIZE):
-            raise ValueError(f"{name} must be an int in [1, {MAX_RENDER_SIZE}], got {value!r}")
 
 
 def _check_display() -> None:

@@ -22,7 +22,7 @@ from franka_composer import headless_gl
 from franka_composer.adapters.registration import env_id
 from franka_composer.atomic_files import folders_made_for, replace_together
 from franka_composer.controllers.settings import DEFAULT_CONTROL, TCP_CONTROLS
-from franka_composer.cli.options import (add_tasks_argument, add_timing, episode_seed,
+from franka_composer.cli.options import (add_tasks_argument, add_timing, as_flags, episode_seed,
                                          frame_size, given_timing, output_folder,
                                          positive_int, the_runs_control)
 from franka_composer.policies import make_expert, rollout
@@ -99,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
         headless_gl.check_can_render()  # MUJOCO_GL=disable: before the first episode.
     trained = None if args.policy is None else _adopt_the_runs_task(args)
     for task in args.tasks:  # A bad timing is refused before the first episode.
-        task_config(task, **given_timing(args))
+        with as_flags("demo"):
+            task_config(task, **given_timing(args))
     rows = []
     # On a terminal only (disable=None): in a log, each update was a line of its own.
     with tqdm(total=len(args.tasks) * args.episodes, desc="demo", unit="episode",

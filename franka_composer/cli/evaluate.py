@@ -8,6 +8,7 @@ import argparse
 from franka_composer.cli.options import (add_run_dirs, episode_seed, output_file,
                                          positive_int, report_waiting)
 from franka_composer.training.models import DEVICES
+from franka_composer.wording import counted
 
 
 def add_parser(subparsers) -> None:
@@ -60,10 +61,12 @@ def run(args: argparse.Namespace) -> int:
         results.append(result)
         print(f"{root}: {with_variant(config.task, config.variant)} {config.algo} seed "
               f"{config.seed}, {result.steps} steps: "
-              f"success {100 * outcome.success_rate:.1f} % over {args.episodes} episodes")
+              f"success {100 * outcome.success_rate:.1f} % over "
+              f"{counted(args.episodes, 'episode')}")
     table = markdown_table(results)
     notes = seeds_note(results)
-    print(f"\nSuccess rate %, mean ± std over seeds, {args.episodes} episodes per model:\n")
+    print(f"\nSuccess rate %, mean ± std over seeds, {counted(args.episodes, 'episode')} "
+          "per model:\n")
     print(table + "\n" + notes, end="")
     if args.out:
         from franka_composer.atomic_files import folders_made_for, replace_atomically

@@ -9,7 +9,7 @@ import pathlib
 import sys
 
 from franka_composer.training.run_config import MAX_TRAINING_SEED
-from franka_composer.validation import check_writable, repeated
+from franka_composer.validation import check_writable, repeated, spelled
 
 
 def number(text: str) -> float:
@@ -299,6 +299,17 @@ def true_or_false(text: str) -> bool:
     if text.lower() not in ("true", "false"):
         raise argparse.ArgumentTypeError(f"must be true or false, got {text!r}")
     return text.lower() == "true"
+
+
+def as_flags(command: str, **others: str):
+    """Refusals made within it name a setting by `command`'s flag for it, not its field's
+    name ("--train-every > 1 needs --update-schedule 'step'"); `others` spells settings a
+    flag of another name sets (`stop_after_evaluations="--stop-after"`)."""
+    from franka_composer.cli import command_parser
+
+    return spelled({**{action.dest: option for action in command_parser(command)._actions
+                       for option in action.option_strings
+                       if option == "--" + action.dest.replace("_", "-")}, **others})
 
 
 def timing_options(args: argparse.Namespace) -> dict:

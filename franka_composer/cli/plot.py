@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from franka_composer.cli.options import add_run_dirs, figure_file, report_waiting
+from franka_composer.wording import counted
 
 
 def add_parser(subparsers) -> None:
@@ -34,6 +35,6 @@ def run(args: argparse.Namespace) -> int:
 
     roots, waiting = split_evaluated(run_directories(args.runs))
     drawn = plot_curves(roots, args.out, wall_clock=args.wall_clock)
-    print(f"{len(drawn)} curve(s) -> {args.out}")
+    print(f"{counted(len(drawn), 'curve')} -> {args.out}")
     report_waiting(waiting)
     return 0

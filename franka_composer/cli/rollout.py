@@ -15,11 +15,12 @@ import argparse
 import pathlib
 
 import franka_composer
-from franka_composer.cli.options import (add_object_damping, add_timing, episode_seed,
+from franka_composer.cli.options import (add_object_damping, add_timing, as_flags, episode_seed,
                                          given_timing, normal_path, positive_int,
                                          standard_deviation, the_runs_control)
 from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.tasks.rewards import REWARD_TYPES
+from franka_composer.wording import counted
 
 
 def add_parser(subparsers) -> None:
@@ -95,17 +96,20 @@ def run(args: argparse.Namespace) -> int:
                                    "guard_ignores_carried") and value is not None}
     task_options = {**given_timing(args, run_timing),
                     **({"object_damping": damping} if damping else {}), **episodes_as}
+    from franka_composer.tasks import task_config
+
+    with as_flags("rollout"):  # A bad timing or damping named by its flag, before anything.
+        config = task_config(args.task, control=args.control, **task_options)
     if args.policy is not None:  # Acts there as it learned: found before a dataset is begun.
         from franka_composer.datasets.sources import check_acts_in
-        from franka_composer.tasks import task_config
 
-        check_acts_in(args.policy, trained, task_config(args.task, control=args.control,
-                                                        **task_options))
+        check_acts_in(args.policy, trained, config)
     summary = record(args.task, args.episodes, args.out, format=args.format, seed=args.seed,
                      control=args.control, reward_type=args.reward_type,
                      policy_dir=args.policy, action_noise=args.action_noise,
                      dataset_id=args.dataset_id, **task_options)
     name = f" ({summary['dataset_id']})" if "dataset_id" in summary else ""
-    print(f"{args.task}: {summary['episodes']} episodes, {summary['steps']} steps, "
+    print(f"{args.task}: {counted(summary['episodes'], 'episode')}, "
+          f"{counted(summary['steps'], 'step')}, "
           f"success rate {summary['success_rate']:.0%} -> {summary['path']}{name}")
     return 0

@@ -12,8 +12,9 @@ import warnings
 
 from franka_composer.atomic_files import missing_folders
 from franka_composer.cli.options import (add_guard_ignores_carried, add_object_damping,
-                                         add_timing, non_negative_int, number, output_folder,
-                                         positive_int, timing_options, training_seed)
+                                         add_timing, as_flags, non_negative_int, number,
+                                         output_folder, positive_int, timing_options,
+                                         training_seed)
 from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.randomization import PRESETS
 from franka_composer.signals import exit_status, interrupt_on, jax_imported
@@ -110,7 +111,7 @@ def add_parser(subparsers) -> None:
                         help=f"how actions move the arm (default: {DEFAULT_CONTROL}, the "
                              "paper's)")
     add_timing(parser, "physics seconds per step, a whole number of 2 ms physics steps "
-                       "(default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
+                       "up to 100 s (default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
                        "its stated 0.05 s: the arm at rest after each action); --timing "
                        "reference is all of that code's timing")
     add_object_damping(parser, "0, undamped")
@@ -275,19 +276,22 @@ def run_config(args: argparse.Namespace):
     args = with_defaults(args)
     base = (TRAINING_PRESETS[args.preset].hyperparameters(args.task, args.algo)
             if args.preset else hyperparameters(args.task, args.algo))
-    hp = base.replace(
-        update_schedule=args.update_schedule, train_every=args.train_every,
-        net_arch=args.net_arch,
-        batch_size=args.batch_size, buffer_size=args.buffer_size,
-        learning_starts=args.learning_starts, eval_every=args.eval_every,
-        eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
-        stop_after_evaluations=args.stop_after, clip_q_targets=args.clip_q_targets)
-    return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
-                     args.backend, args.control, args.precision, args.randomization,
-                     str(args.demos.resolve()) if args.demos else None, args.demo_episodes,
-                     args.expert_demos, preset=args.preset, object_damping=args.object_damping,
-                     guard_ignores_carried=args.guard_ignores_carried,
-                     **timing_options(args))
+    with as_flags("train", stop_success_rate="--stop-at-success",
+                  stop_after_evaluations="--stop-after"):
+        hp = base.replace(
+            update_schedule=args.update_schedule, train_every=args.train_every,
+            net_arch=args.net_arch,
+            batch_size=args.batch_size, buffer_size=args.buffer_size,
+            learning_starts=args.learning_starts, eval_every=args.eval_every,
+            eval_episodes=args.eval_episodes, stop_success_rate=args.stop_at_success,
+            stop_after_evaluations=args.stop_after, clip_q_targets=args.clip_q_targets)
+        return RunConfig(args.task, args.algo, args.seed, hp, args.terminate_on_success,
+                         args.backend, args.control, args.precision, args.randomization,
+                         str(args.demos.resolve()) if args.demos else None,
+                         args.demo_episodes, args.expert_demos, preset=args.preset,
+                         object_damping=args.object_damping,
+                         guard_ignores_carried=args.guard_ignores_carried,
+                         **timing_options(args))
 
 
 

@@ -20,10 +20,10 @@ from franka_composer.tasks.options import (LIFTED_GOALS, OPTION_NAMES, OPTIONS, 
                                            refuse_unread, timing_name, unread_option)
 from franka_composer.tasks.placement import (CHECKED_PLACEMENTS, MAX_ATTEMPTS,
                                              PLACEMENT_MARGIN, room_to_place_apart)
-from franka_composer.tasks.records import (MUJOCO_MAX_COUNT, BlockSpec, ObjectSpec,
+from franka_composer.tasks.records import (MAX_SUBSTEPS, BlockSpec, ObjectSpec,
                                            ObservationSettings, OrientationGoalSettings,
                                            PhysicsSettings, Workspace)
-from franka_composer.validation import check_names
+from franka_composer.validation import check_names, spelling
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,7 +48,8 @@ class TaskConfig:
       distance_threshold: success radius (m).
       terminate_on_success: end the episode when the goal is reached (the paper); False
         gives Fetch semantics, for which HER relabelling is exact.
-      control_timestep: seconds per control step (a whole multiple of the physics step).
+      control_timestep: seconds per control step (a whole multiple of the physics step, at
+        most `records.MAX_SUBSTEPS` of them: 100 s).
       velocity_timestep: seconds the observation's velocities are multiplied by (None: the
         control period, a displacement per step as in Fetch). The reference code steps
         0.5 s but multiplies by its stated 0.05 s (`TIMINGS["reference"]`).
@@ -102,19 +103,20 @@ class TaskConfig:
 
     def check(self, since: "TaskConfig | None" = None) -> None:
         """Checks what no single option can: the timestep ratio, a whole number of physics
-        steps (to within Composer's own 1e-6 of a step, which it checks again) that MuJoCo's
-        step count (a C int) holds; room to place the objects apart; a neutral pose within
+        steps (to within Composer's own 1e-6 of a step, which it checks again), at most
+        `MAX_SUBSTEPS` of them; room to place the objects apart; a neutral pose within
         the joints' ranges with the hand above the floor, objects that start clear of the
         hand, and that can be grasped where goals need them lifted (`clearance`), unless
         what that reads is as in `since`, a config already checked or a task's own."""
         substeps = self.control_timestep / self.physics.timestep
         if round(substeps) < 1 or abs(substeps - round(substeps)) > 1e-6:
-            raise ValueError(f"control_timestep must be a whole multiple of the physics "
-                             f"timestep ({self.physics.timestep:g} s), got "
+            raise ValueError(f"{spelling('control_timestep')} must be a whole multiple of the "
+                             f"physics timestep ({self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
-        if round(substeps) > MUJOCO_MAX_COUNT:
-            raise ValueError(f"control_timestep must be at most {MUJOCO_MAX_COUNT:,} physics "
-                             f"steps of {self.physics.timestep:g} s, got "
+        if round(substeps) > MAX_SUBSTEPS:
+            raise ValueError(f"{spelling('control_timestep')} must be at most {MAX_SUBSTEPS:,} "
+                             f"physics steps of {self.physics.timestep:g} s "
+                             f"({MAX_SUBSTEPS * self.physics.timestep:g} s), got "
                              f"{self.control_timestep!r}")
         box = self.workspace.object_box
         if not room_to_place_apart(box.low, box.high,

@@ -26,7 +26,8 @@ from franka_composer.randomization.settings import from_a_preset
 from franka_composer.tasks.records import (CAMERA_MESHES, OBSERVATION_MODES, ORIENTATION_GOALS,
                                            PIXEL_CAMERAS, PhysicsSettings)
 from franka_composer.tasks.rewards import REWARD_TYPES
-from franka_composer.validation import check_bool, check_choice, check_number, check_vector
+from franka_composer.validation import (check_bool, check_choice, check_number, check_vector,
+                                        spelling)
 
 if TYPE_CHECKING:
     from franka_composer.tasks.config import TaskConfig
@@ -52,7 +53,7 @@ class Option:
 
     def check(self, name: str, value, config: TaskConfig):
         if not self.applies_to(config) and self.path[0] != "objects":
-            raise ValueError(f"{name} does not apply to {config.name}: it has no "
+            raise ValueError(f"{spelling(name)} does not apply to {config.name}: it has no "
                              f"{self.path[0].replace('_', ' ')}")
         if not self.applies_to(config):
             valid = [n for n, o in OPTIONS.items()
@@ -60,7 +61,7 @@ class Option:
             kinds = sorted({type(o).__name__.replace("Spec", "").lower()
                             for o in config.objects})
             what = f"its objects are {' and '.join(kinds)}s" if kinds else "it has no object"
-            raise ValueError(f"{name} does not apply to {config.name}: {what} "
+            raise ValueError(f"{spelling(name)} does not apply to {config.name}: {what} "
                              f"(its object options: {', '.join(valid) or 'none'})")
         return self.check_value(name, value)
 

@@ -71,6 +71,12 @@ class Workspace:
 #: too large").
 MUJOCO_MAX_COUNT = 2**31 - 1
 
+#: The most physics steps one control step may take: 100 s at the tasks' 2 ms, 200 times the
+#: reference code's 0.5 s and about a second of computing. MuJoCo runs them in one call,
+#: which Ctrl-C and SIGTERM wait for: a mistyped timestep (2000001 for 0.002) made each
+#: step run for hours, past their reach.
+MAX_SUBSTEPS = 50_000
+
 #: The damping of the paper's reference code's block's free joint (its push and
 #: pick-and-place XML: `<joint type="free" damping="0.01"/>`; its slide's puck has none):
 #: on a 4 cm, 0.1 kg cube a turn dies out within 2.7 ms, so a push slides the block where

@@ -25,6 +25,7 @@ from franka_composer.tasks import TASK_CONFIGS
 from franka_composer.tasks.options import OPTIONS, readable_options
 from franka_composer.tasks.rewards import reward_from_distance
 from franka_composer.validation import check_path
+from franka_composer.wording import counted
 
 
 def load_episodes(path, env) -> list[dict[str, np.ndarray]]:
@@ -349,10 +350,11 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
     steps = sum(len(episode["action"]) for episode in episodes)
     if (dataset.total_episodes, dataset.total_steps) != (stored, steps):
         # Minari reads as many episodes as metadata.json counts: the others were dropped.
-        raise ValueError(f"{path}'s metadata.json counts {dataset.total_episodes} episodes "
-                         f"of {dataset.total_steps} steps in all, and its data holds {stored} "
-                         f"(the first {len(episodes)}: {steps} steps): an append cut "
-                         "short, or hand-edited?")
+        raise ValueError(f"{path}'s metadata.json counts "
+                         f"{counted(dataset.total_episodes, 'episode')} of "
+                         f"{counted(dataset.total_steps, 'step')} in all, and its data holds "
+                         f"{stored} (the first {len(episodes)}: {counted(steps, 'step')}): an "
+                         "append cut short, or hand-edited?")
     return episodes, recorded
 
 
@@ -472,7 +474,7 @@ def transitions(task: str, expert_demos: int | None, dataset, demo_episodes: int
         env.close()
     if demo_episodes is not None and demo_episodes > len(episodes):
         raise ValueError(f"--demo-episodes {demo_episodes}, but {dataset} holds "
-                         f"{len(episodes)} episodes")
+                         f"{counted(len(episodes), 'episode')}")
     return int(sum(len(episode["action"]) for episode in episodes[:demo_episodes]))
 
 

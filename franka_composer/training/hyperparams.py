@@ -10,7 +10,8 @@ import dataclasses
 from typing import Any
 
 from franka_composer.tasks import ALL_TASKS
-from franka_composer.validation import check_bool, check_choice, check_names, check_number
+from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
+                                        spelling)
 
 #: Learning algorithms, in the column order of the paper's Table II.
 ALGOS = ("ddpg", "sac", "tqc")
@@ -144,7 +145,8 @@ class Hyperparameters:
                      HER_GOAL_SELECTION_STRATEGIES)
         check_choice("update_schedule", self.update_schedule, UPDATE_SCHEDULES)
         if self.train_every != 1 and self.update_schedule != "step":
-            raise ValueError("train_every > 1 needs update_schedule 'step'")
+            raise ValueError(f"{spelling('train_every')} > 1 needs "
+                             f"{spelling('update_schedule')} 'step'")
         if self.stop_success_rate is not None:
             check_number("stop_success_rate", self.stop_success_rate, above=0, maximum=1)
         check_bool("clip_q_targets", self.clip_q_targets)

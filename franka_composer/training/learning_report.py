@@ -22,6 +22,7 @@ import numpy as np
 
 from franka_composer.training.report import cell_order, group_by_cell, with_variant
 from franka_composer.training.runs import RunDir, success_curve
+from franka_composer.wording import counted
 
 #: Evaluations in the trailing mean of a seed's curve.
 SMOOTHING = 5
@@ -262,7 +263,8 @@ def _cpu_hours(runs: list[RunRecord]) -> str:
 
 def _total(runs: list[RunRecord]) -> str:
     finished = sum(run.finished for run in runs)
-    return (f"All {len(runs)} runs ({finished} finished): "
+    return (f"{'All ' if len(runs) > 1 else ''}{counted(len(runs), 'run')} ({finished} "
+            "finished): "
             f"{sum(run.wall_s for run in runs) / 3600:.1f} wall-clock hours of runs (one CPU "
             f"each), {_cpu_hours(runs)} CPU hours; {sum(run.steps for run in runs):,} "
             "environment steps.")

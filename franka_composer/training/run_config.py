@@ -16,7 +16,8 @@ from franka_composer.training.hyperparams import (ALGORITHM_SETTINGS, ALGOS, BAC
                                                   PRECISIONS, Hyperparameters,
                                                   hyperparameters)
 from franka_composer.training.presets import TRAINING_PRESETS
-from franka_composer.validation import check_bool, check_choice, check_names, check_number
+from franka_composer.validation import (check_bool, check_choice, check_names, check_number,
+                                        spelling)
 
 #: Training seeds stay below 2**31: SB3 seeds NumPy's legacy generator (at most 2**32 - 1)
 #: with the seed plus the evaluation offset, and with the seed plus the steps on a resume.
@@ -140,19 +141,21 @@ class RunConfig:
         if self.precision != "fp32" and self.backend != "sb3":
             preset = (TRAINING_PRESETS[self.preset].settings if self.preset is not None
                       else {})
-            whose = (f" (the {self.preset} preset's; --precision fp32 with it trains in "
+            precision, backend = spelling("precision"), spelling("backend")
+            whose = (f" (the {self.preset} preset's; {precision} fp32 with it trains in "
                      "fp32)" if preset.get("precision") == self.precision else "")
-            raise ValueError(f"precision {self.precision}{whose} runs the networks under "
-                             f"torch.autocast: it needs backend sb3, not {self.backend} "
+            raise ValueError(f"{precision} {self.precision}{whose} runs the networks under "
+                             f"torch.autocast: it needs {backend} sb3, not {self.backend} "
                              "(which trains in JAX)")
         if self.expert_demos is not None:
             check_number("expert_demos", self.expert_demos, minimum=1, integer=True)
             if self.demos is not None:
-                raise ValueError("a run's demonstrations come from a dataset (demos) or are "
-                                 "recorded by its expert (expert_demos), not both")
+                raise ValueError(f"a run's demonstrations come from a dataset "
+                                 f"({spelling('demos')}) or are recorded by its expert "
+                                 f"({spelling('expert_demos')}), not both")
         if self.hyperparameters.clip_q_targets and self.backend != "sb3":
-            raise ValueError(f"clip_q_targets clamps a PyTorch target critic: it needs "
-                             f"backend sb3, not {self.backend}")
+            raise ValueError(f"{spelling('clip_q_targets')} clamps a PyTorch target critic: "
+                             f"it needs {spelling('backend')} sb3, not {self.backend}")
         self._check_first_update()
 
     def _check_first_update(self) -> None:
@@ -165,10 +168,11 @@ class RunConfig:
         prefilled = self.demos is not None or self.expert_demos is not None
         if hp.update_schedule == "step" and not prefilled and hp.learning_starts + 1 < horizon:
             raise ValueError(
-                f"learning_starts must be >= {horizon - 1} for {self.task} with an update "
-                f"every step, got {hp.learning_starts}: the first gradient step would come "
-                f"before the first episode ends (it may last {horizon} steps), and HER "
-                "samples from ended episodes only; or use update_schedule 'episode' or demos")
+                f"{spelling('learning_starts')} must be >= {horizon - 1} for {self.task} with "
+                f"an update every step, got {hp.learning_starts}: the first gradient step "
+                f"would come before the first episode ends (it may last {horizon} steps), "
+                f"and HER samples from ended episodes only; or use "
+                f"{spelling('update_schedule')} 'episode' or {spelling('demos')}")
 
     def to_dict(self) -> dict:
         return {"task": self.task, "algo": self.algo, "seed": self.seed,

@@ -23,6 +23,7 @@ import socket
 import subprocess
 import sys
 import time
+import warnings
 from typing import Any
 
 from franka_composer.signals import interrupt_on
@@ -31,6 +32,7 @@ from franka_composer.training.keep import check_kept_apart, files_to_keep, keep_
 from franka_composer.training.runs import (RESUME_OPTIONS, RunDir, read_eval_rows,
                                           run_finished)
 from franka_composer.validation import repeated
+from franka_composer.wording import counted
 
 
 @dataclasses.dataclass(frozen=True)
@@ -499,9 +501,22 @@ def run_directories(paths) -> list[pathlib.Path]:
         if not path.exists():
             raise ValueError(f"{path} does not exist")
         inside = sorted(p.parent for p in path.glob("*/config.json"))
+        # Sweeps a level further down (a folder of sweeps, `results/`) are not read: named,
+        # not passed over (a report of `results/` read its six runs alone, without a word).
+        below = sorted({p.parent.parent for p in path.glob("*/*/config.json")} - set(inside))
+        sweeps = ", ".join(str(sweep) for sweep in below[:3]) + (
+            f" and {len(below) - 3} more" if len(below) > 3 else "")
+        if not inside and below:
+            raise ValueError(f"{path} is neither a training run nor a sweep of runs: it holds "
+                             f"{counted(len(below), 'sweep')} ({sweeps}): give a sweep "
+                             "itself")
         if not inside:
             raise ValueError(f"{path} is neither a training run nor a sweep of runs "
                              "(no config.json in it or in its subdirectories)")
+        if below:
+            warnings.warn(f"{path}: its runs alone are read, not those of the "
+                          f"{counted(len(below), 'sweep')} in it ({sweeps}): give a sweep "
+                          "itself to read its runs", stacklevel=2)
         runs += inside
     seen: dict[tuple, pathlib.Path] = {}
     for run in runs:
