@@ -1503,3 +1503,17 @@ def test_the_controller_press_refuses_tasks_it_does_not_press_once(tasks, messag
         module.main(["--tasks", *tasks])
     assert exit_.value.code == 2
     assert message in capsys.readouterr().err
+
+
+def test_light_angles_measures_the_turn_the_default_randomisation_gives_each_light():
+    """The preset's reason quotes it ("within ~30 degrees ..., half the draws within 13")."""
+    import math
+
+    module = load_script(EXPERIMENTS / "light_angles.py")
+    names, angles = module.light_angles("push", episodes=40, seed=3)
+    assert names == ["key", "fill", "panda/top"] and angles.shape == (40, 3)
+    # An offset in [-0.3, 0.3]^3 turns a unit vector by at most asin(0.3 * sqrt(3)).
+    assert 0 < angles.min() and angles.max() <= math.degrees(math.asin(0.3 * math.sqrt(3)))
+    assert 8 < float(np.median(angles)) < 18
+    assert (module.light_angles("push", episodes=40, seed=3)[1] == angles).all()
+    assert module.table(names, angles).splitlines()[2].startswith("| key | ")

@@ -43,7 +43,7 @@ PRESET_REASONS: dict[str, dict[str, tuple[type, tuple, str]]] = {"default": {
                    "the arm's paint and lighting make it look different on every camera"),
     "light_direction": (distributions.Uniform, (-0.3, 0.3),
                         "room lights come from anywhere within ~30 degrees of the nominal "
-                        "(half the draws within 13)"),
+                        "(half the draws within 13: experiments/light_angles.py)"),
     "light_intensity": (distributions.Uniform, (0.6, 1.4),
                         "brightness changes with the room and the time of day"),
     "camera_position": (distributions.Uniform, (-0.01, 0.01),
