@@ -184,7 +184,7 @@ def test_rollout_records_at_the_control_timestep_it_is_given(tmp_path):
                  "--format", "rlds", "--out", str(tmp_path / "slow")]) == 0
     assert rlds_format.read(tmp_path / "slow")["metadata"]["options"] == {
         "control_timestep": 0.5}
-    with pytest.raises(ValueError, match="control_timestep must be a whole multiple of the "
+    with pytest.raises(ValueError, match="^--control-timestep must be a whole multiple of the "
                                          "physics timestep \\(0.002 s\\), got 0.051"):
         main(["rollout", "--task", "push", "--control-timestep", "0.051",
               "--out", str(tmp_path / "x.npz")])

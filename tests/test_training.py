@@ -1134,7 +1134,7 @@ def test_a_resume_compares_the_options_given_over_the_runs_own_settings(tmp_path
     # A given option that no run could take with the run's others is named with why.
     with pytest.raises(ValueError, match=re.escape(
             "--resume goes on with the run's own settings, and --update-schedule would "
-            f"change {out}'s into ones no run takes (learning_starts must be >= 49")):
+            f"change {out}'s into ones no run takes (--learning-starts must be >= 49")):
         cli.main([*resume, "--update-schedule", "step"])
 
 
