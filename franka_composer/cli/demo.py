@@ -98,8 +98,8 @@ def run(args: argparse.Namespace) -> int:
                              "frames have even sizes; give an even size, or --no-video")
         headless_gl.check_can_render()  # MUJOCO_GL=disable: before the first episode.
     trained = None if args.policy is None else _adopt_the_runs_task(args)
-    for task in args.tasks:  # A bad timing is refused before the first episode.
-        with as_flags("demo"):
+    with as_flags("demo"):  # A bad timing is refused before the first episode.
+        for task in args.tasks:
             task_config(task, **given_timing(args))
     rows = []
     # On a terminal only (disable=None): in a log, each update was a line of its own.

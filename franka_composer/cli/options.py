@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import pathlib
@@ -305,11 +306,18 @@ def as_flags(command: str, **others: str):
     """Refusals made within it name a setting by `command`'s flag for it, not its field's
     name ("--train-every > 1 needs --update-schedule 'step'"); `others` spells settings a
     flag of another name sets (`stop_after_evaluations="--stop-after"`)."""
+    return spelled({**_flags(command), **others})
+
+
+@functools.cache
+def _flags(command: str) -> dict[str, str]:
+    """`command`'s flags by the settings they set, read off its parser once (`sweep` asks
+    for train's for every cell)."""
     from franka_composer.cli import command_parser
 
-    return spelled({**{action.dest: option for action in command_parser(command)._actions
-                       for option in action.option_strings
-                       if option == "--" + action.dest.replace("_", "-")}, **others})
+    return {action.dest: option for action in command_parser(command)._actions
+            for option in action.option_strings
+            if option == "--" + action.dest.replace("_", "-")}
 
 
 def timing_options(args: argparse.Namespace) -> dict:

@@ -19,6 +19,7 @@ from franka_composer.controllers import CONTROLS, DEFAULT_CONTROL
 from franka_composer.randomization import PRESETS
 from franka_composer.signals import exit_status, interrupt_on, jax_imported
 from franka_composer.tasks import ALL_TASKS
+from franka_composer.tasks.records import MAX_SUBSTEPS, PhysicsSettings
 from franka_composer.training.hyperparams import ALGOS, BACKENDS, PRECISIONS, UPDATE_SCHEDULES
 from franka_composer.training.models import DEVICES
 from franka_composer.training.presets import TRAINING_PRESETS
@@ -110,10 +111,12 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--control", choices=CONTROLS, default=None,
                         help=f"how actions move the arm (default: {DEFAULT_CONTROL}, the "
                              "paper's)")
-    add_timing(parser, "physics seconds per step, a whole number of 2 ms physics steps "
-                       "up to 100 s (default: the task's, 0.05); 0.5 is what the paper's code ran (10 x "
-                       "its stated 0.05 s: the arm at rest after each action); --timing "
-                       "reference is all of that code's timing")
+    physics_step = PhysicsSettings.timestep
+    add_timing(parser, f"physics seconds per step, a whole number of {physics_step * 1000:g} "
+                       f"ms physics steps up to {MAX_SUBSTEPS * physics_step:g} s (default: "
+                       "the task's, 0.05); 0.5 is what the paper's code ran (10 x its stated "
+                       "0.05 s: the arm at rest after each action); --timing reference is all "
+                       "of that code's timing")
     add_object_damping(parser, "0, undamped")
     add_guard_ignores_carried(parser)
     parser.add_argument("--randomization", choices=tuple(PRESETS), default=None,
