@@ -1,10 +1,10 @@
-"""How the commands write counts: "1 episode", "20 episodes", never "1 episodes"."""
+"""How the commands write counts: "1 episode", "20 episodes", "500,000 steps", never
+"1 episodes"."""
 
 from __future__ import annotations
 
 
-def counted(count: int, noun: str, plural: str | None = None, *, grouped: bool = False) -> str:
-    """`count` and `noun`, the noun plural unless the count is one (`plural`, or `noun` +
-    "s"); `grouped` writes the count with thousands separators (500,000)."""
-    number = f"{count:,}" if grouped else str(count)
-    return f"{number} {noun if count == 1 else plural or noun + 's'}"
+def counted(count: int, noun: str) -> str:
+    """`count` (with thousands separators, as the commands write steps) and `noun`, plural
+    unless the count is one."""
+    return f"{count:,} {noun if count == 1 else noun + 's'}"
