@@ -1001,6 +1001,22 @@ def test_a_damaged_minari_dataset_is_refused_by_name(recorded, push_env, tmp_pat
                                 "(truncated file")
 
 
+@pytest.mark.parametrize("missing, message", [
+    ("data/metadata.json", "is not a Minari dataset: {data}/metadata.json is missing"),
+    ("data/main_data.hdf5", "is not a readable Minari dataset: {data}/main_data.hdf5, which "
+                            "its metadata.json says holds the episodes, is missing")])
+def test_a_minari_dataset_missing_a_file_is_refused_naming_the_file(missing, message,
+                                                                   recorded, push_env,
+                                                                   tmp_path):
+    """Minari said "No data found in data path" for either."""
+    import shutil
+
+    path = tmp_path / "minari"
+    shutil.copytree(recorded / "minari" / "franka_composer" / "push" / "expert-v0", path)
+    (path / missing).unlink()
+    _refused(path, push_env, message.format(data=path / "data"))
+
+
 def test_a_minari_dataset_whose_episode_attributes_are_damaged_is_refused_by_name(
         recorded, push_env, tmp_path):
     """A changed byte in an episode's attribute (the version of the "id" attribute's
@@ -1124,6 +1140,8 @@ def test_a_dataset_of_the_tasks_own_options_says_so_in_every_format(recorded):
 @pytest.mark.parametrize("counted, message", [
     (dict(total_episodes=1), "counts 1 episode of 36 steps in all, and its data holds 2 "
                              "(the first 1: 11 steps)"),  # Loaded one of two, silently.
+    # Minari looked for an episode_2 there is not: "KeyError", blamed on the HDF5 file.
+    (dict(total_episodes=3), "counts 3 episodes, and its data holds 2"),
     (dict(total_steps=7), "counts 2 episodes of 7 steps in all, and its data holds 2 "
                           "(the first 2: 36 steps)")])
 def test_a_minari_dataset_whose_counts_disagree_with_its_data_is_refused(

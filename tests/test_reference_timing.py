@@ -224,13 +224,13 @@ def test_each_env_page_says_its_timing_and_how_to_get_the_reference_codes():
     from franka_composer.adapters.pages import page
 
     default = " ".join(page(task_config("slide"), ("FrankaSlideSparse-v0",)).split())
-    assert ("Timing 0.05 s of physics per step (25 MuJoCo steps of 2 ms); velocities as "
-            "displacements per 0.05 s.") in default
+    assert ("Timing 0.05 s of physics per step (25 MuJoCo steps of 2 ms); velocities "
+            "multiplied by 0.05 s.") in default
     assert 'timing="reference" reproduces it (0.5 s per step, velocities multiplied by ' \
            "0.05 s, and the reference code's weld, time constant 0.02 s" in default
     reference = " ".join(page(task_config("slide", timing="reference"), ()).split())
-    assert ("0.5 s of physics per step (250 MuJoCo steps of 2 ms); velocities as "
-            "displacements per 0.05 s.") in reference
+    assert ("0.5 s of physics per step (250 MuJoCo steps of 2 ms); velocities "
+            "multiplied by 0.05 s.") in reference
     assert "Timing 0.05 s of physics" in " ".join(
         gym.make("FrankaSlideSparse-v0").unwrapped.__doc__.split())
 

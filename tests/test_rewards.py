@@ -88,9 +88,9 @@ def test_the_sparse_success_reward_is_positive_zero():
 
 
 def test_quaternions_that_are_not_unit_are_refused_naming_which_and_where():
-    """2 acos |<q1, q2>| is an angle only for unit quaternions: (0.5, 0, 0, 0) against the
-    identity would read as 2.09 rad, one scaled by 2 as 0; both refused. float32's rounding
-    of a unit quaternion is taken."""
+    """A quaternion far from unit is no orientation the task gives (a goal of something
+    else, passed by mistake): refused, naming which and where. float32's rounding of a unit
+    quaternion is taken."""
     identity = np.array([1.0, 0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match=re.escape(
             "desired goals must be unit quaternions (w, x, y, z), got [0.5 0.  0.  0. ] at "
@@ -106,4 +106,38 @@ def test_quaternions_that_are_not_unit_are_refused_naming_which_and_where():
     quaternions = (quaternions / np.linalg.norm(quaternions, axis=1, keepdims=True))
     rewards_ = rewards.compute_reward(quaternions.astype(np.float32), identity, "dense", 0.1,
                                       metric="rotation_angle", size=4)
-    np.testing.assert_allclose(-rewards_, 2 * np.arccos(np.abs(quaternions[:, 0])), atol=1e-3)
+    np.testing.assert_allclose(-rewards_, 2 * np.arccos(np.abs(quaternions[:, 0])), atol=1e-6)
+
+
+def _about_an_axis(angles, axis):
+    axis = np.asarray(axis) / np.linalg.norm(axis)
+    return np.concatenate([np.cos(angles / 2)[:, None], np.sin(angles / 2)[:, None] * axis], 1)
+
+
+def test_the_rotation_angle_is_exact_for_equal_quaternions_and_known_rotations():
+    """Equal orientations are exactly 0 apart (2 acos |<q1, q2>| read float32 copies of one
+    quaternion up to 8e-4 rad apart, float64 ones up to 6e-8); a rotation by t about any
+    axis reads t, and by 2 pi - t (the same orientation the other way round) as well; q and
+    -q are equal."""
+    rng = np.random.default_rng(0)
+    quaternions = rng.normal(size=(1000, 4))
+    quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
+    for stored in (quaternions, quaternions.astype(np.float32)):
+        np.testing.assert_array_equal(rewards.rotation_angle(stored, stored), 0.0)
+        np.testing.assert_array_equal(rewards.rotation_angle(stored, -stored), 0.0)
+    angles = np.linspace(0.0, 2 * np.pi, 2001)
+    rotated = _about_an_axis(angles, [0.3, -0.5, 0.8])
+    np.testing.assert_allclose(rewards.rotation_angle(rotated, [1.0, 0.0, 0.0, 0.0]),
+                               np.minimum(angles, 2 * np.pi - angles), rtol=0, atol=1e-10)
+
+
+def test_a_quaternion_off_unit_within_the_tolerance_reads_its_orientation_s_angle():
+    """A quaternion whose squared norm is 1e-3 off unit (taken: `UNIT_TOLERANCE`) reads the
+    angle of the orientation it points to: 2 acos |<q1, q2>| read 0.02 rad as 0.066 or 0
+    there, and 0.3 rad as 0.307 or 0.293."""
+    angles = np.array([0.02, 0.3, 1.0, 3.0])
+    rotated = _about_an_axis(angles, [1.0, 2.0, 2.0])
+    for scale in (np.sqrt(1 - 0.999e-3), np.sqrt(1 + 0.999e-3)):
+        np.testing.assert_allclose(
+            rewards.compute_reward(rotated * scale, [1.0, 0.0, 0.0, 0.0], "dense", 0.2,
+                                   metric="rotation_angle", size=4), -angles, rtol=1e-12)

@@ -104,7 +104,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
         ("Observation space", [
             f"Dict(observation=Box({layout.size},), achieved_goal=Box({_goal_size(config)},), "
             f"desired_goal=Box({_goal_size(config)},)), float64. {goals} `observation`, "
-            f"velocities as displacements per {config.velocity_period:g} s:",
+            f"velocities multiplied by {config.velocity_period:g} s (as Fetch's velp * dt):",
             layout.markdown_table()]),
         ("Rewards", [
             f"sparse: 0 if the achieved goal is within {config.distance_threshold:g} {unit} of "
@@ -126,7 +126,7 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
         ("Timing", [
             f"{config.control_timestep:g} s of physics per step "
             f"({round(config.control_timestep / config.physics.timestep)} MuJoCo steps of "
-            f"{config.physics.timestep * 1000:g} ms); velocities as displacements per "
+            f"{config.physics.timestep * 1000:g} ms); velocities multiplied by "
             f"{config.velocity_period:g} s. The paper's reference code (panda_mujoco_gym) "
             "runs 0.5 s of physics per step (ten mj_step calls of 25 steps) while its dt "
             "says 0.05 s, so each action lands with the arm at rest: timing=\"reference\" "
@@ -134,8 +134,9 @@ def page(config: TaskConfig, ids: tuple[str, ...]) -> str:
             f"multiplied by {reference['velocity_timestep']:g} s, and the reference code's "
             f"weld, time constant {reference['weld_time_constant']:g} s, which moves the "
             "hand about as fast as the reference's); timing=\"default\" is "
-            f"{default['control_timestep']:g} s with velocities per step and a stiffer weld "
-            f"({default['weld_time_constant']:g} s) that tracks within the step. The action "
+            f"{default['control_timestep']:g} s with velocities multiplied by the period and "
+            f"a stiffer weld ({default['weld_time_constant']:g} s) that tracks within the "
+            "step. The action "
             "law and the observation layout are those above at either timing; "
             + _reference_differences(config)]),
         ("Arguments", [

@@ -51,7 +51,9 @@ class ControlSettings:
       kind: the controller, one of `CONTROLS`: "mocap" (a weld drags the hand, the paper's),
         "osc" (joint torques from an operational-space law) or "joints" (joint servos).
       max_tcp_step: metres the tool centre point's target moves per control step for an
-        action component of 1 (mocap and osc).
+        action component of 1 (mocap and osc). Under mocap, from 0.4 m on full actions
+        let the weld's pull diverge now and then (MuJoCo's instability warning, at 0.05 s
+        per step; none up to 0.3 m on push, pick and place and stack).
       max_joint_step: radians a joint's target moves per control step for an action
         component of 1 (joints; panda-gym's 0.05).
       max_finger_step: metres the finger width changes per control step for a gripper

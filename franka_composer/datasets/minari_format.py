@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import importlib.metadata
+import json
 import math
 import os
 import pathlib
@@ -207,6 +208,23 @@ def check_digests(path, data: pathlib.Path) -> None:
                          f"{', '.join(changed)} is not what was recorded (its SHA-256 "
                          f"differs from the one recorded in its {HDF5_FILE}): damaged or "
                          "edited since; record it again")
+
+
+def check_files(path, data: pathlib.Path) -> None:
+    """A ValueError naming the file a Minari dataset at `path` (its files in `data`) lacks:
+    its metadata.json, or the main_data.hdf5 that metadata says it stores its episodes in.
+    Minari's own "No data found in data path" names neither."""
+    metadata_file = data / "metadata.json"
+    if not metadata_file.is_file():
+        raise ValueError(f"{path} is not a Minari dataset: {metadata_file} is missing "
+                         "(where Minari keeps what the dataset holds and how it is stored)")
+    try:
+        storage = json.loads(metadata_file.read_text()).get("data_format", "hdf5")
+    except (ValueError, AttributeError, UnicodeDecodeError) as error:
+        raise unreadable(path, error, "metadata.json") from None
+    if storage == "hdf5" and not (data / HDF5_FILE).is_file():
+        raise ValueError(f"{path} is not a readable Minari dataset: {data / HDF5_FILE}, which "
+                         f"its metadata.json says holds the episodes, is missing")
 
 
 def unreadable(path, error: Exception, file: str | None = None) -> ValueError:

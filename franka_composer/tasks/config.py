@@ -51,7 +51,7 @@ class TaskConfig:
       control_timestep: seconds per control step (a whole multiple of the physics step, at
         most `records.MAX_SUBSTEPS` of them: 100 s).
       velocity_timestep: seconds the observation's velocities are multiplied by (None: the
-        control period, a displacement per step as in Fetch). The reference code steps
+        control period, as Fetch's velp * dt). The reference code steps
         0.5 s but multiplies by its stated 0.05 s (`TIMINGS["reference"]`).
       neutral_arm_qpos: arm joint angles (rad) at reset.
       max_episode_steps: control steps in an episode, unless it ends on success: the dm_env

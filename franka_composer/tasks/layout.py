@@ -25,7 +25,7 @@ class ObservationField(NamedTuple):
     size: int
     meaning: str
     unit: str
-    per_control_step: bool  # Multiplied by the velocity period: a displacement per step.
+    per_control_step: bool  # Multiplied by the velocity period (Fetch's velp * dt).
     frame: str = "world"  # "world", or "–" for a quantity without one (a finger width).
 
     @property
@@ -35,9 +35,9 @@ class ObservationField(NamedTuple):
 
 
 class ObservationLayout:
-    """The fields of the flat observation vector, in order; velocities are multiplied by
-    `velocity_period` (`TaskConfig.velocity_period`: the control period, displacements per
-    step as in Fetch, unless `velocity_timestep` sets another)."""
+    """The fields of the flat observation vector, in order; velocities (the step's last,
+    per second) are multiplied by `velocity_period` (`TaskConfig.velocity_period`: the
+    control period, as Fetch's velp * dt, unless `velocity_timestep` sets another)."""
 
     def __init__(self, fields, velocity_period: float) -> None:
         self.fields: tuple[ObservationField, ...] = tuple(fields)
@@ -96,7 +96,9 @@ class ObservationLayout:
             where = self._slices[field.name]
             index = (str(where.start) if field.size == 1
                      else f"{where.start}–{where.stop - 1}")
-            lines.append(f"| {index} | `{field.name}` | {field.meaning} | {field.unit} | "
+            unit = (f"{field.unit} × {self.velocity_period:g} s" if field.per_control_step
+                    else field.unit)
+            lines.append(f"| {index} | `{field.name}` | {field.meaning} | {unit} | "
                          f"{field.frame} | "
                          f"`{field.key}` |")
         return "\n".join(lines)
@@ -107,7 +109,7 @@ class ObservationLayout:
 _ROBOT_FIELDS = (
     ("tcp_position", "tcp_position", 3, "end-effector (tool centre point) position", "m",
      False),
-    ("tcp_velocity", "tcp_linear_velocity", 3, "end-effector linear velocity", "m/step",
+    ("tcp_velocity", "tcp_linear_velocity", 3, "end-effector linear velocity", "m/s",
      True),
     ("finger_width", "finger_width", 1, "finger width", "m", False),
 )
@@ -139,9 +141,9 @@ def layout_for(config) -> ObservationLayout:
             ObservationField(f"{prefix}_orientation", f"{entity}/{orientation}", size,
                              f"{label} {meaning}", unit, False),
             ObservationField(f"{prefix}_linear_velocity", f"{entity}/linear_velocity", 3,
-                             f"{label} linear velocity", "m/step", True),
+                             f"{label} linear velocity", "m/s", True),
             ObservationField(f"{prefix}_angular_velocity", f"{entity}/angular_velocity", 3,
-                             f"{label} angular velocity", "rad/step", True),
+                             f"{label} angular velocity", "rad/s", True),
         ]
     if config.control.kind == "joints":
         # Last, so every other field keeps its index under every controller.

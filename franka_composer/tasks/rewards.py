@@ -54,20 +54,28 @@ def euclidean_distance(achieved_goal, desired_goal, size: int | None = 3) -> np.
 
 
 #: How far a quaternion's squared norm may be from 1: a unit quaternion stored in float32
-#: is within ~1e-7; one farther off was not normalised, and its angle would be wrong.
+#: is within ~1e-7; one farther off is no orientation the task gives (a goal of something
+#: else, passed by mistake), though `_angle` would read it as one.
 UNIT_TOLERANCE = 1e-3
 
 
 def rotation_angle(achieved_goal, desired_goal) -> np.ndarray:
     """The angle (rad, in [0, pi]) of the rotation between two orientations given as unit
-    quaternions (w, x, y, z): 2 acos |<q1, q2>|, so q and -q are the same orientation
-    (`compute_reward` and `is_success` refuse others: `_given_distance`)."""
+    quaternions (w, x, y, z), q and -q the same orientation (`compute_reward` and
+    `is_success` refuse others: `_given_distance`)."""
     return _angle(*_goals(achieved_goal, desired_goal, 4, "w, x, y, z"))
 
 
 def _angle(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
-    cosine = np.abs(np.add.reduce(achieved_goal * desired_goal, axis=-1))
-    return 2.0 * np.arccos(np.minimum(cosine, 1.0))
+    """2 atan2(sin, |cos|) of the half angle, not 2 acos |<q1, q2>|: atan2 reads the same
+    angle whatever the quaternions' norms (a float32 rounding, a quaternion off unit by
+    the tolerance: acos read 0.02 rad as 0.066 there), and equal quaternions give exactly 0.
+    With n1, n2 the norms, |<q1, q2>| = n1 n2 cos and n1 n2 sin = sqrt(n1² n2² - <q1, q2>²)
+    (the norm of the relative rotation's vector part)."""
+    dot = np.add.reduce(achieved_goal * desired_goal, axis=-1)
+    norms = (np.add.reduce(achieved_goal * achieved_goal, axis=-1)
+             * np.add.reduce(desired_goal * desired_goal, axis=-1))
+    return 2.0 * np.arctan2(np.sqrt(np.maximum(norms - dot * dot, 0.0)), np.abs(dot))
 
 
 def _check_unit(quaternions: np.ndarray, which: str) -> None:

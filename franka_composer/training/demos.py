@@ -323,6 +323,7 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
     from franka_composer.datasets import minari_format
 
     data = path / "data" if (path / "data").is_dir() else path
+    minari_format.check_files(path, data)
     try:
         dataset = minari.MinariDataset(data)
         env_spec = dataset.spec.env_spec
@@ -335,6 +336,11 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
     # Before any array is read: a damaged header would have it allocate what it declares.
     minari_format.check_declared_sizes(path, data)
     minari_format.check_digests(path, data)
+    stored = _stored_minari_episodes(data)
+    if dataset.total_episodes > stored:  # Minari would look for episodes that are not there.
+        raise ValueError(f"{path}'s metadata.json counts "
+                         f"{counted(dataset.total_episodes, 'episode')}, and its data holds "
+                         f"{stored}: an append cut short, or hand-edited?")
     try:
         episodes = [{**{key: np.asarray(episode.observations[key]) for key in OBSERVATION_KEYS},
                      "action": np.asarray(episode.actions, dtype=np.float32),
@@ -344,7 +350,6 @@ def _minari_episodes(path: pathlib.Path, env) -> tuple[list[dict], dict]:
                      "truncated": np.asarray(episode.truncations),
                      "is_success": np.asarray(episode.infos["is_success"][1:])}
                     for episode in dataset.iterate_episodes()]
-        stored = _stored_minari_episodes(data)
     except Exception as error:
         raise minari_format.unreadable(path, error) from None
     steps = sum(len(episode["action"]) for episode in episodes)
