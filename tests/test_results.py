@@ -158,6 +158,25 @@ def test_pick_and_place_at_the_reference_timing_reports_each_algorithm_once_fini
     assert any("TQC" in row for row in rows) == ("TQC" not in running)
 
 
+@pytest.mark.parametrize("written, column", [("table.md", 1), ("table-200-episodes.md", 2)])
+def test_the_reference_timing_sac_figures_are_those_its_report_wrote(written, column):
+    """SAC at the reference timing, as the README's sentence and RESULTS.md's row give it, is
+    `reference_timing.sh report`'s SAC cell (mean ± std over the three finished seeds)."""
+    kept = TABLE2.parent / "reference-timing"
+    rows = [line.split("|")[1:-1] for line in (kept / written).read_text().splitlines()
+            if line.startswith("| Pick & Place (reference timing) |")]
+    assert len(rows) == 1
+    sac = rows[0][2].strip().removesuffix(" (bf16)")
+    assert sac[0].isdigit() and " ± " in sac  # Three seeds kept finished.
+    section = _section(RESULTS_MD.read_text(), "Pick-and-place at the reference timing")
+    table = section.split("\n| Pick & Place, SAC |", 1)[1].split("\n\n", 1)[0]
+    row = [line.split("|")[1:-1] for line in table.splitlines()
+           if line.startswith("| reference timing, 5e5 steps |")]
+    assert len(row) == 1 and row[0][column].strip().startswith(sac + " (")
+    readme = " ".join((RESULTS_MD.parent / "README.md").read_text().split())
+    assert f"{sac} % " in readme.split("SAC (bf16), trained as Table II trains it", 1)[1][:200]
+
+
 def test_the_learnability_runs_are_reported_running_until_both_have_finished():
     """Issue 40's stack and flip runs: while either has not finished (no outcome.json kept),
     their page says they are running and gives no answer; once both have, it gives one."""
