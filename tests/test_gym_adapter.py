@@ -270,12 +270,20 @@ def test_bad_actions_and_options_raise_clear_errors():
 def test_a_misspelt_argument_of_the_env_is_listed_among_its_own(typo):
     """`gym.make` takes its own arguments, the env's rendering arguments and `time_limit`
     beside the task options (not `load`'s seed or renderable, which the adapter sets): a
-    misspelling lists them, and the env made from its class lists its own."""
+    misspelling lists them, and the env made from its class lists its own. What the id
+    fixes (task, reward type, an Osc or Joints id's controller) is not listed."""
     with pytest.raises(ValueError, match=rf"unknown task option\(s\) '{typo}'; valid task "
                                          r"options: [^;]*; gym.make's own arguments: camera, "
                                          r"disable_env_checker, height, max_episode_steps, "
-                                         r"render_mode, task, time_limit, width$"):
+                                         r"render_mode, time_limit, width$"):
         gym.make("FrankaPushSparse-v0", **{typo: 1})
+    for env_id, fixed in [("FrankaPushSparse-v0", ("task", "reward_type")),
+                          ("FrankaPushOscSparse-v0", ("task", "reward_type", "control"))]:
+        with pytest.raises(ValueError) as error:
+            gym.make(env_id, **{typo: 1})
+        listed = re.split(r"[:;,] ", str(error.value))
+        assert [name for name in fixed if name in listed] == []
+        assert ("control" in listed) == (env_id == "FrankaPushSparse-v0")
     from franka_composer.adapters.goal_env import FrankaGoalEnv
 
     with pytest.raises(ValueError, match=rf"unknown task option\(s\) '{typo}'; valid task "

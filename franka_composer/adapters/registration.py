@@ -119,10 +119,15 @@ def make_registered(registered_id: str, task: str, reward_type: str,
             + " cannot be changed"
             + (f"; use {wanted!r}" if wanted else ""))
     # gym.make's own arguments (after the id) are listed too: a misspelt max_episode_steps
-    # lands here. What `load` takes and the adapter sets is said as such first.
+    # lands here. What `load` takes and the adapter sets is said as such first; what the id
+    # fixes is not listed, as no other value is taken.
     check_not_loads_own(options)
-    check_names("task option", set(options) - set(ENV_ARGUMENTS), OPTION_NAMES,
-                own=("gym.make", (*ENV_ARGUMENTS, *named_parameters(gym.make)[1:])))
+    fixed_names = {"task", "reward_type"} | (
+        set() if fixed.control == DEFAULT_CONTROL else {"control"})
+    check_names("task option", set(options) - set(ENV_ARGUMENTS),
+                set(OPTION_NAMES) - fixed_names,
+                own=("gym.make", set(ENV_ARGUMENTS).union(named_parameters(gym.make)[1:])
+                     - fixed_names))
     options.setdefault("time_limit", None)
     return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
