@@ -277,13 +277,13 @@ def test_a_misspelt_argument_of_the_env_is_listed_among_its_own(typo):
                                          r"disable_env_checker, height, max_episode_steps, "
                                          r"render_mode, time_limit, width$"):
         gym.make("FrankaPushSparse-v0", **{typo: 1})
-    for env_id, fixed in [("FrankaPushSparse-v0", ("task", "reward_type")),
-                          ("FrankaPushOscSparse-v0", ("task", "reward_type", "control"))]:
+    for id_, fixed in [("FrankaPushSparse-v0", ("task", "reward_type")),
+                       ("FrankaPushOscSparse-v0", ("task", "reward_type", "control"))]:
         with pytest.raises(ValueError) as error:
-            gym.make(env_id, **{typo: 1})
+            gym.make(id_, **{typo: 1})
         listed = re.split(r"[:;,] ", str(error.value))
         assert [name for name in fixed if name in listed] == []
-        assert ("control" in listed) == (env_id == "FrankaPushSparse-v0")
+        assert ("control" in listed) == (id_ == "FrankaPushSparse-v0")
     from franka_composer.adapters.goal_env import FrankaGoalEnv
 
     with pytest.raises(ValueError, match=rf"unknown task option\(s\) '{typo}'; valid task "
