@@ -106,28 +106,26 @@ def make_registered(registered_id: str, task: str, reward_type: str,
     given (then the shorter ends an episode). Specs recorded before each id had its own
     entry point (`id_maker`), such as Minari datasets', name this function: keep it."""
     fixed = ENV_IDS[registered_id]
+    fixed_names = tuple(name for name in RegisteredEnv._fields
+                        if name != "control" or fixed.control != DEFAULT_CONTROL)
     asked = RegisteredEnv(task, reward_type, control)
-    if (asked.task, asked.reward_type) != (fixed.task, fixed.reward_type) or (
-            fixed.control != DEFAULT_CONTROL and asked.control != fixed.control):
+    if any(getattr(asked, name) != getattr(fixed, name) for name in fixed_names):
         wanted = (env_id(*asked) if asked.task in ALL_TASKS and asked.reward_type in
                   REWARD_TYPES and asked.control in CONTROLS else None)
         controlled = ("" if fixed.control == DEFAULT_CONTROL
                       else f", under {fixed.control} control")
         raise ValueError(
             f"{registered_id} is the {fixed.reward_type} {fixed.task} task{controlled}: its "
-            + ("task, reward_type and control" if controlled else "task and reward_type")
-            + " cannot be changed"
+            f"{', '.join(fixed_names[:-1])} and {fixed_names[-1]} cannot be changed"
             + (f"; use {wanted!r}" if wanted else ""))
     # gym.make's own arguments (after the id) are listed too: a misspelt max_episode_steps
     # lands here. What `load` takes and the adapter sets is said as such first; what the id
     # fixes is not listed, as no other value is taken.
     check_not_loads_own(options)
-    fixed_names = {"task", "reward_type"} | (
-        set() if fixed.control == DEFAULT_CONTROL else {"control"})
     check_names("task option", set(options) - set(ENV_ARGUMENTS),
-                set(OPTION_NAMES) - fixed_names,
+                set(OPTION_NAMES).difference(fixed_names),
                 own=("gym.make", set(ENV_ARGUMENTS).union(named_parameters(gym.make)[1:])
-                     - fixed_names))
+                     .difference(fixed_names)))
     options.setdefault("time_limit", None)
     return TASK_ENV_CLASSES[task](task, reward_type, control=control, **options)
 
