@@ -218,6 +218,7 @@ def test_the_learnability_runs_are_reported_running_until_both_have_finished():
 #: code's env's rows need its checkout, which the tests do not have.
 README_PICK_AND_PLACE_ROWS = {
     "default timing (0.05 s), as in Table II above": "table2",
+    "default timing (0.05 s), taken on to the paper's 5e5 steps": "default-timing",
     "`--timing reference`": "reference-timing",
     "`--timing reference --learning-starts 100000`": "learning-starts",
     "`--timing reference --learning-starts 100000 --object-damping 0.01`":
