@@ -16,6 +16,9 @@ MENAGERIE_COPY := $(abspath ../shared/menagerie)
 WITH_MENAGERIE = if [ -z "$${MENAGERIE_ROOT:-}" ] && [ -d "$(MENAGERIE_COPY)/franka_emika_panda" ] \
 	&& ! $(BIN)/python -c 'import sys, franka_composer.assets as a; sys.exit(not a.panda_in_cache())' \
 	2>/dev/null; then export MENAGERIE_ROOT="$(MENAGERIE_COPY)"; fi;
+# The tests run as in the venv activated: the scripts they start (benchmarks/*.sh) take the
+# tools on PATH where the checkout has no .venv of its own (VENV=elsewhere).
+IN_VENV = export PATH="$(abspath $(BIN)):$$PATH";
 
 .PHONY: setup setup-demo demo test test-fast bench clean
 
@@ -44,10 +47,10 @@ demo: setup-demo
 	$(WITH_MENAGERIE) $(BIN)/franka-composer demo
 
 test: setup
-	$(WITH_MENAGERIE) $(BIN)/python -m pytest -q
+	$(WITH_MENAGERIE) $(IN_VENV) $(BIN)/python -m pytest -q
 
 test-fast: setup
-	$(WITH_MENAGERIE) $(BIN)/python -m pytest -q -m "not slow"
+	$(WITH_MENAGERIE) $(IN_VENV) $(BIN)/python -m pytest -q -m "not slow"
 
 # The documentation site, warnings as errors, into docs/_build/html (docs/_scripts/screenshots.sh
 # then shows it in a headless browser).

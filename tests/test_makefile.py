@@ -113,3 +113,23 @@ def test_a_venv_is_set_up_again_once_the_tested_versions_change(tmp_path, target
         assert installs(), source
         os.utime(project / source, (1_000_000, 1_000_000))
         assert not installs(), source
+
+
+@pytest.mark.parametrize("target", ["test", "test-fast"])
+def test_the_tests_find_the_venvs_tools_on_path_wherever_the_venv_lies(tmp_path, target):
+    """With VENV=elsewhere and no .venv in the checkout, the campaign scripts the tests start
+    found no franka-composer (they look in .venv/bin, then on PATH). The venv's bin comes
+    first on PATH, as in the venv activated. (A stand-in python prints what PATH gives.)"""
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    python, command = venv / "bin" / "python", venv / "bin" / "franka-composer"
+    python.write_text('#!/bin/sh\necho "found $(command -v franka-composer)"\n')
+    command.write_text("#!/bin/sh\n")
+    python.chmod(0o755)
+    command.chmod(0o755)
+    (venv / ".setup").touch()  # Set up, after constraints.txt and setup.cfg.
+    (venv / ".setup-demo").touch()
+    env = {**os.environ, "PATH": "/usr/bin:/bin", "MENAGERIE_ROOT": "/mine"}
+    completed = subprocess.run(["make", "-s", "-C", str(REPO), target, f"VENV={venv}"],
+                               env=env, capture_output=True, text=True, check=True, timeout=60)
+    assert completed.stdout.strip().splitlines()[-1] == f"found {command}"
