@@ -166,41 +166,74 @@ def test_pick_and_place_at_the_reference_timing_reports_each_algorithm_once_fini
 
 
 #: The algorithms `reference_timing.sh report` has given beside TQC, in each campaign it
-#: keeps: the campaign's row in the report's tables and in RESULTS.md's tables, and the words
-#: that begin the README's sentence about each algorithm there.
+#: keeps: the campaign's row in the report's tables and in RESULTS.md's tables.
 BESIDE_TQC = {
-    "reference-timing": ("Pick & Place (reference timing)", "reference timing, 5e5 steps", {
-        "SAC": "SAC (bf16), trained as Table II trains it",
-        "DDPG": "DDPG (SB3, fp32), trained as Table II trains it"}),
-    "default-timing": ("Pick & Place", "default timing (0.05 s), 5e5 steps", {
-        "SAC": "SAC (bf16), taken on to the paper's 5e5 steps at 0.05 s",
-        "DDPG": "DDPG (SB3, fp32), taken to three seeds at 0.05 s and 5e5 steps"}),
+    "reference-timing": ("Pick & Place (reference timing)", "reference timing, 5e5 steps",
+                         ("SAC", "DDPG")),
+    "default-timing": ("Pick & Place", "default timing (0.05 s), 5e5 steps", ("SAC", "DDPG")),
 }
 #: How the report's tables name each algorithm's computation.
-COMPUTATION_SUFFIX = {"SAC": " (bf16)", "DDPG": ""}
+COMPUTATION_SUFFIX = {"SAC": " (bf16)", "DDPG": "", "TQC": " (sbx)"}
+
+
+def _report_cells(campaign: str, written: str, row: str) -> dict[str, str]:
+    """A row of a campaign's report table, by algorithm, each cell without its computation."""
+    lines = (TABLE2.parent / campaign / written).read_text().splitlines()
+    algos = [cell.strip() for cell in lines[0].split("|")[1:-1]][1:]
+    rows = [line.split("|")[1:-1] for line in lines if line.startswith(f"| {row} |")]
+    assert len(rows) == 1, f"{campaign}/{written} has no single row {row!r}"
+    return {algo: cell.strip().removesuffix(COMPUTATION_SUFFIX[algo])
+            for algo, cell in zip(algos, rows[0][1:])}
 
 
 @pytest.mark.parametrize("campaign, algo", [(campaign, algo) for campaign in BESIDE_TQC
                                             for algo in BESIDE_TQC[campaign][2]])
 @pytest.mark.parametrize("written, column", [("table.md", 1), ("table-200-episodes.md", 2)])
 def test_the_figures_beside_tqc_are_those_its_report_wrote(campaign, algo, written, column):
-    """SAC and DDPG at either timing, as the README's sentence and RESULTS.md's row give
-    them, are `reference_timing.sh report`'s cells (mean ± std over three finished seeds)."""
-    report_row, results_row, sentences = BESIDE_TQC[campaign]
-    kept = TABLE2.parent / campaign
-    lines = (kept / written).read_text().splitlines()
-    report_column = [cell.strip() for cell in lines[0].split("|")[1:-1]].index(algo)
-    rows = [line.split("|")[1:-1] for line in lines if line.startswith(f"| {report_row} |")]
-    assert len(rows) == 1
-    figure = rows[0][report_column].strip().removesuffix(COMPUTATION_SUFFIX[algo])
+    """SAC and DDPG at either timing, as RESULTS.md's rows give them, are
+    `reference_timing.sh report`'s cells (mean ± std over three finished seeds)."""
+    report_row, results_row, _ = BESIDE_TQC[campaign]
+    figure = _report_cells(campaign, written, report_row)[algo]
     assert figure[0].isdigit() and " ± " in figure  # Three seeds kept finished.
     section = _section(RESULTS_MD.read_text(), "Pick-and-place at the reference timing")
     table = section.split(f"\n| Pick & Place, {algo} |", 1)[1].split("\n\n", 1)[0]
     row = [line.split("|")[1:-1] for line in table.splitlines()
            if line.startswith(f"| {results_row} |")]
     assert len(row) == 1 and row[0][column].strip().startswith(figure + " (")
-    readme = " ".join((RESULTS_MD.parent / "README.md").read_text().split())
-    assert f"{figure} % " in readme.split(sentences[algo], 1)[1][:200]
+
+
+#: The README's table of pick-and-place at 5e5 steps, trained as Table II trains it: each row
+#: by its label, and the campaign and report table it is a row of.
+README_AT_5E5 = {
+    "default timing (0.05 s)": ("default-timing", "table.md"),
+    "default timing (0.05 s), 200 episodes": ("default-timing", "table-200-episodes.md"),
+    "`--timing reference`": ("reference-timing", "table.md"),
+    "`--timing reference`, 200 episodes": ("reference-timing", "table-200-episodes.md"),
+}
+#: How the README's table names each algorithm's computation.
+README_ALGOS = ("DDPG (SB3)", "SAC (bf16)", "TQC (sbx)")
+
+
+@pytest.mark.parametrize("label", README_AT_5E5)
+def test_the_readmes_pick_and_place_at_5e5_is_its_reports_tables(label):
+    """Each row of the README's pick-and-place table at 5e5 steps is the report's row for
+    its campaign, all three algorithms finished (three seeds, mean ± std), beside the
+    paper's row as the report gives it."""
+    readme = (RESULTS_MD.parent / "README.md").read_text()
+    header = [line for line in readme.splitlines()
+              if line.startswith("| Pick & Place at 5e5 steps |")]
+    assert len(header) == 1
+    assert [cell.strip() for cell in header[0].split("|")[1:-1]][1:] == list(README_ALGOS)
+    campaign, written = README_AT_5E5[label]
+    report_row = {"default-timing": "Pick & Place",
+                  "reference-timing": "Pick & Place (reference timing)"}[campaign]
+    cells = _report_cells(campaign, written, report_row)
+    row = _readme_pick_and_place_row(label)
+    assert row[1:] == [cells[algo.split()[0]] for algo in README_ALGOS]
+    assert all(cell[0].isdigit() and " ± " in cell for cell in row[1:])
+    paper = _report_cells(campaign, written, "Pick & Place: the paper's")
+    assert _readme_pick_and_place_row("the paper's")[1:] == [
+        paper[algo.split()[0]] for algo in README_ALGOS]
 
 
 def test_the_learnability_runs_are_reported_running_until_both_have_finished():
@@ -217,17 +250,25 @@ def test_the_learnability_runs_are_reported_running_until_both_have_finished():
         assert "**Running.**" not in page and "no answer yet" not in page
 
 
-#: The README's pick-and-place table: each row this suite's own env trains, by its label, and
-#: the kept runs it stands for (finished ones: a seed counts once it has ended). The reference
-#: code's env's rows need its checkout, which the tests do not have.
+#: The README's pick-and-place rows this suite's own env trains, by label, and where their
+#: TQC figures stand: the kept runs a row stands for (finished ones: a seed counts once it has
+#: ended), the row's seeds column if it has one, and the column of the paper's test
+#: (20 episodes, seed 2024) or of 200 episodes (seed 100). The reference code's env's rows
+#: need its checkout, which the tests do not have.
 README_PICK_AND_PLACE_ROWS = {
-    "default timing (0.05 s), as in Table II above": "table2",
-    "default timing (0.05 s), taken on to the paper's 5e5 steps": "default-timing",
-    "`--timing reference`": "reference-timing",
-    "`--timing reference --learning-starts 100000`": "learning-starts",
-    "`--timing reference --learning-starts 100000 --object-damping 0.01`":
-        "damped-block-learning-starts",
+    ("default timing (0.05 s)", 20): ("default-timing", None, 3),
+    ("default timing (0.05 s), 200 episodes", 200): ("default-timing", None, 3),
+    ("`--timing reference`", 20): ("reference-timing", None, 3),
+    ("`--timing reference`, 200 episodes", 200): ("reference-timing", None, 3),
+    ("`--timing reference --learning-starts 100000`", 20): ("learning-starts", 1, 2),
+    ("`--timing reference --learning-starts 100000`", 200): ("learning-starts", 1, 3),
+    ("`--timing reference --learning-starts 100000 --object-damping 0.01`", 20):
+        ("damped-block-learning-starts", 1, 2),
+    ("`--timing reference --learning-starts 100000 --object-damping 0.01`", 200):
+        ("damped-block-learning-starts", 1, 3),
 }
+#: The evaluation seed of each number of episodes, as the README's commands run them.
+EVALUATION_SEED = {20: 2024, 200: 100}
 
 
 def _readme_pick_and_place_row(label: str) -> list[str]:
@@ -239,23 +280,24 @@ def _readme_pick_and_place_row(label: str) -> list[str]:
 
 
 @pytest.mark.slow  # 200 episodes of up to three policies a row.
-@pytest.mark.parametrize("episodes, seed, column", [(20, 2024, 2), (200, 100, 3)],
-                         ids=["20-episodes", "200-episodes"])
-@pytest.mark.parametrize("label", README_PICK_AND_PLACE_ROWS)
+@pytest.mark.parametrize("label, episodes", README_PICK_AND_PLACE_ROWS,
+                         ids=[f"{label}-{episodes}" for label, episodes in
+                              README_PICK_AND_PLACE_ROWS])
 def test_evaluate_on_the_kept_policies_gives_the_readmes_pick_and_place_row(
-        label, episodes, seed, column, tmp_path):
+        label, episodes, tmp_path):
     """Issue 37's answer as the README states it comes from the committed policies: `evaluate`
-    on a row's finished runs gives its seeds and its success rates (one seed: the rate; more:
-    mean ± std), run as the README's commands under the table run it."""
+    on a row's finished TQC runs gives its seeds and its success rates (one seed: the rate;
+    more: mean ± std), run as the README's commands under the tables run it."""
     from franka_composer import cli
 
+    folder, seeds_column, column = README_PICK_AND_PLACE_ROWS[label, episodes]
     row = _readme_pick_and_place_row(label)
     runs = sorted(str(path.parent) for path in
-                  (TABLE2.parent / README_PICK_AND_PLACE_ROWS[label])
-                  .glob("pick_and_place-tqc-seed*/outcome.json"))
-    assert runs and row[1] == str(len(runs))
+                  (TABLE2.parent / folder).glob("pick_and_place-tqc-seed*/outcome.json"))
+    assert runs and (seeds_column is None or row[seeds_column] == str(len(runs)))
     table = tmp_path / "table.md"
-    assert cli.main(["evaluate", *runs, "--episodes", str(episodes), "--seed", str(seed),
+    assert cli.main(["evaluate", *runs, "--episodes", str(episodes),
+                     "--seed", str(EVALUATION_SEED[episodes]),
                      "--device", "cpu", "--out", str(table)]) == 0
     cells = [line.split("|")[4].strip() for line in table.read_text().splitlines()
              if line.startswith("| Pick & Place (") or line.startswith("| Pick & Place |")]
