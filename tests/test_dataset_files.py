@@ -1344,7 +1344,7 @@ def test_a_recording_stopped_in_a_folder_that_was_there_leaves_it_as_it_was(
         steps.append(obs)
         if len(steps) == 60:  # In the second episode.
             signal.raise_signal(signal.SIGTERM)
-        return np.zeros(3)
+        return np.zeros(3, np.float32)  # As every source gives it.
 
     import franka_composer.datasets as datasets
 
