@@ -225,9 +225,7 @@ def test_the_readmes_pick_and_place_at_5e5_is_its_reports_tables(label):
     assert len(header) == 1
     assert [cell.strip() for cell in header[0].split("|")[1:-1]][1:] == list(README_ALGOS)
     campaign, written = README_AT_5E5[label]
-    report_row = {"default-timing": "Pick & Place",
-                  "reference-timing": "Pick & Place (reference timing)"}[campaign]
-    cells = _report_cells(campaign, written, report_row)
+    cells = _report_cells(campaign, written, BESIDE_TQC[campaign][0])
     row = _readme_pick_and_place_row(label)
     assert row[1:] == [cells[algo.split()[0]] for algo in README_ALGOS]
     assert all(cell[0].isdigit() and " ± " in cell for cell in row[1:])
